@@ -1,0 +1,84 @@
+"""``drivemap export MODEL --format json``: the normalized model (a stable contract)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from .compiler import load_model
+from .frames import export_form
+from .model import Model, Register
+
+
+def _number(value: float | None) -> float | int | None:
+    if value is None:
+        return None
+    return int(value) if float(value).is_integer() else value
+
+
+def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
+    enum = None
+    if reg.enum:
+        enum = {v.name: v.value for v in model.enum(reg.enum).values}
+    bits = [{"name": b.name, "offset": b.offset, "width": b.width} for b in reg.bits] or None
+    out = []
+    for i in range(reg.count):
+        out.append(
+            {
+                "name": reg.element_name(i),
+                "address": reg.element_address(i),
+                "param": reg.element_param(i),
+                "access": reg.access,
+                "type": reg.type,
+                "scale": _number(reg.scale),
+                "offset": _number(reg.offset),
+                "unit": reg.unit,
+                "min": _number(reg.min),
+                "max": _number(reg.max),
+                "default": _number(reg.default_at(i)),
+                "reflect": None if reg.reflect == "unknown" else reg.reflect,
+                "storage": None if reg.storage == "unknown" else reg.storage,
+                "broadcast": reg.broadcast,
+                "enum": enum,
+                "bits": bits,
+                "page": {"selector": reg.page.selector, "value": reg.page.value} if reg.page else None,
+            }
+        )
+    return out
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, bytes):
+        return value.hex().upper()
+    return value
+
+
+def export(model: Model) -> dict[str, Any]:
+    """The export contract of one compiled model."""
+    return {
+        "model": model.device.model,
+        "title": model.device.title,
+        "protocol": _plain(model.protocol),
+        "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
+        "examples": [
+            {
+                "name": ex.name,
+                "source": ex.source,
+                "mode": ex.mode,
+                "request": export_form(ex.request, ex.mode),
+                "response": export_form(ex.response, ex.mode),
+                "status": ex.status,
+                "erratum": ex.erratum,
+            }
+            for ex in model.examples
+        ],
+    }
+
+
+def export_model(model: str) -> dict[str, Any]:
+    """Compile ``maps/<model>.yaml`` and return its export contract."""
+    return export(load_model(model))

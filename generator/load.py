@@ -1,0 +1,198 @@
+"""Safe YAML loading that keeps a line/column for every node.
+
+Anchors, aliases, merge keys, duplicate keys, non-string keys and tags other than the plain
+YAML core types are refused: a map is data written by hand, and refusing these keeps alias
+bombs and ambiguity out. The result is plain Python data plus a :class:`Positions` table.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+
+from .diagnostics import CompileError, Diagnostic, Location
+
+#: Maps larger than this are refused before parsing (bounded time and memory).
+MAX_MAP_BYTES = 2 * 1024 * 1024
+#: Deepest nesting accepted.
+MAX_DEPTH = 40
+
+PathT = tuple[str | int, ...]
+
+
+@dataclass
+class Positions:
+    """Line/column of every value (and of every mapping key) in a loaded document."""
+
+    path: str
+    values: dict[PathT, tuple[int, int]] = field(default_factory=dict)
+    keys: dict[PathT, tuple[int, int]] = field(default_factory=dict)
+
+    def at(self, where: PathT, *, key: bool = False) -> Location:
+        """Location of the value at ``where`` (or of its key), falling back to the nearest parent."""
+        table = self.keys if key else self.values
+        probe = tuple(where)
+        while probe:
+            if probe in table:
+                line, col = table[probe]
+                return Location(self.path, line, col)
+            if probe in self.values:
+                line, col = self.values[probe]
+                return Location(self.path, line, col)
+            probe = probe[:-1]
+        line, col = self.values.get((), (1, 1))
+        return Location(self.path, line, col)
+
+
+@dataclass
+class Document:
+    """A loaded map: its data and where each item stands in the file."""
+
+    path: str
+    data: Any
+    positions: Positions
+
+
+def _loc(path: str, node: Node) -> Location:
+    mark = node.start_mark
+    return Location(path, mark.line + 1, mark.column + 1)
+
+
+class _Composer(yaml.SafeLoader):
+    """SafeLoader that refuses anchors and aliases while composing."""
+
+    def compose_node(self, parent: Node | None, index: Any) -> Node | None:  # type: ignore[override]
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise _Refused(event.start_mark, "aliases (*name) are not allowed in maps")
+        event = self.peek_event()
+        anchor = getattr(event, "anchor", None)
+        if anchor is not None:
+            raise _Refused(event.start_mark, f"anchors (&{anchor}) are not allowed in maps")
+        return super().compose_node(parent, index)  # type: ignore[no-any-return]
+
+
+class _Refused(Exception):
+    def __init__(self, mark: Any, message: str) -> None:
+        super().__init__(message)
+        self.mark = mark
+        self.message = message
+
+
+_PLAIN_TAGS = {
+    "tag:yaml.org,2002:str",
+    "tag:yaml.org,2002:int",
+    "tag:yaml.org,2002:float",
+    "tag:yaml.org,2002:bool",
+    "tag:yaml.org,2002:null",
+    "tag:yaml.org,2002:map",
+    "tag:yaml.org,2002:seq",
+}
+
+
+class _Builder:
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.positions = Positions(path)
+        self.errors: list[Diagnostic] = []
+        self._constructor = yaml.SafeLoader("")
+
+    def build(self, node: Node, where: PathT, depth: int = 0) -> Any:
+        self.positions.values[where] = (node.start_mark.line + 1, node.start_mark.column + 1)
+        if depth > MAX_DEPTH:
+            self.errors.append(Diagnostic(_loc(self.path, node), f"nesting deeper than {MAX_DEPTH} levels"))
+            return None
+        if node.tag not in _PLAIN_TAGS:
+            self.errors.append(Diagnostic(_loc(self.path, node), f"tag {node.tag!r} is not allowed in maps"))
+            return None
+        if isinstance(node, MappingNode):
+            result: dict[str, Any] = {}
+            first: dict[str, Node] = {}
+            for key_node, value_node in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    self.errors.append(Diagnostic(_loc(self.path, key_node), "merge keys (<<) are not allowed in maps"))
+                    continue
+                if not isinstance(key_node, ScalarNode) or key_node.tag != "tag:yaml.org,2002:str":
+                    self.errors.append(
+                        Diagnostic(_loc(self.path, key_node), "mapping keys must be plain strings")
+                    )
+                    continue
+                key = key_node.value
+                if key in first:
+                    self.errors.append(
+                        Diagnostic(
+                            _loc(self.path, key_node),
+                            f"duplicate key {key!r}",
+                            related=((_loc(self.path, first[key]), "first defined here"),),
+                        )
+                    )
+                    continue
+                first[key] = key_node
+                self.positions.keys[where + (key,)] = (key_node.start_mark.line + 1, key_node.start_mark.column + 1)
+                result[key] = self.build(value_node, where + (key,), depth + 1)
+            return result
+        if isinstance(node, SequenceNode):
+            return [self.build(item, where + (i,), depth + 1) for i, item in enumerate(node.value)]
+        assert isinstance(node, ScalarNode)
+        try:
+            value = self._constructor.construct_object(node, deep=True)
+        except (yaml.YAMLError, ValueError, OverflowError) as exc:
+            self.errors.append(Diagnostic(_loc(self.path, node), f"bad scalar: {exc}"))
+            return None
+        if isinstance(value, float) and (value != value or value in (float("inf"), float("-inf"))):
+            self.errors.append(Diagnostic(_loc(self.path, node), "NaN and infinity are not allowed"))
+            return None
+        return value
+
+
+def load_text(text: str, path: str) -> Document:
+    """Parse ``text`` (the contents of ``path``); raise :class:`CompileError` on any problem."""
+    if len(text.encode("utf-8", "surrogatepass")) > MAX_MAP_BYTES:
+        raise CompileError([Diagnostic(Location(path, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
+    loader = _Composer(text)
+    try:
+        node = loader.get_single_node()
+    except _Refused as exc:
+        raise CompileError([Diagnostic(Location(path, exc.mark.line + 1, exc.mark.column + 1), exc.message)]) from None
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+        problem = exc.problem or exc.context or "invalid YAML"
+        raise CompileError([Diagnostic(Location(path, line, col), f"YAML syntax error: {problem}")]) from None
+    except yaml.YAMLError as exc:
+        raise CompileError([Diagnostic(Location(path, 1, 1), f"YAML error: {exc}")]) from None
+    except RecursionError:
+        raise CompileError([Diagnostic(Location(path, 1, 1), "YAML nested too deeply")]) from None
+    finally:
+        loader.dispose()
+    if node is None:
+        raise CompileError([Diagnostic(Location(path, 1, 1), "empty file: a map is a YAML mapping")])
+    builder = _Builder(path)
+    data = builder.build(node, ())
+    if builder.errors:
+        raise CompileError(builder.errors)
+    return Document(path, data, builder.positions)
+
+
+def load_file(path: str | os.PathLike[str]) -> Document:
+    """Read and parse one map file."""
+    shown = os.fspath(path)
+    try:
+        size = os.path.getsize(shown)
+        if size > MAX_MAP_BYTES:
+            raise CompileError([Diagnostic(Location(shown, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
+        with open(shown, "rb") as handle:
+            raw = handle.read()
+    except OSError as exc:
+        raise CompileError([Diagnostic(Location(shown, 1, 1), f"cannot read file: {exc.strerror}")]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise CompileError([Diagnostic(Location(shown, line, col), "file is not valid UTF-8")]) from None
+    return load_text(text, shown)
