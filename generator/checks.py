@@ -359,8 +359,8 @@ class Checker:
         for part in ("request", "response"):
             text = ex.get(part)
             if text is None:
-                if part == "request":
-                    self.error(where + (part,), "an example needs its request frame")
+                if part == "request" and ex.get("response") is None:
+                    self.error(where + (part,), "an example needs a request or a response frame")
                 if part in erratum:
                     self.error(where + ("erratum", part), f"erratum corrects a {part} that is not printed")
                 continue
@@ -380,6 +380,10 @@ class Checker:
                     self.error(where + (part,),
                                f"{part} checksum {frame.check.hex(' ').upper()} is wrong (computed {want}) and no erratum declares it")
                 printed_wrong = True
+            elif (problem := frames.structure_problem(frame, part)) is not None:
+                if corrected is None:
+                    self.error(where + (part,), f"{part} is not a well-formed Modbus frame: {problem}; declare an erratum")
+                printed_wrong = True
             if corrected is not None:
                 try:
                     fixed = frames.parse(corrected, mode)
@@ -393,6 +397,8 @@ class Checker:
                     self.error(where + ("erratum", part), f"corrected {part} checksum is wrong too (computed {want})")
                 elif fixed.wire() == frame.wire() and not frame.illegible:
                     self.error(where + ("erratum", part), f"corrected {part} is the same as the printed one")
+                elif (problem := frames.structure_problem(fixed, part)) is not None:
+                    self.error(where + ("erratum", part), f"corrected {part} is not a well-formed Modbus frame: {problem}")
                 else:
                     printed_wrong = True
                 self.check_meaning(ex, where, fixed, part)

@@ -71,3 +71,31 @@ def export_form(text: str | None, mode: str) -> str | None:
     if text is None:
         return None
     return text.replace(" ", "").upper() if mode == "rtu" else text
+
+
+def structure_problem(frame: Frame, part: str) -> str | None:
+    """Why a frame with a good checksum is still not a well-formed Modbus frame (None if it is).
+
+    Lengths follow the Modbus application protocol: a request or reply of function 03/04/06/10
+    has a fixed layout, and a read reply's byte count equals the data that follows it.
+    """
+    pdu = frame.body[1:]
+    if not pdu:
+        return "no function code"
+    fc = pdu[0]
+    if fc & 0x80:
+        return None if len(pdu) == 2 and part == "response" else "an exception reply is function + one code byte"
+    n = len(pdu)
+    if part == "request":
+        if fc in (3, 4, 6) and n != 5:
+            return f"a function {fc:02X}h request has 5 PDU bytes, this one {n}"
+        if fc == 16 and (n < 6 or pdu[5] != n - 6 or pdu[5] != 2 * int.from_bytes(pdu[3:5], "big")):
+            return "a function 10h request's byte count must be twice its quantity and match the data"
+        if fc == 8 and n < 3:
+            return "a function 08h request has a sub-function"
+        return None
+    if fc in (3, 4) and (n < 2 or pdu[1] != n - 2):
+        return f"a function {fc:02X}h reply has a one-byte count equal to the data length (printed {n - 2} bytes after the function code)"
+    if fc in (6, 16) and n != 5:
+        return f"a function {fc:02X}h reply has 5 PDU bytes, this one {n}"
+    return None

@@ -66,7 +66,7 @@ def context(model: Model, _models: list[Model]) -> dict[str, Any]:
             "baudrate": port.default_baudrate,
             "parity": port.default_parity,
             "stop_bits": port.default_stop_bits,
-            "data_bits": 8 if 8 in port.data_bits else port.data_bits[0],
+            "data_bits": 8 if 8 in port.data_bits or not port.data_bits else port.data_bits[0],
         },
         "timing": [
             ("silent_interval_chars", _num(t.silent_interval_chars)),
