@@ -1,0 +1,103 @@
+"""Golden corpus of broken maps: each file's exact diagnostics, never a traceback.
+
+Each ``tests/bad_maps/<case>.yaml`` has ``<case>.expected`` next to it holding what
+``drivemap validate`` prints on stderr. Regenerate after a deliberate message change with
+``DRIVEMAP_UPDATE_GOLDENS=1 pytest tests/test_bad_maps.py`` and review the diff.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from generator.cli import main
+
+HERE = Path(__file__).resolve().parent
+CORPUS = HERE / "bad_maps"
+CASES = sorted(CORPUS.glob("*.yaml"))
+ROOT = HERE.parent
+
+
+def run_validate(path: Path) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["validate", os.path.relpath(path, ROOT)])
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(autouse=True)
+def _at_root(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+
+
+def test_corpus_is_large_enough() -> None:
+    assert len(CASES) >= 40
+
+
+@pytest.mark.parametrize("path", CASES, ids=[p.stem for p in CASES])
+def test_bad_map_diagnostic(path: Path) -> None:
+    code, out, err = run_validate(path)
+    golden = path.with_suffix(".expected")
+    if os.environ.get("DRIVEMAP_UPDATE_GOLDENS"):
+        golden.write_text(err, encoding="utf-8")
+    assert code == 1
+    assert out == ""
+    assert "Traceback" not in err
+    assert err == golden.read_text(encoding="utf-8")
+    first = err.splitlines()[0]
+    assert first.startswith(f"tests/bad_maps/{path.name}:"), first
+    assert ": error: " in first
+
+
+def _limited() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+
+
+@pytest.mark.parametrize("case", ["alias_bomb", "deep_nesting", "python_object_tag", "huge_integer"])
+def test_hostile_input_in_a_subprocess(case: str) -> None:
+    """The real command, bounded to 1 GiB of memory and 60 s: exit 1, one located message."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "generator.cli", "validate", f"tests/bad_maps/{case}.yaml"],
+        cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
+    )
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.startswith(f"tests/bad_maps/{case}.yaml:")
+
+
+def test_fifty_megabyte_map_is_refused(tmp_path: Path) -> None:
+    big = tmp_path / "huge.yaml"
+    with open(big, "w", encoding="utf-8") as handle:
+        line = "# " + "x" * 1021 + "\n"
+        for _ in range(50 * 1024):
+            handle.write(line)
+    assert big.stat().st_size >= 50 * 1024 * 1024
+    proc = subprocess.run(
+        [sys.executable, "-m", "generator.cli", "validate", str(big)],
+        cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
+    )
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines()[0] == f"{big}:1:1: error: file larger than 2097152 bytes; refused"
+
+
+def test_all_errors_of_a_file_in_one_run(tmp_path: Path) -> None:
+    text = (CORPUS / "overlapping_registers.yaml").read_text(encoding="utf-8")
+    text = text.replace("    access: ro\n", "    access: ro\n").replace("  - name: run_state\n", "  - name: class\n")
+    bad = tmp_path / "overlapping_registers.yaml"
+    bad.write_text(text, encoding="utf-8")
+    code, _, err = run_validate(bad)
+    assert code == 1
+    assert "is a Python keyword" in err and "overlaps" in err
+
+
+def test_missing_file() -> None:
+    code, _, err = run_validate(ROOT / "maps" / "no_such_map.yaml")
+    assert code == 1
+    assert err.startswith("maps/no_such_map.yaml:1:1: error: cannot read file")
