@@ -144,7 +144,7 @@ class Checker:
             self.error(where + ("write_delay_ms",), "write_delay_ms is for storage: eeprom")
 
         def raw_of(value: float) -> float:
-            return (value - offset) / scale
+            return float((value - offset) / scale)
 
         def fits(value: float) -> bool:
             raw = raw_of(value)
@@ -292,7 +292,7 @@ class Checker:
             pass
 
     def check_reserved(self) -> None:
-        cells = {}
+        cells: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}
         for address, name, index, page in self._cells():
             cells.setdefault(address, []).append((name, index, page))
         for i, item in enumerate(self.data.get("reserved", [])):
@@ -324,12 +324,12 @@ class Checker:
         reg = self.data["registers"][self.register_names[base]]
         count = reg.get("count", 1)
         if not rest:
-            return count == 1
+            return bool(count == 1)
         try:
             index = int(rest.rstrip("]"))
         except ValueError:
             return False
-        return count > 1 and 0 <= index < count and rest.endswith("]")
+        return bool(count > 1 and 0 <= index < count and rest.endswith("]"))
 
     def check_examples(self) -> None:
         p = self.data["protocol"]

@@ -145,7 +145,8 @@ def cmd_new(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from .runtime.simserve import serve_cli
 
-    return serve_cli(args)
+    code: int = serve_cli(args)
+    return code
 
 
 def parser() -> argparse.ArgumentParser:

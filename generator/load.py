@@ -65,15 +65,16 @@ def _loc(path: str, node: Node) -> Location:
 class _Composer(yaml.SafeLoader):
     """SafeLoader that refuses anchors and aliases while composing."""
 
-    def compose_node(self, parent: Node | None, index: Any) -> Node | None:  # type: ignore[override]
+    def compose_node(self, parent: Node | None, index: Any) -> Node | None:
         if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
+            event = self.peek_event()  # type: ignore[no-untyped-call]
             raise _Refused(event.start_mark, "aliases (*name) are not allowed in maps")
-        event = self.peek_event()
+        event = self.peek_event()  # type: ignore[no-untyped-call]
         anchor = getattr(event, "anchor", None)
         if anchor is not None:
             raise _Refused(event.start_mark, f"anchors (&{anchor}) are not allowed in maps")
-        return super().compose_node(parent, index)  # type: ignore[no-any-return]
+        node: Node | None = super().compose_node(parent, index)
+        return node
 
 
 class _Refused(Exception):
@@ -153,7 +154,12 @@ def load_text(text: str, path: str) -> Document:
     """Parse ``text`` (the contents of ``path``); raise :class:`CompileError` on any problem."""
     if len(text.encode("utf-8", "surrogatepass")) > MAX_MAP_BYTES:
         raise CompileError([Diagnostic(Location(path, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
-    loader = _Composer(text)
+    try:
+        loader = _Composer(text)
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        col = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        raise CompileError([Diagnostic(Location(path, line, col), f"character {exc.character!r} is not allowed in YAML")]) from None
     try:
         node = loader.get_single_node()
     except _Refused as exc:
@@ -163,8 +169,12 @@ def load_text(text: str, path: str) -> Document:
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
         problem = exc.problem or exc.context or "invalid YAML"
         raise CompileError([Diagnostic(Location(path, line, col), f"YAML syntax error: {problem}")]) from None
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        col = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        raise CompileError([Diagnostic(Location(path, line, col), f"character {exc.character!r} is not allowed in YAML")]) from None
     except yaml.YAMLError as exc:
-        raise CompileError([Diagnostic(Location(path, 1, 1), f"YAML error: {exc}")]) from None
+        raise CompileError([Diagnostic(Location(path, 1, 1), f"YAML error: {type(exc).__name__}")]) from None
     except RecursionError:
         raise CompileError([Diagnostic(Location(path, 1, 1), "YAML nested too deeply")]) from None
     finally:

@@ -63,13 +63,15 @@ def _leaf(error: ValidationError) -> ValidationError:
 def _message(error: ValidationError) -> tuple[PathT, str, bool]:
     """(path, message, point-at-key?) for one error."""
     path: PathT = tuple(error.absolute_path)
-    kind = error.validator
-    inst = error.instance
+    kind: Any = error.validator
+    inst: Any = error.instance
+    sub: Any = error.schema if isinstance(error.schema, dict) else {}
+    value: Any = error.validator_value
     where = dotted(path)
     if kind == "additionalProperties":
-        allowed = sorted(error.schema.get("properties", {}))
+        allowed = sorted(sub.get("properties", {}))
         extra = sorted(set(inst) - set(allowed)) if isinstance(inst, dict) else []
-        pattern = error.schema.get("patternProperties")
+        pattern = sub.get("patternProperties")
         if pattern:
             import re
 
@@ -81,22 +83,22 @@ def _message(error: ValidationError) -> tuple[PathT, str, bool]:
         missing = error.message.split("'")[1] if "'" in error.message else "?"
         return path, f"{where}: missing required key {missing!r}", False
     if kind == "type":
-        expected = error.validator_value
-        names = [_TYPE_NAMES.get(t, t) for t in (expected if isinstance(expected, list) else [expected])]
+        expected = value
+        names = [str(_TYPE_NAMES.get(t, t)) for t in (expected if isinstance(expected, list) else [expected])]
         return path, f"{where}: expected {' or '.join(names)}, got {short(inst)}", False
     if kind == "enum":
-        options = ", ".join(repr(v) for v in error.validator_value)
+        options = ", ".join(repr(v) for v in value)
         return path, f"{where}: {short(inst)} is not one of {options}", False
     if kind == "const":
-        return path, f"{where}: must be {error.validator_value!r}, got {short(inst)}", False
+        return path, f"{where}: must be {value!r}, got {short(inst)}", False
     if kind == "pattern":
-        return path, f"{where}: {short(inst)} does not match the pattern {error.validator_value}", False
+        return path, f"{where}: {short(inst)} does not match the pattern {value}", False
     if kind in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
         rel = {"minimum": "less than the minimum", "maximum": "greater than the maximum",
                "exclusiveMinimum": "not greater than", "exclusiveMaximum": "not less than"}[kind]
-        return path, f"{where}: {short(inst)} is {rel} {error.validator_value}", False
+        return path, f"{where}: {short(inst)} is {rel} {value}", False
     if kind in ("minItems", "maxItems", "minLength", "maxLength"):
-        return path, f"{where}: {kind} is {error.validator_value}", False
+        return path, f"{where}: {kind} is {value}", False
     if kind == "uniqueItems":
         return path, f"{where}: items must be unique", False
     if kind == "propertyNames":
