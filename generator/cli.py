@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from .diagnostics import CompileError, Diagnostic, Location
 from .model import Model
@@ -101,9 +101,9 @@ def cmd_examples(args: argparse.Namespace) -> int:
     rows = [(m.name, ex.name, ex.mode, ex.source, ex.status) for m in models for ex in m.examples]
     widths = [max(len(str(r[i])) for r in rows + [("model", "example", "mode", "source", "status")]) for i in range(5)]
     header = ("model", "example", "mode", "source", "status")
-    print("  ".join(h.ljust(w) for h, w in zip(header, widths)))
+    print("  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
     for row in rows:
-        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip())
+        print("  ".join(str(c).ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
     print()
     for m in models:
         c = m.status_counts()

@@ -7,8 +7,9 @@ constructors here trust their input. Everything is frozen; collections are tuple
 from __future__ import annotations
 
 import keyword
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any, Iterator, Literal
+from typing import Any, Literal
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32"]
@@ -338,7 +339,7 @@ class Register:
     def raw_bounds(self) -> tuple[int, int]:
         return TYPE_BOUNDS[self.type]
 
-    def cells(self) -> Iterator["Cell"]:
+    def cells(self) -> Iterator[Cell]:
         for i in range(self.count):
             yield Cell(self, i)
 

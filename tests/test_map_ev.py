@@ -37,7 +37,7 @@ PAGE1 = {"selector": "watch_data_select", "value": 1}
 CASES = [
     ("001-4.1-net_in", "net_in", dict(
         address=0x1400, access="rw", type="u16", scale=1, storage="volatile", param=None,
-        bits=[{"name": f"NET_X{i}", "offset": i, "width": 1} for i in range(8)])),
+        bits=[{"name": f"X{i}", "offset": i, "width": 1} for i in range(8)])),
     ("001-4.1-sc_cc_mode", "sc_cc_mode", dict(
         address=0x0200, param="02-01", access="rw", default=0, reflect="configuration",
         enum={"SC_MODE": 0, "CC_MODE": 1})),

@@ -150,6 +150,8 @@ class _WatchRTU(FramerRTU):
         if self._waiting and len(data) > self._waiting and now - self._since > self.silence:
             stale = self._waiting  # these bytes never became a frame before the line went quiet
         used, dev_id, tid, frame = super().decode(data[stale:])
+        if frame and not 0x01 <= frame[0] <= 0x7F:
+            frame = self.EMPTY  # 00h / 80h-FFh are no request codes: no reply, a frame error
         if used and not frame:
             self.simulator.frame_error(data[stale] if len(data) > stale else None)
         if used or frame:
@@ -161,29 +163,44 @@ class _WatchRTU(FramerRTU):
 
 
 class _WatchAscii(FramerAscii):
-    """pymodbus's ASCII framer, plus: report frames whose LRC (or hex) is bad."""
+    """pymodbus's ASCII framer, fed one frame at a time; frames whose LRC, hex or code is bad are reported.
+
+    Framing follows the Modbus serial line spec (2.5.2.1): a ':' always starts a new frame (the
+    bytes of an unfinished one before it are dropped) and the end marker ends it. Each frame is
+    then decoded by pymodbus alone, so a broken frame never takes the next one with it.
+    """
 
     simulator: ClassVar[Simulator]
 
     def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
-        result = super().decode(data)
-        consumed = data[: result[0]]
-        start = consumed.find(b":")
-        while start != -1:
-            end = consumed.find(b"\r\n", start)
-            if end == -1:
-                break
-            body = consumed[start + 1 : end]
+        total = 0
+        while True:
+            used, dev_id, tid, frame = self._decode_one(data[total:])
+            total += used
+            if frame or not used or total >= len(data):
+                return total, dev_id, tid, frame
+
+    def _decode_one(self, data: bytes) -> tuple[int, int, int, bytes]:
+        end = data.find(self.end)
+        if end == -1:
+            return (0 if self.START in data else len(data)), 0, 0, self.EMPTY
+        start = data.rfind(self.START, 0, end)
+        stop = end + len(self.end)
+        if start == -1:
+            return stop, 0, 0, self.EMPTY  # a line without a start: noise
+        candidate = data[start:stop]
+        try:
+            _, dev_id, tid, frame = super().decode(candidate)
+        except ValueError:  # pymodbus parses the unit id outside its try block: non-hex raises
+            dev_id, tid, frame = 0, 0, self.EMPTY
+        if not frame or not 0x01 <= frame[0] <= 0x7F:  # bad hex/LRC, too short, or 00h / 80h-FFh
             try:
-                raw = bytes.fromhex(body.decode("ascii"))
-                bad = len(raw) < 2 or FramerAscii.compute_LRC(raw[:-1]) != raw[-1]
-                unit: int | None = raw[0] if raw else None
-            except (ValueError, UnicodeDecodeError):
-                bad, unit = True, None
-            if bad:
-                self.simulator.frame_error(unit)
-            start = consumed.find(b":", end)
-        return result
+                unit: int | None = bytes.fromhex(candidate[1:3].decode("ascii"))[0]
+            except (ValueError, UnicodeDecodeError, IndexError):
+                unit = None
+            self.simulator.frame_error(unit)
+            frame = self.EMPTY
+        return stop, dev_id, tid, frame
 
 
 def _silence_seconds(sim: Simulator, baudrate: int) -> float:

@@ -168,7 +168,7 @@ class DeviceSpec:
     comm_error_history: str | None = None
     configuration: tuple[str, int] | None = None
     max_frame_bytes: int | None = None
-    _index: dict[str, RegisterSpec] = field(default_factory=dict, compare=False, repr=False)
+    _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def register(self, name: str) -> RegisterSpec:
         if not self._index:

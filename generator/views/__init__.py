@@ -6,7 +6,8 @@ Per-model paths contain ``{model}``; the others are rendered once for all models
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from ..model import Model
 from . import common, spec

@@ -1,0 +1,386 @@
+"""Transports: one pymodbus client per line, one transaction at a time, timing and retries.
+
+A :class:`Bus` (sync) or :class:`AsyncBus` (asyncio) owns one pymodbus client: serial RTU/ASCII
+(``ModbusSerialClient`` with ``FramerType.RTU``/``ASCII``), Modbus TCP (``ModbusTcpClient``) or
+RTU over TCP for serial gateways (``ModbusTcpClient`` with ``FramerType.RTU``). Several drive
+clients (units) may share one bus; the bus serialises their transactions with a lock.
+
+Retries are done here, not in pymodbus (pymodbus gets ``retries=0``), so :attr:`Bus.stats` counts
+every request actually sent. Timing, from the map (:class:`TimingSpec`) of the client that asks:
+
+* response timeout: ``response_timeout_ms``, else :data:`DEFAULT_RESPONSE_TIMEOUT_S`;
+* retries on timeout or a corrupt reply (pymodbus drops frames with a bad CRC/LRC, which then
+  time out): ``retries``, else :data:`DEFAULT_RETRIES`;
+* after every transaction the line stays quiet for ``inter_frame_gap_ms`` and, on serial lines,
+  the silent interval (``silent_interval_chars`` at the line's baud rate, or the map's floor);
+* after a broadcast: ``broadcast_gap_ms`` (else :data:`DEFAULT_BROADCAST_GAP_MS`) plus the silent
+  interval, since nobody answers;
+* after an EEPROM write: the register's ``write_delay_ms`` (the client passes it as ``hold_ms``).
+
+Every frame is logged in hex at DEBUG on the ``drivemap`` logger.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient, ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+from pymodbus.framer import FramerType
+from pymodbus.pdu import ModbusPDU
+
+from .errors import DriveTimeout, TransportError
+from .spec import SerialSpec, TimingSpec
+
+log = logging.getLogger("drivemap")
+
+#: Response timeout when the map gives none (seconds). Generous for slow drives at 9600 Bd.
+DEFAULT_RESPONSE_TIMEOUT_S = 1.0
+#: Retries after the first attempt when the map gives none.
+DEFAULT_RETRIES = 2
+#: Quiet time after a broadcast when the map gives none: the Modbus serial-line guide's
+#: typical turnaround delay (Modbus over Serial Line v1.02, 2.4.1: 100 ms to 200 ms).
+DEFAULT_BROADCAST_GAP_MS = 100.0
+#: Baud rate used by ``serial()`` when neither the map nor the caller gives one (logged).
+DEFAULT_BAUDRATE = 9600
+
+_PARITY = {"none": "N", "even": "E", "odd": "O", "N": "N", "E": "E", "O": "O", None: "N"}
+
+
+@dataclass
+class Stats:
+    """Counters of one bus: requests sent (with retries), retries, broadcasts and bytes."""
+
+    transactions: int = 0
+    retries: int = 0
+    timeouts: int = 0
+    broadcasts: int = 0
+    exceptions: int = 0
+    bytes_sent: int = 0
+    bytes_received: int = 0
+    by_function: dict[int, int] = field(default_factory=dict)
+    """Requests sent per function code (retries included)."""
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """One request the client core asks the bus to carry out."""
+
+    unit: int
+    pdu: ModbusPDU
+    timing: TimingSpec
+    expect_reply: bool = True
+    hold_ms: float = 0.0
+
+
+class _BusBase:
+    """What the sync and async buses share: counters, frame logging, timing arithmetic."""
+
+    def __init__(self, *, serial: bool, baudrate: int | None, bits_per_char: int, timeout: float | None,
+                 retries: int | None, name: str) -> None:
+        self.stats = Stats()
+        self.serial_line = serial
+        self.baudrate = baudrate
+        self.bits_per_char = bits_per_char
+        self.timeout_override = timeout
+        self.retries_override = retries
+        self.name = name
+        self._ready_at = 0.0
+        self._rx = b""
+
+    # pymodbus trace hooks: every byte that goes out or comes in passes here.
+    def _trace_packet(self, sending: bool, data: bytes) -> bytes:
+        if sending:
+            self.stats.bytes_sent += len(data)
+            log.debug("%s TX %s", self.name, data.hex(" "))
+        else:
+            self._rx = data
+        return data
+
+    def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+        if not sending:
+            self._flush_rx("RX")
+        return pdu
+
+    def _flush_rx(self, what: str) -> None:
+        if self._rx:
+            self.stats.bytes_received += len(self._rx)
+            log.debug("%s %s %s", self.name, what, self._rx.hex(" "))
+            self._rx = b""
+
+    def timeout_for(self, timing: TimingSpec) -> float:
+        if self.timeout_override is not None:
+            return self.timeout_override
+        if timing.response_timeout_ms is not None:
+            return timing.response_timeout_ms / 1000.0
+        return DEFAULT_RESPONSE_TIMEOUT_S
+
+    def retries_for(self, timing: TimingSpec) -> int:
+        if self.retries_override is not None:
+            return self.retries_override
+        return timing.retries if timing.retries is not None else DEFAULT_RETRIES
+
+    def silent_interval_s(self, timing: TimingSpec) -> float:
+        """3.5 characters (the map's count) at the line's baud rate, or the map's floor."""
+        if not self.serial_line:
+            return 0.0
+        floor = (timing.silent_interval_floor_ms or 0.0) / 1000.0
+        if self.baudrate is None:
+            return floor
+        if timing.silent_interval_floor_above_bps is not None and self.baudrate > timing.silent_interval_floor_above_bps:
+            return floor
+        chars = timing.silent_interval_chars if timing.silent_interval_chars is not None else 3.5
+        return max(chars * self.bits_per_char / self.baudrate, 0.0)
+
+    def _quiet_after(self, ex: Exchange) -> float:
+        gap = (ex.timing.inter_frame_gap_ms or 0.0) / 1000.0
+        if not ex.expect_reply:
+            bgap = ex.timing.broadcast_gap_ms if ex.timing.broadcast_gap_ms is not None else DEFAULT_BROADCAST_GAP_MS
+            gap = max(gap, bgap / 1000.0)
+        return max(gap + self.silent_interval_s(ex.timing), ex.hold_ms / 1000.0)
+
+    def _mark_done(self, ex: Exchange) -> None:
+        self._ready_at = max(self._ready_at, time.monotonic() + self._quiet_after(ex))
+
+    def _wait_s(self) -> float:
+        return max(0.0, self._ready_at - time.monotonic())
+
+
+def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[str, Any], str, int]:
+    mode = overrides.pop("mode", serial.mode)
+    baudrate = overrides.pop("baudrate", serial.baudrate)
+    if baudrate is None:
+        log.warning("the map gives no default baud rate; using %d (pass baudrate= to choose)", DEFAULT_BAUDRATE)
+        baudrate = DEFAULT_BAUDRATE
+    parity = _PARITY[overrides.pop("parity", serial.parity)]
+    stopbits = overrides.pop("stopbits", overrides.pop("stop_bits", serial.stop_bits)) or 1
+    bytesize = overrides.pop("bytesize", overrides.pop("data_bits", serial.data_bits))
+    if overrides:
+        raise TypeError(f"unknown serial settings: {', '.join(sorted(overrides))}")
+    if mode not in ("rtu", "ascii"):
+        raise ValueError(f"serial mode must be 'rtu' or 'ascii', not {mode!r}")
+    kwargs = {
+        "framer": FramerType.RTU if mode == "rtu" else FramerType.ASCII,
+        "baudrate": baudrate, "parity": parity, "stopbits": stopbits, "bytesize": bytesize,
+    }
+    bits = 1 + bytesize + (0 if parity == "N" else 1) + stopbits
+    return kwargs, mode, bits
+
+
+class Bus(_BusBase):
+    """A synchronous line (serial port or TCP connection) shared by the clients on it."""
+
+    def __init__(self, client: Any, *, serial: bool = False, baudrate: int | None = None, bits_per_char: int = 11,
+                 timeout: float | None = None, retries: int | None = None, name: str = "bus") -> None:
+        super().__init__(serial=serial, baudrate=baudrate, bits_per_char=bits_per_char, timeout=timeout,
+                         retries=retries, name=name)
+        self.client = client
+        client.set_max_no_responses(1 << 30)  # retries and disconnects are ours
+        self.lock = threading.RLock()
+
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, *, timeout: float | None = None, retries: int | None = None) -> Bus:
+        """Modbus TCP (MBAP framing)."""
+        return cls._make(ModbusTcpClient, dict(host=host, port=port, framer=FramerType.SOCKET), False, None, 11,
+                         timeout, retries, f"tcp:{host}:{port}")
+
+    @classmethod
+    def rtu_over_tcp(cls, host: str, port: int, *, timeout: float | None = None, retries: int | None = None) -> Bus:
+        """RTU frames over a TCP connection (serial gateways)."""
+        return cls._make(ModbusTcpClient, dict(host=host, port=port, framer=FramerType.RTU), True, None, 11,
+                         timeout, retries, f"rtu-over-tcp:{host}:{port}")
+
+    @classmethod
+    def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
+               retries: int | None = None, **overrides: Any) -> Bus:
+        """A serial line; ``serial`` gives the map's defaults, ``overrides`` (mode, baudrate, parity,
+        stopbits, bytesize) win over them."""
+        kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
+        return cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                         timeout, retries, f"{mode}:{port}")
+
+    @classmethod
+    def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
+              timeout: float | None, retries: int | None, name: str) -> Bus:
+        bus = cls.__new__(cls)
+        client = factory(
+            **kwargs, timeout=timeout if timeout is not None else DEFAULT_RESPONSE_TIMEOUT_S, retries=0,
+            trace_packet=bus._trace_packet, trace_pdu=bus._trace_pdu,
+        )
+        cls.__init__(bus, client, serial=serial, baudrate=baudrate, bits_per_char=bits, timeout=timeout,
+                     retries=retries, name=name)
+        return bus
+
+    def connect(self) -> None:
+        with self.lock:
+            if not self.client.connected and not self.client.connect():
+                raise TransportError(f"{self.name}: cannot connect")
+
+    def close(self) -> None:
+        with self.lock:
+            self.client.close()
+
+    def __enter__(self) -> Bus:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def exchange(self, ex: Exchange) -> ModbusPDU | None:
+        """Send one request (retrying on timeout); the reply PDU, or None for a broadcast."""
+        with self.lock:
+            if not self.client.connected:
+                self.connect()
+            self.client.comm_params.timeout_connect = self.timeout_for(ex.timing)
+            attempts = 1 + (0 if not ex.expect_reply else self.retries_for(ex.timing))
+            try:
+                for attempt in range(attempts):
+                    if attempt:
+                        self.stats.retries += 1
+                    if (wait := self._wait_s()) > 0:
+                        time.sleep(wait)
+                    self.stats.transactions += 1
+                    fc = ex.pdu.function_code
+                    self.stats.by_function[fc] = self.stats.by_function.get(fc, 0) + 1
+                    self._rx = b""
+                    ex.pdu.dev_id = ex.unit
+                    try:
+                        reply = self.client.execute(not ex.expect_reply, ex.pdu)
+                    except ConnectionException as exc:
+                        raise TransportError(f"{self.name}: {exc}") from exc
+                    except (ModbusIOException, TimeoutError) as exc:
+                        self.stats.timeouts += 1
+                        self._flush_rx("RX (no valid reply)")
+                        log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
+                                  attempt + 1, attempts, exc)
+                        self._mark_done(ex)
+                        continue
+                    except ModbusException as exc:
+                        raise TransportError(f"{self.name}: {exc}") from exc
+                    self._mark_done(ex)
+                    if not ex.expect_reply:
+                        self.stats.broadcasts += 1
+                        return None
+                    if reply is not None and reply.isError():
+                        self.stats.exceptions += 1
+                    return reply  # type: ignore[no-any-return]
+            finally:
+                self._flush_rx("RX (unused)")
+            raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
+
+
+class AsyncBus(_BusBase):
+    """The asyncio twin of :class:`Bus`: one transaction at a time under an ``asyncio.Lock``."""
+
+    def __init__(self, client: Any, *, serial: bool = False, baudrate: int | None = None, bits_per_char: int = 11,
+                 timeout: float | None = None, retries: int | None = None, name: str = "bus") -> None:
+        super().__init__(serial=serial, baudrate=baudrate, bits_per_char=bits_per_char, timeout=timeout,
+                         retries=retries, name=name)
+        self.client = client
+        client.set_max_no_responses(1 << 30)
+        self.lock = asyncio.Lock()
+
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, *, timeout: float | None = None, retries: int | None = None) -> AsyncBus:
+        """Modbus TCP (MBAP framing)."""
+        return cls._make(AsyncModbusTcpClient, dict(host=host, port=port, framer=FramerType.SOCKET), False, None, 11,
+                         timeout, retries, f"tcp:{host}:{port}")
+
+    @classmethod
+    def rtu_over_tcp(cls, host: str, port: int, *, timeout: float | None = None,
+                     retries: int | None = None) -> AsyncBus:
+        """RTU frames over a TCP connection (serial gateways)."""
+        return cls._make(AsyncModbusTcpClient, dict(host=host, port=port, framer=FramerType.RTU), True, None, 11,
+                         timeout, retries, f"rtu-over-tcp:{host}:{port}")
+
+    @classmethod
+    def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
+               retries: int | None = None, **overrides: Any) -> AsyncBus:
+        """A serial line; see :meth:`Bus.serial`."""
+        kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
+        return cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                         timeout, retries, f"{mode}:{port}")
+
+    @classmethod
+    def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
+              timeout: float | None, retries: int | None, name: str) -> AsyncBus:
+        bus = cls.__new__(cls)
+        client = factory(
+            **kwargs, timeout=timeout if timeout is not None else DEFAULT_RESPONSE_TIMEOUT_S, retries=0,
+            reconnect_delay=0, trace_packet=bus._trace_packet, trace_pdu=bus._trace_pdu,
+        )
+        cls.__init__(bus, client, serial=serial, baudrate=baudrate, bits_per_char=bits, timeout=timeout,
+                     retries=retries, name=name)
+        return bus
+
+    async def connect(self) -> None:
+        if not self.client.connected and not await self.client.connect():
+            raise TransportError(f"{self.name}: cannot connect")
+
+    def close(self) -> None:
+        self.client.close()
+
+    async def __aenter__(self) -> AsyncBus:
+        await self.connect()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.close()
+
+    async def exchange(self, ex: Exchange) -> ModbusPDU | None:
+        """Send one request (retrying on timeout); the caller holds :attr:`lock`."""
+        if not self.client.connected:
+            await self.connect()
+        self.client.comm_params.timeout_connect = self.timeout_for(ex.timing)
+        attempts = 1 + (0 if not ex.expect_reply else self.retries_for(ex.timing))
+        try:
+            for attempt in range(attempts):
+                if attempt:
+                    self.stats.retries += 1
+                if (wait := self._wait_s()) > 0:
+                    await asyncio.sleep(wait)
+                self.stats.transactions += 1
+                self.stats.by_function[ex.pdu.function_code] = self.stats.by_function.get(ex.pdu.function_code, 0) + 1
+                self._rx = b""
+                ex.pdu.dev_id = ex.unit
+                try:
+                    reply = await self.client.execute(not ex.expect_reply, ex.pdu)
+                except ConnectionException as exc:
+                    raise TransportError(f"{self.name}: {exc}") from exc
+                except (ModbusIOException, TimeoutError) as exc:
+                    self.stats.timeouts += 1
+                    self._flush_rx("RX (no valid reply)")
+                    log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
+                              attempt + 1, attempts, exc)
+                    self._mark_done(ex)
+                    continue
+                except ModbusException as exc:
+                    raise TransportError(f"{self.name}: {exc}") from exc
+                self._mark_done(ex)
+                if not ex.expect_reply:
+                    self.stats.broadcasts += 1
+                    return None
+                if reply is not None and reply.isError():
+                    self.stats.exceptions += 1
+                return reply  # type: ignore[no-any-return]
+        finally:
+            self._flush_rx("RX (unused)")
+        raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
+
+
+__all__ = [
+    "AsyncBus",
+    "Bus",
+    "DEFAULT_BAUDRATE",
+    "DEFAULT_BROADCAST_GAP_MS",
+    "DEFAULT_RESPONSE_TIMEOUT_S",
+    "DEFAULT_RETRIES",
+    "Exchange",
+    "Stats",
+]

@@ -1,0 +1,104 @@
+"""Every error a drivemap client raises: one hierarchy under :class:`DriveError`.
+
+Errors about the caller's input (:class:`InvalidValue`, :class:`ValueOutOfRange`,
+:class:`ReadOnlyRegister`, :class:`WriteOnlyRegister`, :class:`NotBroadcastable`,
+:class:`BroadcastRead`, :class:`WrongPage`, :class:`UnknownRegister`) are raised *before* any
+byte is sent. :class:`DeviceException` carries an exception reply of the device; generated
+packages subclass it once per exception code of their map.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+
+class DriveError(Exception):
+    """Base class of every error raised by a drivemap client."""
+
+
+class InvalidValue(DriveError, TypeError):
+    """The value has the wrong type for the register (e.g. ``str`` for a number, ``int`` for an enum)."""
+
+
+class ValueOutOfRange(DriveError, ValueError):
+    """The value lies outside the register's documented range or its raw type."""
+
+
+class AccessError(DriveError):
+    """The register cannot be accessed this way."""
+
+
+class ReadOnlyRegister(AccessError):
+    """A write to a register the map marks read-only."""
+
+
+class WriteOnlyRegister(AccessError):
+    """A read of a register the map marks write-only."""
+
+
+class NotBroadcastable(AccessError):
+    """A broadcast write to a register whose function code the map does not allow for broadcast."""
+
+
+class BroadcastRead(AccessError):
+    """A read on a broadcast client (a broadcast is never answered)."""
+
+
+class WrongPage(AccessError):
+    """A paged register was read while its page selector shows another page (``page_policy="raise"``)."""
+
+
+class UnknownRegister(DriveError, KeyError):
+    """``read_by_name`` / ``write_by_name`` with a name the map does not define."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "unknown register"
+
+
+class UnsupportedFunction(DriveError):
+    """The operation needs a function code the map does not list."""
+
+
+class TransportError(DriveError):
+    """The transport failed (not connected, connection lost, malformed reply)."""
+
+
+class DriveTimeout(TransportError, TimeoutError):
+    """No valid reply after the last retry."""
+
+
+class DeviceException(DriveError):
+    """An exception reply of the device: ``code`` with the map's ``name`` and ``meaning``.
+
+    Generated packages define one subclass per exception code of the map (class attributes
+    ``CODE``, ``NAME``, ``MEANING``); codes the map does not list raise this class itself.
+    """
+
+    CODE: ClassVar[int | None] = None
+    NAME: ClassVar[str] = "unknown"
+    MEANING: ClassVar[str] = "exception code not listed in the map"
+
+    def __init__(self, code: int, function_code: int, *, name: str | None = None, meaning: str | None = None) -> None:
+        self.code = code
+        self.function_code = function_code
+        self.name = name if name is not None else self.NAME
+        self.meaning = meaning if meaning is not None else self.MEANING
+        super().__init__(f"device answered exception 0x{code:02X} ({self.name}) to function 0x{function_code:02X}: {self.meaning}")
+
+
+__all__ = [
+    "AccessError",
+    "BroadcastRead",
+    "DeviceException",
+    "DriveError",
+    "DriveTimeout",
+    "InvalidValue",
+    "NotBroadcastable",
+    "ReadOnlyRegister",
+    "TransportError",
+    "UnknownRegister",
+    "UnsupportedFunction",
+    "ValueOutOfRange",
+    "WriteOnlyRegister",
+    "WrongPage",
+]
