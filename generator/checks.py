@@ -61,6 +61,23 @@ class Checker:
             self.error(("device", "model"), f"model id {model!r} is a Python keyword")
 
     def check_enums(self) -> None:
+        from .views.client import FIXED_NAMES
+
+        classes: dict[str, PathT] = {}
+        for name in self.data.get("enums", {}):
+            if name in FIXED_NAMES:
+                self.error(("enums", name), f"enum name {name!r} is taken by the generated client package", key=True)
+            classes[name] = ("enums", name)
+        for i, reg in enumerate(self.data["registers"]):
+            if reg.get("bits"):
+                cls = reg.get("flags_name") or "".join(p[:1].upper() + p[1:] for p in reg["name"].split("_") if p)
+                where: PathT = ("registers", i, "flags_name" if reg.get("flags_name") else "name")
+                if cls in FIXED_NAMES:
+                    self.error(where, f"bit-field class name {cls!r} is taken by the generated client package")
+                elif cls in classes:
+                    self.error(where, f"bit-field class name {cls!r} clashes with another class of this map",
+                               related=classes[cls], note="the other class is defined here")
+                classes.setdefault(cls, where)
         for name, enum in self.data.get("enums", {}).items():
             seen_v: dict[int, int] = {}
             seen_n: dict[str, int] = {}

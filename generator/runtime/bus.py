@@ -11,6 +11,11 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
 * response timeout: ``response_timeout_ms``, else :data:`DEFAULT_RESPONSE_TIMEOUT_S`;
 * retries on timeout or a corrupt reply (pymodbus drops frames with a bad CRC/LRC, which then
   time out): ``retries``, else :data:`DEFAULT_RETRIES`;
+* a reply that does not answer the request sent (another unit, another function code, another
+  address or value echoed by 06h/10h, another register count; e.g. a late reply to an earlier
+  request) is never returned: it is logged, counted in :attr:`Stats.rejected`, and the attempt
+  counts as unanswered (the bus waits out its response timeout, so a real reply still on its way
+  is discarded before the retry);
 * after every transaction the line stays quiet for ``inter_frame_gap_ms`` and, on serial lines,
   the silent interval (``silent_interval_chars`` at the line's baud rate, or the map's floor);
 * after a broadcast: ``broadcast_gap_ms`` (else :data:`DEFAULT_BROADCAST_GAP_MS`) plus the silent
@@ -61,6 +66,8 @@ class Stats:
     timeouts: int = 0
     broadcasts: int = 0
     exceptions: int = 0
+    rejected: int = 0
+    """Replies that did not answer the request sent (see :func:`reply_mismatch`), never returned."""
     bytes_sent: int = 0
     bytes_received: int = 0
     by_function: dict[int, int] = field(default_factory=dict)
@@ -76,6 +83,33 @@ class Exchange:
     timing: TimingSpec
     expect_reply: bool = True
     hold_ms: float = 0.0
+
+
+def reply_mismatch(request: ModbusPDU, reply: ModbusPDU) -> str | None:
+    """Why ``reply`` cannot be the answer to ``request`` (None when it can).
+
+    RTU and ASCII frames carry no transaction id, so everything a reply echoes is checked: unit,
+    function code (or its exception form), the address and value of 06h, the address and
+    quantity of 10h, the register count of 03h/04h and the sub-function of 08h.
+    """
+    if reply.dev_id != request.dev_id:
+        return f"reply from unit {reply.dev_id}, asked unit {request.dev_id}"
+    fc = request.function_code
+    if reply.function_code & 0x7F != fc:
+        return f"reply has function 0x{reply.function_code:02X}, sent 0x{fc:02X}"
+    if reply.isError():
+        return None
+    if fc in (0x03, 0x04) and len(reply.registers) != request.count:
+        return f"reply has {len(reply.registers)} registers, asked {request.count}"
+    if fc in (0x06, 0x10) and reply.address != request.address:
+        return f"reply echoes address 0x{reply.address:04X}, sent 0x{request.address:04X}"
+    if fc == 0x06 and list(reply.registers) != list(request.registers):
+        return f"reply echoes value {list(reply.registers)}, sent {list(request.registers)}"
+    if fc == 0x10 and reply.count != len(request.registers):
+        return f"reply echoes quantity {reply.count}, sent {len(request.registers)}"
+    if fc == 0x08 and getattr(reply, "sub_function_code", None) != getattr(request, "sub_function_code", None):
+        return "reply has another diagnostics sub-function"
+    return None
 
 
 class _BusBase:
@@ -143,6 +177,14 @@ class _BusBase:
             bgap = ex.timing.broadcast_gap_ms if ex.timing.broadcast_gap_ms is not None else DEFAULT_BROADCAST_GAP_MS
             gap = max(gap, bgap / 1000.0)
         return max(gap + self.silent_interval_s(ex.timing), ex.hold_ms / 1000.0)
+
+    def _rejected(self, ex: Exchange, reply: ModbusPDU, problem: str, started: float) -> float:
+        """Count and log a reply that is not ours; the seconds left of the attempt's timeout."""
+        self.stats.rejected += 1
+        self._flush_rx("RX (not ours)")
+        log.warning("%s reply rejected (unit %d, function 0x%02X): %s", self.name, ex.unit,
+                    ex.pdu.function_code, problem)
+        return max(0.0, started + self.timeout_for(ex.timing) - time.monotonic())
 
     def _mark_done(self, ex: Exchange) -> None:
         self._ready_at = max(self._ready_at, time.monotonic() + self._quiet_after(ex))
@@ -250,6 +292,7 @@ class Bus(_BusBase):
                     self.stats.by_function[fc] = self.stats.by_function.get(fc, 0) + 1
                     self._rx = b""
                     ex.pdu.dev_id = ex.unit
+                    started = time.monotonic()
                     try:
                         reply = self.client.execute(not ex.expect_reply, ex.pdu)
                     except ConnectionException as exc:
@@ -263,6 +306,10 @@ class Bus(_BusBase):
                         continue
                     except ModbusException as exc:
                         raise TransportError(f"{self.name}: {exc}") from exc
+                    if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
+                        time.sleep(self._rejected(ex, reply, problem, started))
+                        self._mark_done(ex)
+                        continue
                     self._mark_done(ex)
                     if not ex.expect_reply:
                         self.stats.broadcasts += 1
@@ -349,6 +396,7 @@ class AsyncBus(_BusBase):
                 self.stats.by_function[ex.pdu.function_code] = self.stats.by_function.get(ex.pdu.function_code, 0) + 1
                 self._rx = b""
                 ex.pdu.dev_id = ex.unit
+                started = time.monotonic()
                 try:
                     reply = await self.client.execute(not ex.expect_reply, ex.pdu)
                 except ConnectionException as exc:
@@ -362,6 +410,10 @@ class AsyncBus(_BusBase):
                     continue
                 except ModbusException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
+                if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
+                    await asyncio.sleep(self._rejected(ex, reply, problem, started))
+                    self._mark_done(ex)
+                    continue
                 self._mark_done(ex)
                 if not ex.expect_reply:
                     self.stats.broadcasts += 1
@@ -383,4 +435,5 @@ __all__ = [
     "DEFAULT_RETRIES",
     "Exchange",
     "Stats",
+    "reply_mismatch",
 ]

@@ -36,6 +36,7 @@ from .errors import (
     DriveError,
     InvalidValue,
     NotBroadcastable,
+    PartialWrite,
     ReadOnlyRegister,
     TransportError,
     UnknownRegister,
@@ -188,7 +189,12 @@ class Core:
         return reg
 
     def write_raw(self, items: Sequence[tuple[Key, int]]) -> Op[None]:
-        """Write raw values, contiguous runs in one 10h request where the map allows it."""
+        """Write raw values, contiguous runs in one 10h request where the map allows it.
+
+        Requests go out in address order and stop at the first failure. When the write needed
+        several requests, that failure is raised as :class:`PartialWrite` (written / unconfirmed /
+        not written elements); a single request raises its own error (all or nothing).
+        """
         regs = [(self.check_write(key), key, raw_to_words(self.spec.register(key[0]), raw)) for key, raw in items]
         limit = max_write_words(self.spec)
         if self.broadcast and not (self.spec.function(0x10) and self.spec.function(0x10).broadcast):  # type: ignore[union-attr]
@@ -209,14 +215,28 @@ class Core:
             for reg, _key, words in group:
                 if len(words) > 1 and limit == 0:
                     raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
-        for group in groups:
+        written: list[str] = []
+        for number, group in enumerate(groups):
             reg0, key0, _ = group[0]
-            yield from self._page_ops(reg0.page)
-            words = [w for _, _, ws in group for w in ws]
-            hold = max((r.write_delay_ms or 0.0) for r, _, _ in group)
-            yield from self._write_words(reg0.element_address(key0[1]), words, hold)
+            sending = False
+            try:
+                yield from self._page_ops(reg0.page)
+                words = [w for _, _, ws in group for w in ws]
+                hold = max((r.write_delay_ms or 0.0) for r, _, _ in group)
+                sending = True
+                yield from self._write_words(reg0.element_address(key0[1]), words, hold)
+            except DriveError as exc:
+                if len(groups) == 1:
+                    raise  # one request: all or nothing, the error says which
+                names = [[r.element_name(k[1]) for r, k, _ in g] for g in groups]
+                unsure = sending and isinstance(exc, TransportError)
+                raise PartialWrite(
+                    exc, written=tuple(written), maybe_written=tuple(names[number]) if unsure else (),
+                    not_written=tuple(n for g in names[number + (1 if unsure else 0):] for n in g),
+                ) from exc
             for reg, key, ws in group:
                 self._after_write(reg, key, words_to_raw(reg, ws))
+                written.append(reg.element_name(key[1]))
 
     def _after_write(self, reg: RegisterSpec, key: Key, raw: int) -> None:
         name = reg.element_name(key[1])
@@ -254,19 +274,31 @@ class Core:
 
 
 def _run(bus: Bus, op: Op[T]) -> T:
+    """Run an operation on a bus; a failed exchange is raised inside the operation (``throw``)."""
     try:
         ex = next(op)
         while True:
-            ex = op.send(bus.exchange(ex))
+            try:
+                reply = bus.exchange(ex)
+            except DriveError as exc:
+                ex = op.throw(exc)
+            else:
+                ex = op.send(reply)
     except StopIteration as stop:
         return stop.value  # type: ignore[no-any-return]
 
 
 async def _arun(bus: AsyncBus, op: Op[T]) -> T:
+    """The asyncio twin of :func:`_run`."""
     try:
         ex = next(op)
         while True:
-            ex = op.send(await bus.exchange(ex))
+            try:
+                reply = await bus.exchange(ex)
+            except DriveError as exc:
+                ex = op.throw(exc)
+            else:
+                ex = op.send(reply)
     except StopIteration as stop:
         return stop.value  # type: ignore[no-any-return]
 
@@ -632,7 +664,9 @@ class ClientBase(_Common[S]):
             return self._snapshot(_run(self.bus, self._core.read_raw(keys, self.plan())))
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
-        """Write several registers; contiguous ones go out in one 10h request where the map allows it."""
+        """Write several registers; contiguous ones go out in one 10h request where the map allows it.
+
+        If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
         self._write_raw_items([(acc.key, acc.codec.encode(value)) for acc, value in items])
 
     def read_by_name(self, name: str) -> Any:
@@ -804,6 +838,7 @@ __all__ = [
     "Core",
     "DriveError",
     "PagePolicy",
+    "PartialWrite",
     "ReadOnly",
     "ReadOnlyArray",
     "ReadWrite",

@@ -67,6 +67,33 @@ class DriveTimeout(TransportError, TimeoutError):
     """No valid reply after the last retry."""
 
 
+class PartialWrite(DriveError):
+    """A write that needed several requests stopped part-way: what was and was not written.
+
+    Element names (``"digital_speed[3]"``), in address order:
+
+    * ``written``: confirmed by the device's reply (or sent, for a broadcast);
+    * ``maybe_written``: in the request that got no valid reply (timeout, transport error): the
+      device may or may not have applied it;
+    * ``not_written``: refused by the device (exception reply) or never sent, because the write
+      stops at the first failing request.
+
+    ``error`` (also ``__cause__``) is the error of the failing request.
+    """
+
+    def __init__(self, error: DriveError, *, written: tuple[str, ...], maybe_written: tuple[str, ...],
+                 not_written: tuple[str, ...]) -> None:
+        self.error = error
+        self.written = written
+        self.maybe_written = maybe_written
+        self.not_written = not_written
+        parts = [f"written: {', '.join(written) or '-'}"]
+        if maybe_written:
+            parts.append(f"unconfirmed: {', '.join(maybe_written)}")
+        parts.append(f"not written: {', '.join(not_written) or '-'}")
+        super().__init__(f"write incomplete ({'; '.join(parts)}): {error}")
+
+
 class DeviceException(DriveError):
     """An exception reply of the device: ``code`` with the map's ``name`` and ``meaning``.
 
@@ -94,6 +121,7 @@ __all__ = [
     "DriveTimeout",
     "InvalidValue",
     "NotBroadcastable",
+    "PartialWrite",
     "ReadOnlyRegister",
     "TransportError",
     "UnknownRegister",

@@ -183,7 +183,8 @@ class _WatchAscii(FramerAscii):
     def _decode_one(self, data: bytes) -> tuple[int, int, int, bytes]:
         end = data.find(self.end)
         if end == -1:
-            return (0 if self.START in data else len(data)), 0, 0, self.EMPTY
+            last = data.rfind(self.START)  # keep only the frame being received
+            return (last if last != -1 else len(data)), 0, 0, self.EMPTY
         start = data.rfind(self.START, 0, end)
         stop = end + len(self.end)
         if start == -1:

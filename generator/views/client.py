@@ -20,7 +20,7 @@ FIXED_NAMES = frozenset({
     "Client", "AsyncClient", "BroadcastClient", "AsyncBroadcastClient", "Snapshot", "Bus", "AsyncBus", "SPEC",
     "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
     "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
-    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum",
+    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
 })
 
 
@@ -249,7 +249,7 @@ def context(model: Model, _models: list[Model]) -> dict[str, Any]:
         "package_all": sorted(set(all_names) | {
             "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
             "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
-            "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError",
+            "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
         }, key=lambda n: (n.lower(), n)),
         "client_exports": sorted(all_names, key=_isort_key),
         "loopback": model.protocol.function(0x08) is not None,
