@@ -975,4 +975,5 @@ SPEC = DeviceSpec(
     comm_error_history=None,
     configuration=None,
     max_frame_bytes=80,
+    fixed_units=(),
 )

@@ -603,4 +603,5 @@ SPEC = DeviceSpec(
     comm_error_history='comm_error_history',
     configuration=('configuration', 1),
     max_frame_bytes=None,
+    fixed_units=(17,),
 )

@@ -180,4 +180,5 @@ SPEC = DeviceSpec(
     comm_error_history=None,
     configuration=None,
     max_frame_bytes=37,
+    fixed_units=(),
 )

@@ -264,4 +264,5 @@ SPEC = DeviceSpec(
     comm_error_history=None,
     configuration=None,
     max_frame_bytes=None,
+    fixed_units=(),
 )

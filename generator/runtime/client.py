@@ -589,8 +589,9 @@ class ClientBase(_Common[S]):
     def __init__(self, bus: Bus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:
         spec = self.SPEC
-        if not _broadcast and not spec.unit_min <= unit <= spec.unit_max:
-            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}")
+        if not _broadcast and not spec.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
+                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)
@@ -712,8 +713,9 @@ class AsyncClientBase(_Common[S]):
     def __init__(self, bus: AsyncBus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:
         spec = self.SPEC
-        if not _broadcast and not spec.unit_min <= unit <= spec.unit_max:
-            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}")
+        if not _broadcast and not spec.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
+                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)

@@ -259,7 +259,7 @@ class Simulator:
         if not unit_ids:
             raise SimulatorError("a simulator needs at least one unit id")
         for uid in unit_ids:
-            if not spec.unit_min <= uid <= spec.unit_max or uid == spec.broadcast_address:
+            if not spec.valid_unit(uid):
                 raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
         self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
         if self.state_file is not None and self.state_file.exists():

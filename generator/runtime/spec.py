@@ -168,7 +168,13 @@ class DeviceSpec:
     comm_error_history: str | None = None
     configuration: tuple[str, int] | None = None
     max_frame_bytes: int | None = None
+    #: unit ids a port fixes outside the settable range (e.g. EV's RS-232 port answers as 17)
+    fixed_units: tuple[int, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
+
+    def valid_unit(self, unit: int) -> bool:
+        """Whether a device of this model can have unit id ``unit`` (broadcast excluded)."""
+        return (self.unit_min <= unit <= self.unit_max or unit in self.fixed_units) and unit != self.broadcast_address
 
     def register(self, name: str) -> RegisterSpec:
         if not self._index:

@@ -80,6 +80,8 @@ def context(model: Model, _models: list[Model]) -> dict[str, Any]:
         ],
         "registers": [register_args(model, r) for r in model.registers],
         "configuration": (p.configuration.register, p.configuration.value) if p.configuration else None,
+        "fixed_units": tuple(sorted({x.fixed_unit for x in p.ports if x.fixed_unit is not None
+                                     and not p.unit_min <= x.fixed_unit <= p.unit_max})),
         "imports": _imports(model),
     }
 
