@@ -1,0 +1,216 @@
+"""(5) Compiler scaling: build time and peak memory for the real maps and synthetic maps.
+
+Each measurement runs in a fresh subprocess (``python bench/compiler_scaling.py --worker ...``)
+so that peak memory (``ru_maxrss``) belongs to that build alone. In the worker:
+
+* imports happen first and are not timed (they are the same for every map);
+* a warm-up build of a 10-register synthetic map compiles the Jinja templates and the JSON
+  Schema validator once, so the timed build measures the per-map cost, not one-time setup;
+* the timed build is ``compile_map`` (load, schema, checks, model) + ``render_all`` +
+  ``write_outputs`` into a temporary folder — what ``drivemap build`` does per map;
+* peak memory is ``ru_maxrss`` after the build minus ``ru_maxrss`` before it (the growth the
+  build caused), plus the absolute peak.
+
+The real maps are also built together with ``drivemap build --out TMP`` (the command itself).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from common import MODELS, ROOT, Row, Section, median, spread
+
+SIZES_FULL = (100, 1000, 10000)
+SIZES_QUICK = (100, 300)
+GOAL = 1.3
+
+
+def _rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
+
+
+def worker(args: list[str]) -> dict[str, Any]:
+    """Run in the child: build the given maps, print timings as JSON."""
+    from synthetic import write_synthetic
+
+    from generator import cli
+    from generator.compiler import compile_map
+    from generator.render import render_all, write_outputs
+
+    mode, target = args[0], args[1]
+    profile = "--profile" in args
+    with tempfile.TemporaryDirectory(prefix="drivemap-bench-") as tmp:
+        folder = Path(tmp)
+        warm = write_synthetic(folder, 10)
+        write_outputs(render_all([compile_map(warm)]), folder / "warm-out")
+        before = _rss_mb()
+        out = folder / "out"
+        result: dict[str, Any] = {}
+        path = None
+        if mode == "synthetic":
+            path = write_synthetic(folder, int(target))
+        elif mode == "map":
+            path = ROOT / "maps" / f"{target}.yaml"
+        prof = None
+        if profile:
+            import cProfile
+
+            prof = cProfile.Profile()
+            prof.enable()
+        t0 = time.perf_counter()
+        if path is None:  # the command itself, every map in maps/
+            result["exit"] = _quiet_cli(cli, out)
+            t1 = t2 = time.perf_counter()
+        else:
+            model = compile_map(path)
+            t1 = time.perf_counter()
+            write_outputs(render_all([model]), out)
+            t2 = time.perf_counter()
+            result["registers"] = len(model.registers)
+            result["bytes"] = path.stat().st_size
+        if prof is not None:
+            prof.disable()
+            import io
+            import pstats
+
+            text = io.StringIO()
+            pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(14)
+            result["profile"] = text.getvalue()
+        result.update(compile_s=t1 - t0, render_s=t2 - t1, total_s=t2 - t0, rss_before_mb=before,
+                      rss_peak_mb=_rss_mb())
+    return result
+
+
+def _quiet_cli(cli: Any, out: Path) -> int:
+    import contextlib
+    import io
+
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        code: int = cli.main(["build", "--out", str(out)])
+    return code
+
+
+def _run_worker(mode: str, target: str, timeout: float, profile: bool = False) -> dict[str, Any]:
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", mode, target] + (["--profile"] if profile else [])
+    env = dict(os.environ, PYTHONHASHSEED="0")
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=str(ROOT), env=env)
+    except subprocess.TimeoutExpired:
+        return {"timeout": timeout}
+    if proc.returncode != 0:
+        return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [f"exit {proc.returncode}"]}
+    data: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
+    return data
+
+
+def _profile_summary(text: str) -> str:
+    lines = [ln.rstrip() for ln in text.splitlines() if ln.strip()]
+    start = next((i for i, ln in enumerate(lines) if ln.strip().startswith("ncalls")), 0)
+    head = [ln.strip() for ln in lines[:start] if "function calls" in ln]
+    return "\n".join(head + lines[start:])
+
+
+def run(quick: bool, budget_s: float) -> Section:
+    sec = Section("Compiler scaling")
+    rounds = 1 if quick else 3
+    sizes = SIZES_QUICK if quick else SIZES_FULL
+    per_build_timeout = 60.0 if quick else 90.0
+    started = time.perf_counter()
+
+    # real maps, one by one, and `drivemap build` of all of them
+    real: list[tuple[str, list[dict[str, Any]]]] = []
+    for model in MODELS:
+        real.append((model, [_run_worker("map", model, per_build_timeout) for _ in range(rounds)]))
+    cli_runs = [_run_worker("cli", "all", per_build_timeout) for _ in range(rounds)]
+
+    synthetic: list[tuple[int, list[dict[str, Any]]]] = []
+    for size in sizes:
+        runs: list[dict[str, Any]] = []
+        for _ in range(rounds):
+            left = budget_s - (time.perf_counter() - started)
+            if runs and left < per_build_timeout:
+                break  # out of time for more rounds of this size: report how many ran
+            runs.append(_run_worker("synthetic", str(size), min(per_build_timeout, max(left, 10.0))))
+            if "timeout" in runs[-1] or "error" in runs[-1]:
+                break
+        synthetic.append((size, runs))
+
+    sec.detail.append("| map | registers | map bytes | rounds | build median (s) | compile (s) | render+write (s) "
+                      "| µs/register | peak RSS (MB) | RSS growth (MB) |")
+    sec.detail.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+
+    def line(name: str, runs: list[dict[str, Any]]) -> float | None:
+        ok = [r for r in runs if "total_s" in r]
+        if not ok:
+            why = runs[0].get("error") or f"timed out after {runs[0].get('timeout')} s" if runs else "not run"
+            sec.detail.append(f"| {name} | — | — | {len(runs)} | {why} | | | | | |")
+            return None
+        tot = [r["total_s"] for r in ok]
+        regs = ok[0].get("registers")
+        per = median(tot) / regs * 1e6 if regs else None
+        sec.detail.append(
+            f"| {name} | {regs if regs else '—'} | {ok[0].get('bytes', '—')} | {len(ok)} | {median(tot):.3f} "
+            f"({spread(tot)}) | {median([r['compile_s'] for r in ok]):.3f} | {median([r['render_s'] for r in ok]):.3f} "
+            f"| {f'{per:.0f}' if per else '—'} | {max(r['rss_peak_mb'] for r in ok):.0f} "
+            f"| {median([r['rss_peak_mb'] - r['rss_before_mb'] for r in ok]):.1f} |")
+        return per
+
+    for model, runs in real:
+        line(f"maps/{model}.yaml", runs)
+    line("`drivemap build` (all maps)", cli_runs)
+    per_size: dict[int, float | None] = {}
+    for size, runs in synthetic:
+        per_size[size] = line(f"synthetic {size}", runs)
+        if runs and "timeout" in runs[-1]:
+            per_size[size] = runs[-1]["timeout"] / size * 1e6  # lower bound
+            sec.detail.append(f"| ↳ lower bound | {size} | | | > {runs[-1]['timeout']:.0f} | | | "
+                              f"≥ {per_size[size]:.0f} | | |")
+
+    small, large = sizes[0], sizes[-1]
+    ps, pl = per_size.get(small), per_size.get(large)
+    timed_out = any("timeout" in r for _, runs in synthetic for r in runs)
+    if ps and pl:
+        ratio = pl / ps
+        met = ratio <= GOAL and not timed_out
+        sec.rows.append(Row("5 compiler", f"cost/register {large} vs {small} regs", ratio, f"≤ {GOAL}×", met,
+                            f"{pl:.0f} vs {ps:.0f} µs/reg" + (" (lower bound: timed out)" if timed_out else "")))
+        mem = {size: runs for size, runs in synthetic}
+        ok_l = [r for r in mem[large] if "rss_peak_mb" in r]
+        ok_s = [r for r in mem[small] if "rss_peak_mb" in r]
+        if ok_l and ok_s:
+            gl = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_l]) / large * 1024
+            gs = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_s]) / small * 1024
+            sec.rows.append(Row("5 compiler", f"memory/register {large} vs {small} regs", gl / gs if gs > 0 else None,
+                                "(flat)", None, f"{gl:.1f} vs {gs:.1f} KiB/reg RSS growth",
+                                "RSS growth is page-granular: noisy for small maps"))
+        if not met and not quick:
+            # profile the largest size that finished within one build timeout
+            size = max((s for s, runs in synthetic if any("total_s" in r for r in runs)), default=small)
+            if size == large and timed_out:
+                size = small
+            size = min(size, 1000)
+            prof = _run_worker("synthetic", str(size), per_build_timeout, profile=True)
+            if "profile" in prof:
+                sec.profiles.append(f"cProfile of the build of a synthetic map of {size} registers "
+                                    f"(top entries by own time):\n\n```\n{_profile_summary(prof['profile'])}\n```")
+    return sec
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        print(json.dumps(worker(sys.argv[2:]), default=str))
+    else:
+        s = run("--quick" in sys.argv, 200.0)
+        print("\n".join(s.detail))
+        for r in s.rows:
+            print(r)
+        print("\n\n".join(s.profiles))

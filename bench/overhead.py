@@ -1,0 +1,236 @@
+"""(2) Client overhead: the generated typed client vs raw pymodbus, same requests, same simulator.
+
+One generated simulator runs in its own process on 127.0.0.1 (TCP). In each round both clients
+do the same operations, alternating call by call (which client goes first alternates between
+rounds), every call timed on its own; a round's figure is the median time per operation, so a
+burst of load from other processes hits both clients alike. The table gives the median over
+rounds.
+
+Operations (model ``MODEL``):
+
+* ``read_all``: ``client.read_all()`` (plan, requests, decoding, a typed Snapshot) vs raw
+  ``read_holding_registers`` for each request of the same plan (words only, no decoding);
+* ``read one``: ``client.<reg>.read()`` vs one raw ``read_holding_registers(address, count=1)``;
+* ``write one``: ``client.<reg>.write(value)`` (type/range/access checks, encoding) vs raw
+  ``write_register(address, raw)`` with the same raw value.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+from common import Row, Section, median, profile_text, spread
+from servers import Child
+
+MODEL = "vfd1000"
+GOAL = 1.10
+
+
+def pick_register(spec: Any) -> Any:
+    """A plain readable and writable u16 register (no page, no command, not an array)."""
+    for reg in spec.registers:
+        if (reg.access == "rw" and reg.count == 1 and reg.type in ("u16", "s16") and reg.page is None
+                and reg.command_value is None and not reg.refuse_while_running):
+            return reg
+    raise LookupError("no plain rw register")
+
+
+def _ops_sync(client: Any, raw: Any, reg: Any) -> dict[str, tuple[Callable[[], Any], Callable[[], Any]]]:
+    plan = type(client).plan()
+    acc = client.accessor(reg.name)
+    value = acc.read()
+    raw_value = acc.read_raw() & 0xFFFF
+
+    def raw_read_all() -> None:
+        for r in plan:
+            rep = raw.read_holding_registers(r.address, count=r.count, device_id=1)
+            assert not rep.isError()
+
+    return {
+        "read_all": (client.read_all, raw_read_all),
+        "read one": (acc.read, lambda: raw.read_holding_registers(reg.address, count=1, device_id=1)),
+        "write one": (lambda: acc.write(value), lambda: raw.write_register(reg.address, raw_value, device_id=1)),
+    }
+
+
+async def _ops_async(client: Any, raw: Any, reg: Any) -> dict[str, tuple[Callable[[], Awaitable[Any]],
+                                                                           Callable[[], Awaitable[Any]]]]:
+    plan = type(client).plan()
+    acc = client.accessor(reg.name)
+    value = await acc.read()
+    raw_value = (await acc.read_raw()) & 0xFFFF
+
+    async def raw_read_all() -> None:
+        for r in plan:
+            rep = await raw.read_holding_registers(r.address, count=r.count, device_id=1)
+            assert not rep.isError()
+
+    return {
+        "read_all": (client.read_all, raw_read_all),
+        "read one": (acc.read, lambda: raw.read_holding_registers(reg.address, count=1, device_id=1)),
+        "write one": (lambda: acc.write(value), lambda: raw.write_register(reg.address, raw_value, device_id=1)),
+    }
+
+
+def paired(ours: Callable[[], Any], theirs: Callable[[], Any], count: int, seconds: float,
+           swap: bool) -> tuple[list[float], list[float]]:
+    """Time each call, alternating the two clients call by call: (our times, their times)."""
+    ta: list[float] = []
+    tb: list[float] = []
+    pairs = [(ours, ta), (theirs, tb)]
+    if swap:
+        pairs.reverse()
+    deadline = time.perf_counter() + seconds
+    for _ in range(count):
+        for fn, store in pairs:
+            t0 = time.perf_counter()
+            fn()
+            store.append(time.perf_counter() - t0)
+        if time.perf_counter() >= deadline:
+            break
+    return ta, tb
+
+
+async def apaired(ours: Callable[[], Awaitable[Any]], theirs: Callable[[], Awaitable[Any]], count: int,
+                  seconds: float, swap: bool) -> tuple[list[float], list[float]]:
+    """Async twin of :func:`paired`."""
+    ta: list[float] = []
+    tb: list[float] = []
+    pairs = [(ours, ta), (theirs, tb)]
+    if swap:
+        pairs.reverse()
+    deadline = time.perf_counter() + seconds
+    for _ in range(count):
+        for fn, store in pairs:
+            t0 = time.perf_counter()
+            await fn()
+            store.append(time.perf_counter() - t0)
+        if time.perf_counter() >= deadline:
+            break
+    return ta, tb
+
+
+def _rows(sec: Section, mode: str, results: dict[str, tuple[list[float], list[float], list[float]]],
+          requests: dict[str, int]) -> list[str]:
+    missed = []
+    for op, (ratios, ours, theirs) in results.items():
+        r = median(ratios)
+        met = r <= GOAL
+        sec.rows.append(Row("2 client overhead", f"{mode} {op}", r, f"≤ {GOAL:.2f}×", met,
+                            f"{median(ours) * 1e6:.0f} vs {median(theirs) * 1e6:.0f} µs/op"))
+        sec.detail.append(f"| {mode} | {op} | {requests[op]} | {r:.3f} ({spread(ratios)}) | {median(ours) * 1e6:.0f} "
+                          f"| {median(theirs) * 1e6:.0f} | {(median(ours) - median(theirs)) * 1e6 / requests[op]:.0f} "
+                          f"| {len(ratios)} |")
+        if not met:
+            missed.append(op)
+    return missed
+
+
+def run(quick: bool) -> Section:
+    sec = Section("Client overhead (TCP loopback)")
+    rounds = 3 if quick else 7
+    count, seconds = (40, 0.3) if quick else (300, 0.6)
+    client_mod = importlib.import_module(f"generated.{MODEL}.client")
+    reg = pick_register(client_mod.SPEC)
+    requests = {"read_all": len(client_mod.Client.plan()), "read one": 1, "write one": 1}
+    sec.detail.append(f"Model `{MODEL}`, register `{reg.name}` (0x{reg.address:04X}) for the single read/write; "
+                      f"read_all = {requests['read_all']} requests. Simulator in its own process.")
+    sec.detail.append("")
+    sec.detail.append("| mode | operation | requests/op | ratio (range) | drivemap µs/op | raw pymodbus µs/op "
+                      "| overhead µs/request | rounds |")
+    sec.detail.append("|---|---|---:|---:|---:|---:|---:|---:|")
+    from pymodbus.client import AsyncModbusTcpClient, ModbusTcpClient
+
+    with Child("tcp", MODEL, "drivemap") as server:
+        host, port = server.fields[0], int(server.fields[1])
+        # ---- sync
+        client = client_mod.Client.tcp(host, port, 1, timeout=2.0)
+        raw = ModbusTcpClient(host, port=port, timeout=2.0)
+        with client:
+            raw.connect()
+            ops = _ops_sync(client, raw, reg)
+            results: dict[str, tuple[list[float], list[float], list[float]]] = {}
+            for op, (ours, theirs) in ops.items():
+                ours(), theirs()  # warm
+                ratios: list[float] = []
+                a: list[float] = []
+                b: list[float] = []
+                for i in range(rounds):
+                    ta, tb = paired(ours, theirs, count, seconds, swap=i % 2 == 1)
+                    a.append(median(ta))
+                    b.append(median(tb))
+                    ratios.append(a[-1] / b[-1])
+                results[op] = (ratios, a, b)
+            missed = _rows(sec, "sync", results, requests)
+            for op in missed:
+                ours_fn = ops[op][0]
+                sec.profiles.append(f"sync `{op}`: cProfile of 200 calls of the generated client (top by own time):"
+                                    f"\n\n```\n{profile_text(lambda f=ours_fn: [f() for _ in range(200)])}\n```")
+            raw.close()
+
+        # ---- async
+        async def async_part() -> tuple[dict[str, tuple[list[float], list[float], list[float]]], list[str]]:
+            aclient = client_mod.AsyncClient.tcp(host, port, 1, timeout=2.0)
+            araw = AsyncModbusTcpClient(host, port=port, timeout=2.0)
+            await aclient.connect()
+            await araw.connect()
+            try:
+                aops = await _ops_async(aclient, araw, reg)
+                res: dict[str, tuple[list[float], list[float], list[float]]] = {}
+                for op, (ours, theirs) in aops.items():
+                    await ours()
+                    await theirs()
+                    ratios: list[float] = []
+                    a: list[float] = []
+                    b: list[float] = []
+                    for i in range(rounds):
+                        ta, tb = await apaired(ours, theirs, count, seconds, swap=i % 2 == 1)
+                        a.append(median(ta))
+                        b.append(median(tb))
+                        ratios.append(a[-1] / b[-1])
+                    res[op] = (ratios, a, b)
+                missed = [op for op, (r, _, _) in res.items() if median(r) > GOAL]
+                profiles = []
+                for op in missed:
+                    fn = aops[op][0]
+                    import cProfile
+                    import io
+                    import pstats
+
+                    prof = cProfile.Profile()
+                    prof.enable()
+                    for _ in range(200):
+                        await fn()
+                    prof.disable()
+                    out = io.StringIO()
+                    pstats.Stats(prof, stream=out).strip_dirs().sort_stats("tottime").print_stats(15)
+                    text = out.getvalue()
+                    start = text.find("   ncalls")
+                    profiles.append(f"async `{op}`: cProfile of 200 calls of the generated client (top by own "
+                                    f"time):\n\n```\n{text[start:].strip()}\n```")
+                sec.profiles.extend(profiles)
+                return res, missed
+            finally:
+                aclient.close()
+                araw.close()
+
+        started = time.perf_counter()
+        aresults, _ = asyncio.run(asyncio.wait_for(async_part(), timeout=120))
+        _rows(sec, "async", aresults, requests)
+        sec.detail.append("")
+        sec.detail.append(f"Async part: {time.perf_counter() - started:.0f} s.")
+    return sec
+
+
+if __name__ == "__main__":
+    import sys
+
+    s = run("--quick" in sys.argv)
+    print("\n".join(s.detail))
+    for r in s.rows:
+        print(r)
+    print("\n\n".join(s.profiles))

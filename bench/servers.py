@@ -1,0 +1,165 @@
+"""Servers and lines for the benchmarks, each in its own process (``python bench/servers.py ...``).
+
+The parent reads one ``READY ...`` line from stdout and stops the child by closing its stdin
+(the child exits when stdin reaches EOF, or after ``--max-seconds``). Running them in separate
+processes keeps the server's work off the client's interpreter (and its GIL).
+
+``tcp MODEL drivemap``      the generated simulator (``generated/MODEL/simulator.py``) on 127.0.0.1
+``tcp MODEL simdevice``     a plain pymodbus ``SimDevice`` server holding the same register words
+``serial MODEL PORT BAUD``  the generated simulator (realistic timing) on a serial device path
+``line BAUD``               a paced :class:`VirtualSerialLine` (8N1, 10 bits per byte)
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from common import ROOT  # noqa: E402
+
+
+def same_words(model: str) -> dict[int, int]:
+    """address -> word of every address ``read_all`` reads, as the generated simulator answers it."""
+    client_mod = importlib.import_module(f"generated.{model}.client")
+    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1])
+    words: dict[int, int] = {}
+    for req in client_mod.Client.plan():
+        pdu = bytes([0x03]) + req.address.to_bytes(2, "big") + req.count.to_bytes(2, "big")
+        reply = sim.handle(1, pdu)
+        assert reply is not None and reply[0] == 0x03, reply
+        for i in range(req.count):
+            words.setdefault(req.address + i, int.from_bytes(reply[2 + 2 * i: 4 + 2 * i], "big"))
+    return words
+
+
+async def _serve_tcp(model: str, kind: str, stop: asyncio.Event) -> None:
+    from pymodbus.framer import FramerType
+    from pymodbus.server import ModbusTcpServer
+    from pymodbus.simulator import DataType, SimData, SimDevice
+
+    if kind == "drivemap":
+        from generator.runtime.simserve import SimServer
+
+        sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1])
+        server = SimServer(sim, tcp=("127.0.0.1", 0))
+        await server.start()
+        assert server.address is not None
+        print("READY", *server.address, flush=True)
+        await stop.wait()
+        await server.stop()
+        return
+    words = same_words(model)
+    blocks: list[SimData] = []
+    run: list[int] = []
+    start = -1
+    for address in sorted(words):
+        if run and address != start + len(run):
+            blocks.append(SimData(address=start, values=run, datatype=DataType.REGISTERS))
+            run = []
+        if not run:
+            start = address
+        run.append(words[address])
+    if run:
+        blocks.append(SimData(address=start, values=run, datatype=DataType.REGISTERS))
+    plain = ModbusTcpServer([SimDevice(id=1, simdata=blocks)], framer=FramerType.SOCKET, address=("127.0.0.1", 0))
+    await plain.serve_forever(background=True)
+    sockets = getattr(plain.transport, "sockets", None) or []
+    host, port = sockets[0].getsockname()[:2]
+    print("READY", host, port, flush=True)
+    await stop.wait()
+    await plain.shutdown()  # type: ignore[no-untyped-call]
+
+
+async def _serve_serial(model: str, port: str, baud: int, stop: asyncio.Event) -> None:
+    from generator.runtime.simserve import SimServer
+
+    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1], realistic_timing=True)
+    server = SimServer(sim, serial=port, mode="rtu", baudrate=baud, parity="none", stop_bits=1, data_bits=8)
+    await server.start()
+    print("READY", port, sim.reply_delay(), flush=True)
+    await stop.wait()
+    await server.stop()
+
+
+def _stdin_closed(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> None:
+    sys.stdin.read()
+    loop.call_soon_threadsafe(stop.set)
+
+
+async def _main_async(args: list[str], max_seconds: float) -> None:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    threading.Thread(target=_stdin_closed, args=(loop, stop), daemon=True).start()
+    loop.call_later(max_seconds, stop.set)
+    if args[0] == "tcp":
+        await _serve_tcp(args[1], args[2], stop)
+    else:
+        await _serve_serial(args[1], args[2], int(args[3]), stop)
+
+
+def main(argv: list[str]) -> int:
+    max_seconds = 600.0
+    if "--max-seconds" in argv:
+        i = argv.index("--max-seconds")
+        max_seconds = float(argv[i + 1])
+        argv = argv[:i] + argv[i + 2:]
+    if argv[0] == "line":
+        from generator.testing.vserial import VirtualSerialLine
+
+        done = threading.Event()
+        threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+        with VirtualSerialLine(int(argv[1]), pace=True, capture=False, name="bench") as line:
+            print("READY", line.master_port, line.device_port, flush=True)
+            done.wait(max_seconds)
+        return 0
+    asyncio.run(_main_async(argv, max_seconds))
+    return 0
+
+
+class Child:
+    """A child process started with ``servers.py`` args; ``fields`` are the words after READY."""
+
+    def __init__(self, *args: str, max_seconds: float = 300.0, ready_timeout: float = 20.0) -> None:
+        cmd = [sys.executable, str(HERE / "servers.py"), *args, "--max-seconds", str(max_seconds)]
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, cwd=str(ROOT))
+        self.fields: list[str] = []
+        result: list[str] = []
+        reader = threading.Thread(target=lambda: result.append(self.proc.stdout.readline() if self.proc.stdout else ""),
+                                  daemon=True)
+        reader.start()
+        reader.join(ready_timeout)
+        line = result[0] if result else ""
+        if not line.startswith("READY"):
+            self.close()
+            err = self.proc.stderr.read() if self.proc.stderr else ""
+            raise RuntimeError(f"servers.py {' '.join(args)} did not start: {line!r} {err[-2000:]}")
+        self.fields = line.split()[1:]
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            try:
+                if self.proc.stdin:
+                    self.proc.stdin.close()
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+
+    def __enter__(self) -> Child:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
