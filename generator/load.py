@@ -17,7 +17,7 @@ from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from .diagnostics import CompileError, Diagnostic, Location
 
 #: Maps larger than this are refused before parsing (bounded time and memory).
-MAX_MAP_BYTES = 2 * 1024 * 1024
+MAX_MAP_BYTES = 4 * 1024 * 1024
 #: Deepest nesting accepted.
 MAX_DEPTH = 40
 
@@ -150,10 +150,47 @@ class _Builder:
         return value
 
 
+def _compose_fast(text: str) -> Node | None:
+    """Compose with libyaml when PyYAML has it; None when it cannot (the Python path then decides).
+
+    Anchors and aliases are refused by a first pass over the parser's events, so the C composer
+    never expands an alias. Any problem falls back to the Python path, which owns the messages.
+    """
+    loader_class = getattr(yaml, "CSafeLoader", None)
+    if loader_class is None:
+        return None
+    try:
+        for event in yaml.parse(text, Loader=loader_class):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+                return None
+        loader = loader_class(text)
+        try:
+            node: Node | None = loader.get_single_node()
+        finally:
+            loader.dispose()
+        return node
+    except (yaml.YAMLError, RecursionError, ValueError):
+        return None
+
+
 def load_text(text: str, path: str) -> Document:
     """Parse ``text`` (the contents of ``path``); raise :class:`CompileError` on any problem."""
     if len(text.encode("utf-8", "surrogatepass")) > MAX_MAP_BYTES:
         raise CompileError([Diagnostic(Location(path, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
+    node = _compose_fast(text)
+    if node is None:
+        node = _compose_python(text, path)
+    if node is None:
+        raise CompileError([Diagnostic(Location(path, 1, 1), "empty file: a map is a YAML mapping")])
+    builder = _Builder(path)
+    data = builder.build(node, ())
+    if builder.errors:
+        raise CompileError(builder.errors)
+    return Document(path, data, builder.positions)
+
+
+def _compose_python(text: str, path: str) -> Node | None:
+    """The pure-Python composer: refuses anchors and aliases, and locates every syntax error."""
     try:
         loader = _Composer(text)
     except yaml.reader.ReaderError as exc:
@@ -179,13 +216,7 @@ def load_text(text: str, path: str) -> Document:
         raise CompileError([Diagnostic(Location(path, 1, 1), "YAML nested too deeply")]) from None
     finally:
         loader.dispose()
-    if node is None:
-        raise CompileError([Diagnostic(Location(path, 1, 1), "empty file: a map is a YAML mapping")])
-    builder = _Builder(path)
-    data = builder.build(node, ())
-    if builder.errors:
-        raise CompileError(builder.errors)
-    return Document(path, data, builder.positions)
+    return node
 
 
 def load_file(path: str | os.PathLike[str]) -> Document:

@@ -84,7 +84,7 @@ def test_fifty_megabyte_map_is_refused(tmp_path: Path) -> None:
         cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
     )
     assert proc.returncode == 1
-    assert proc.stderr.splitlines()[0] == f"{big}:1:1: error: file larger than 2097152 bytes; refused"
+    assert proc.stderr.splitlines()[0] == f"{big}:1:1: error: file larger than 4194304 bytes; refused"
 
 
 def test_all_errors_of_a_file_in_one_run(tmp_path: Path) -> None:

@@ -209,14 +209,14 @@ def context(model: Model, _models: list[Model]) -> dict[str, Any]:
 
     has_broadcast = model.protocol.broadcast_address is not None
     bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
-    broadcast_sync = {a.name: ("WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast}
-    broadcast_async = {a.name: ("AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast}
+    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
+    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]
 
     runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
     for a in accessors:
         runtime_names.update({a.sync_class, a.async_class})
-    runtime_names.update(broadcast_sync.values())
-    runtime_names.update(broadcast_async.values())
+    runtime_names.update(cls for _, cls in broadcast_sync)
+    runtime_names.update(cls for _, cls in broadcast_async)
 
     snapshot_fields = [
         {"name": a.name, "type": f"tuple[{a.type} | None, ...] | None" if a.is_array else f"{a.type} | None"}
