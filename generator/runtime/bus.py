@@ -16,11 +16,21 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
   request) is never returned: it is logged, counted in :attr:`Stats.rejected`, and the attempt
   counts as unanswered (the bus waits out its response timeout, so a real reply still on its way
   is discarded before the retry);
-* after every transaction the line stays quiet for ``inter_frame_gap_ms`` and, on serial lines,
-  the silent interval (``silent_interval_chars`` at the line's baud rate, or the map's floor);
-* after a broadcast: ``broadcast_gap_ms`` (else :data:`DEFAULT_BROADCAST_GAP_MS`) plus the silent
-  interval, since nobody answers;
-* after an EEPROM write: the register's ``write_delay_ms`` (the client passes it as ``hold_ms``).
+* on a serial line (RTU/ASCII) and on RTU over TCP, after every transaction the line stays quiet
+  for ``inter_frame_gap_ms`` plus the silent interval (``silent_interval_chars`` at the line's baud
+  rate, or the map's floor; on RTU over TCP, where the baud rate is unknown, the floor);
+* on Modbus TCP (MBAP framing) neither applies: both are serial-line rules (the manuals state them
+  for their RS-485 port, Modbus over Serial Line v1.02 2.5.1.1), and an MBAP frame is delimited by
+  its length field, not by silence. RTU over TCP keeps them because a transparent gateway puts the
+  frames on a serial line as they come;
+* after a broadcast, on every transport: ``broadcast_gap_ms`` (else
+  :data:`DEFAULT_BROADCAST_GAP_MS`), since nobody answers and the devices need the time to act
+  (plus the silent interval where it applies);
+* after an EEPROM write, on every transport: the register's ``write_delay_ms`` (the client passes
+  it as ``hold_ms``).
+
+:meth:`Bus.quiet_after` gives that quiet time for an exchange; :attr:`Bus.last_quiet_s` records the
+quiet time kept after the last transaction.
 
 Every frame is logged in hex at DEBUG on the ``drivemap`` logger.
 """
@@ -126,26 +136,47 @@ class _BusBase:
         self.name = name
         self._ready_at = 0.0
         self._rx = b""
+        #: Quiet time (seconds) the bus kept, or is keeping, after the last transaction.
+        self.last_quiet_s = 0.0
+        # per TimingSpec (by identity): (timing, timeout s, retries, quiet after a reply, after a broadcast)
+        self._timing_cache: dict[int, tuple[TimingSpec, float, int, float, float]] = {}
+        self._timing_settings: tuple[Any, ...] = ()
 
     # pymodbus trace hooks: every byte that goes out or comes in passes here.
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
         if sending:
             self.stats.bytes_sent += len(data)
-            log.debug("%s TX %s", self.name, data.hex(" "))
+            if log.isEnabledFor(logging.DEBUG):
+                log.debug("%s TX %s", self.name, data.hex(" "))
         else:
             self._rx = data
         return data
 
     def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
-        if not sending:
+        if not sending and self._rx:
             self._flush_rx("RX")
         return pdu
 
     def _flush_rx(self, what: str) -> None:
         if self._rx:
             self.stats.bytes_received += len(self._rx)
-            log.debug("%s %s %s", self.name, what, self._rx.hex(" "))
+            if log.isEnabledFor(logging.DEBUG):
+                log.debug("%s %s %s", self.name, what, self._rx.hex(" "))
             self._rx = b""
+
+    def _timing(self, timing: TimingSpec) -> tuple[TimingSpec, float, int, float, float]:
+        """(timing, timeout s, retries, quiet s after a reply, quiet s after a broadcast), cached."""
+        settings = (self.timeout_override, self.retries_override, self.serial_line, self.baudrate,
+                    self.bits_per_char)
+        if settings != self._timing_settings:  # a setting changed since the cache was filled
+            self._timing_cache.clear()
+            self._timing_settings = settings
+        hit = self._timing_cache.get(id(timing))
+        if hit is None or hit[0] is not timing:
+            hit = (timing, self.timeout_for(timing), self.retries_for(timing), self._quiet_s(timing, True),
+                   self._quiet_s(timing, False))
+            self._timing_cache[id(timing)] = hit
+        return hit
 
     def timeout_for(self, timing: TimingSpec) -> float:
         if self.timeout_override is not None:
@@ -171,12 +202,19 @@ class _BusBase:
         chars = timing.silent_interval_chars if timing.silent_interval_chars is not None else 3.5
         return max(chars * self.bits_per_char / self.baudrate, 0.0)
 
-    def _quiet_after(self, ex: Exchange) -> float:
-        gap = (ex.timing.inter_frame_gap_ms or 0.0) / 1000.0
-        if not ex.expect_reply:
-            bgap = ex.timing.broadcast_gap_ms if ex.timing.broadcast_gap_ms is not None else DEFAULT_BROADCAST_GAP_MS
+    def _quiet_s(self, timing: TimingSpec, expect_reply: bool) -> float:
+        # inter-frame gap and silent interval: serial-line rules (also RTU over TCP), not Modbus TCP
+        gap = (timing.inter_frame_gap_ms or 0.0) / 1000.0 if self.serial_line else 0.0
+        if not expect_reply:
+            bgap = timing.broadcast_gap_ms if timing.broadcast_gap_ms is not None else DEFAULT_BROADCAST_GAP_MS
             gap = max(gap, bgap / 1000.0)
-        return max(gap + self.silent_interval_s(ex.timing), ex.hold_ms / 1000.0)
+        return gap + self.silent_interval_s(timing)
+
+    def quiet_after(self, ex: Exchange) -> float:
+        """Seconds the line stays quiet after ``ex`` (see the module docstring for the rules)."""
+        cached = self._timing(ex.timing)
+        quiet = cached[3] if ex.expect_reply else cached[4]
+        return max(quiet, ex.hold_ms / 1000.0)
 
     def _rejected(self, ex: Exchange, reply: ModbusPDU, problem: str, started: float) -> float:
         """Count and log a reply that is not ours; the seconds left of the attempt's timeout."""
@@ -186,11 +224,20 @@ class _BusBase:
                     ex.pdu.function_code, problem)
         return max(0.0, started + self.timeout_for(ex.timing) - time.monotonic())
 
-    def _mark_done(self, ex: Exchange) -> None:
-        self._ready_at = max(self._ready_at, time.monotonic() + self._quiet_after(ex))
+    def _mark_done(self, quiet: float) -> None:
+        """The transaction is over: keep the line quiet for ``quiet`` seconds (:meth:`quiet_after`)."""
+        self.last_quiet_s = quiet
+        if quiet > 0:
+            self._ready_at = max(self._ready_at, time.monotonic() + quiet)
 
     def _wait_s(self) -> float:
-        return max(0.0, self._ready_at - time.monotonic())
+        if not self._ready_at:
+            return 0.0
+        left = self._ready_at - time.monotonic()
+        if left <= 0:
+            self._ready_at = 0.0
+            return 0.0
+        return left
 
 
 def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[str, Any], str, int]:
@@ -277,24 +324,30 @@ class Bus(_BusBase):
     def exchange(self, ex: Exchange) -> ModbusPDU | None:
         """Send one request (retrying on timeout); the reply PDU, or None for a broadcast."""
         with self.lock:
-            if not self.client.connected:
+            client = self.client
+            if not client.connected:
                 self.connect()
-            self.client.comm_params.timeout_connect = self.timeout_for(ex.timing)
-            attempts = 1 + (0 if not ex.expect_reply else self.retries_for(ex.timing))
+            _, timeout, retries, quiet_reply, quiet_broadcast = self._timing(ex.timing)
+            quiet = max(quiet_reply if ex.expect_reply else quiet_broadcast, ex.hold_ms / 1000.0)
+            params = client.comm_params
+            if params.timeout_connect != timeout:
+                params.timeout_connect = timeout
+            attempts = 1 + (0 if not ex.expect_reply else retries)
+            stats = self.stats
             try:
                 for attempt in range(attempts):
                     if attempt:
-                        self.stats.retries += 1
-                    if (wait := self._wait_s()) > 0:
+                        stats.retries += 1
+                    if self._ready_at and (wait := self._wait_s()) > 0:
                         time.sleep(wait)
-                    self.stats.transactions += 1
+                    stats.transactions += 1
                     fc = ex.pdu.function_code
-                    self.stats.by_function[fc] = self.stats.by_function.get(fc, 0) + 1
+                    stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
                     self._rx = b""
                     ex.pdu.dev_id = ex.unit
                     started = time.monotonic()
                     try:
-                        reply = self.client.execute(not ex.expect_reply, ex.pdu)
+                        reply = client.execute(not ex.expect_reply, ex.pdu)
                     except ConnectionException as exc:
                         raise TransportError(f"{self.name}: {exc}") from exc
                     except (ModbusIOException, TimeoutError) as exc:
@@ -302,23 +355,24 @@ class Bus(_BusBase):
                         self._flush_rx("RX (no valid reply)")
                         log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
                                   attempt + 1, attempts, exc)
-                        self._mark_done(ex)
+                        self._mark_done(quiet)
                         continue
                     except ModbusException as exc:
                         raise TransportError(f"{self.name}: {exc}") from exc
                     if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                         time.sleep(self._rejected(ex, reply, problem, started))
-                        self._mark_done(ex)
+                        self._mark_done(quiet)
                         continue
-                    self._mark_done(ex)
+                    self._mark_done(quiet)
                     if not ex.expect_reply:
-                        self.stats.broadcasts += 1
+                        stats.broadcasts += 1
                         return None
                     if reply is not None and reply.isError():
-                        self.stats.exceptions += 1
+                        stats.exceptions += 1
                     return reply  # type: ignore[no-any-return]
             finally:
-                self._flush_rx("RX (unused)")
+                if self._rx:
+                    self._flush_rx("RX (unused)")
             raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
 
 
@@ -382,23 +436,30 @@ class AsyncBus(_BusBase):
 
     async def exchange(self, ex: Exchange) -> ModbusPDU | None:
         """Send one request (retrying on timeout); the caller holds :attr:`lock`."""
-        if not self.client.connected:
+        client = self.client
+        if not client.connected:
             await self.connect()
-        self.client.comm_params.timeout_connect = self.timeout_for(ex.timing)
-        attempts = 1 + (0 if not ex.expect_reply else self.retries_for(ex.timing))
+        _, timeout, retries, quiet_reply, quiet_broadcast = self._timing(ex.timing)
+        quiet = max(quiet_reply if ex.expect_reply else quiet_broadcast, ex.hold_ms / 1000.0)
+        params = client.comm_params
+        if params.timeout_connect != timeout:
+            params.timeout_connect = timeout
+        attempts = 1 + (0 if not ex.expect_reply else retries)
+        stats = self.stats
         try:
             for attempt in range(attempts):
                 if attempt:
-                    self.stats.retries += 1
-                if (wait := self._wait_s()) > 0:
+                    stats.retries += 1
+                if self._ready_at and (wait := self._wait_s()) > 0:
                     await asyncio.sleep(wait)
-                self.stats.transactions += 1
-                self.stats.by_function[ex.pdu.function_code] = self.stats.by_function.get(ex.pdu.function_code, 0) + 1
+                stats.transactions += 1
+                fc = ex.pdu.function_code
+                stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
                 self._rx = b""
                 ex.pdu.dev_id = ex.unit
                 started = time.monotonic()
                 try:
-                    reply = await self.client.execute(not ex.expect_reply, ex.pdu)
+                    reply = await client.execute(not ex.expect_reply, ex.pdu)
                 except ConnectionException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
                 except (ModbusIOException, TimeoutError) as exc:
@@ -406,23 +467,24 @@ class AsyncBus(_BusBase):
                     self._flush_rx("RX (no valid reply)")
                     log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
                               attempt + 1, attempts, exc)
-                    self._mark_done(ex)
+                    self._mark_done(quiet)
                     continue
                 except ModbusException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
                 if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
-                    self._mark_done(ex)
+                    self._mark_done(quiet)
                     continue
-                self._mark_done(ex)
+                self._mark_done(quiet)
                 if not ex.expect_reply:
-                    self.stats.broadcasts += 1
+                    stats.broadcasts += 1
                     return None
                 if reply is not None and reply.isError():
-                    self.stats.exceptions += 1
+                    stats.exceptions += 1
                 return reply  # type: ignore[no-any-return]
         finally:
-            self._flush_rx("RX (unused)")
+            if self._rx:
+                self._flush_rx("RX (unused)")
         raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
 
 

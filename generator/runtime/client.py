@@ -45,7 +45,7 @@ from .errors import (
     WrongPage,
 )
 from .planner import Key, ReadRequest, max_write_words, plan_reads, read_function, units
-from .spec import DeviceSpec, PageSpec, RegisterSpec
+from .spec import DeviceSpec, FunctionSpec, PageSpec, RegisterSpec
 
 log = logging.getLogger("drivemap")
 
@@ -83,6 +83,55 @@ class SnapshotBase:
         return self._values[accessor.key]  # type: ignore[no-any-return]
 
 
+# ----------------------------------------------------------------------------- per-spec tables
+@dataclasses.dataclass(frozen=True)
+class _SpecTables:
+    """What the per-call path needs from a :class:`DeviceSpec`, computed once per spec."""
+
+    readable: frozenset[str]
+    """Names of the readable registers."""
+    selectors: frozenset[str]
+    """Names of the registers that select a page of some register."""
+    read_code: int | None
+    """The read function code (:func:`read_function`), None when the map lists none."""
+    read_request: type[ModbusPDU] | None
+    all_keys: tuple[Key, ...]
+    """Every readable element, in :func:`planner.units` order (what ``read_all`` reads)."""
+    decode: Mapping[str, tuple[int, bool, bool, bool]]
+    """Per readable register: (words, signed, low word first, is a page selector)."""
+    fc06: FunctionSpec | None
+    fc10: FunctionSpec | None
+    write_limit: int
+    """:func:`max_write_words` of the spec."""
+
+
+_TABLES: dict[int, tuple[DeviceSpec, _SpecTables]] = {}
+
+
+def _tables(spec: DeviceSpec) -> _SpecTables:
+    """The tables of ``spec`` (cached by identity; specs are module-level constants)."""
+    hit = _TABLES.get(id(spec))
+    if hit is not None and hit[0] is spec:
+        return hit[1]
+    selectors = frozenset(r.page.selector for r in spec.registers if r.page is not None)
+    code = read_function(spec)
+    tables = _SpecTables(
+        readable=frozenset(r.name for r in spec.registers if r.readable),
+        selectors=selectors,
+        read_code=code,
+        read_request=None if code is None else (ReadHoldingRegistersRequest if code == 0x03
+                                                 else ReadInputRegistersRequest),
+        all_keys=tuple(u.key for u in units(spec) if u.key),
+        decode={r.name: (r.words, r.signed, r.word_order == "low_first", r.name in selectors)
+                for r in spec.registers if r.readable},
+        fc06=spec.function(0x06),
+        fc10=spec.function(0x10),
+        write_limit=max_write_words(spec),
+    )
+    _TABLES[id(spec)] = (spec, tables)
+    return tables
+
+
 # ----------------------------------------------------------------------------- core
 class Core:
     """Per-client protocol state and the operations, as generators of exchanges."""
@@ -96,6 +145,7 @@ class Core:
         self.exceptions = exceptions
         self.page_policy = page_policy
         self.broadcast = broadcast
+        self.tables = _tables(spec)
         self.pages: dict[str, int] = {}  # selector -> value it is known to show
         self.pending_configuration: list[str] = []
         self.pending_power_cycle: list[str] = []
@@ -112,7 +162,7 @@ class Core:
         return reply
 
     def exchange(self, pdu: ModbusPDU, hold_ms: float = 0.0) -> Exchange:
-        return Exchange(self.unit, pdu, self.spec.timing, expect_reply=not self.broadcast, hold_ms=hold_ms)
+        return Exchange(self.unit, pdu, self.spec.timing, not self.broadcast, hold_ms)
 
     # -- pages
     def _page_ops(self, page: PageSpec | None) -> Op[None]:
@@ -134,25 +184,31 @@ class Core:
         raise WrongPage(f"{page.selector} shows page {current}, not {page.value} (use page_policy='switch')")
 
     def _read_words(self, address: int, count: int) -> Op[list[int]]:
-        code = read_function(self.spec)
-        if code is None:
+        code = self.tables.read_code
+        cls = self.tables.read_request
+        if code is None or cls is None:
             raise UnsupportedFunction("the map lists no read function (03h/04h)")
-        cls = ReadHoldingRegistersRequest if code == 0x03 else ReadInputRegistersRequest
-        reply = self.raise_for((yield self.exchange(cls(address=address, count=count))), code)
-        if len(reply.registers) != count:
-            raise TransportError(f"asked {count} registers at 0x{address:04X}, got {len(reply.registers)}")
-        return list(reply.registers)
+        reply = yield Exchange(self.unit, cls(address=address, count=count), self.spec.timing,
+                               expect_reply=not self.broadcast)
+        if reply is None or reply.isError():
+            reply = self.raise_for(reply, code)
+        registers = reply.registers
+        if len(registers) != count:
+            raise TransportError(f"asked {count} registers at 0x{address:04X}, got {len(registers)}")
+        return list(registers)
+
+    def _write_request(self, address: int, words: list[int]) -> tuple[ModbusPDU, int]:
+        """The write request for ``words`` at ``address`` (06h for one word where possible, else 10h)."""
+        fc06, fc10 = self.tables.fc06, self.tables.fc10
+        if len(words) == 1 and fc06 is not None and (not self.broadcast or fc06.broadcast):
+            return WriteSingleRegisterRequest(address=address, registers=words), 0x06
+        if fc10 is not None and (not self.broadcast or fc10.broadcast):
+            return WriteMultipleRegistersRequest(address=address, registers=words), 0x10
+        raise UnsupportedFunction(f"no function code of the map writes {len(words)} word(s) here")
 
     def _write_words(self, address: int, words: list[int], hold_ms: float = 0.0) -> Op[None]:
         """One write request (06h for one word where possible, else 10h)."""
-        fc06, fc10 = self.spec.function(0x06), self.spec.function(0x10)
-        pdu: ModbusPDU
-        if len(words) == 1 and fc06 is not None and (not self.broadcast or fc06.broadcast):
-            pdu, code = WriteSingleRegisterRequest(address=address, registers=words), 0x06
-        elif fc10 is not None and (not self.broadcast or fc10.broadcast):
-            pdu, code = WriteMultipleRegistersRequest(address=address, registers=words), 0x10
-        else:
-            raise UnsupportedFunction(f"no function code of the map writes {len(words)} word(s) here")
+        pdu, code = self._write_request(address, words)
         reply = yield self.exchange(pdu, hold_ms)
         if not self.broadcast:
             self.raise_for(reply, code)
@@ -161,22 +217,50 @@ class Core:
     def check_readable(self, keys: Iterable[Key]) -> None:
         if self.broadcast:
             raise BroadcastRead("a broadcast client cannot read (nobody answers a broadcast)")
+        readable = self.tables.readable
         for name, _ in keys:
-            reg = self.spec.register(name)
-            if not reg.readable:
+            if name not in readable:
+                self.spec.register(name)  # KeyError for a name the map does not have
                 raise WriteOnlyRegister(f"{name} is write-only")
 
-    def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
-        self.check_readable(keys)
+    def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...], *,
+                 checked: bool = False) -> Op[dict[Key, int]]:
+        """Read ``keys`` with ``plan``; ``checked``: the caller has already run :meth:`check_readable`."""
+        if not checked:
+            self.check_readable(keys)
+        tables = self.tables
+        decode = tables.decode
+        request = tables.read_request
+        pages = self.pages
+        unit, timing, expect_reply = self.unit, self.spec.timing, not self.broadcast
         out: dict[Key, int] = {}
         for req in plan:
-            yield from self._page_ops(req.page)
-            words = yield from self._read_words(req.address, req.count)
+            if req.page is not None:
+                yield from self._page_ops(req.page)
+            # _read_words, inlined: this loop is every read's path
+            if request is None or tables.read_code is None:
+                raise UnsupportedFunction("the map lists no read function (03h/04h)")
+            count = req.count
+            reply = yield Exchange(unit, request(address=req.address, count=count), timing, expect_reply)
+            if reply is None or reply.isError():
+                reply = self.raise_for(reply, tables.read_code)
+            words = reply.registers
+            if len(words) != count:
+                raise TransportError(f"asked {count} registers at 0x{req.address:04X}, got {len(words)}")
             for key, offset in req.cells:
-                reg = self.spec.register(key[0])
-                out[key] = words_to_raw(reg, words[offset:offset + reg.words])
-                if any(r.page and r.page.selector == reg.name for r in self.spec.registers):
-                    self.pages[reg.name] = out[key]
+                size, signed, low_first, selector = decode[key[0]]
+                if size == 1:
+                    raw = words[offset]
+                    if signed and raw & 0x8000:
+                        raw -= 0x10000
+                else:
+                    first, second = words[offset], words[offset + 1]
+                    raw = (second << 16) | first if low_first else (first << 16) | second
+                    if signed and raw & 0x80000000:
+                        raw -= 0x100000000
+                out[key] = raw
+                if selector:
+                    pages[key[0]] = raw
         return out
 
     # -- writes
@@ -195,10 +279,24 @@ class Core:
         several requests, that failure is raised as :class:`PartialWrite` (written / unconfirmed /
         not written elements); a single request raises its own error (all or nothing).
         """
-        regs = [(self.check_write(key), key, raw_to_words(self.spec.register(key[0]), raw)) for key, raw in items]
-        limit = max_write_words(self.spec)
-        if self.broadcast and not (self.spec.function(0x10) and self.spec.function(0x10).broadcast):  # type: ignore[union-attr]
+        limit = self.tables.write_limit
+        if self.broadcast and not (self.tables.fc10 and self.tables.fc10.broadcast):
             limit = 0
+        if len(items) == 1:  # one element: one request, all or nothing (the common case, kept lean)
+            key, raw = items[0]
+            reg = self.check_write(key)
+            words = raw_to_words(reg, raw)
+            if len(words) > 1 and limit == 0:
+                raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
+            if reg.page is not None:
+                yield from self._page_ops(reg.page)
+            pdu, code = self._write_request(reg.element_address(key[1]), words)  # _write_words, inlined
+            reply = yield Exchange(self.unit, pdu, self.spec.timing, not self.broadcast, reg.write_delay_ms or 0.0)
+            if not self.broadcast:
+                self.raise_for(reply, code)
+            self._after_write(reg, key, int(raw))  # raw fits its type (raw_to_words checked): the words' value
+            return
+        regs = [(reg, key, raw_to_words(reg, raw)) for key, raw in items for reg in (self.check_write(key),)]
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
         for item in sorted(regs, key=lambda r: r[0].element_address(r[1][1])):
             reg, key, words = item
@@ -239,12 +337,15 @@ class Core:
                 written.append(reg.element_name(key[1]))
 
     def _after_write(self, reg: RegisterSpec, key: Key, raw: int) -> None:
-        name = reg.element_name(key[1])
-        if any(r.page and r.page.selector == reg.name for r in self.spec.registers):
+        if reg.name in self.tables.selectors:
             self.pages[reg.name] = raw
-        if reg.reflect == "configuration" and name not in self.pending_configuration:
+        reflect = reg.reflect
+        if reflect != "configuration" and reflect != "power_cycle":
+            return
+        name = reg.element_name(key[1])
+        if reflect == "configuration" and name not in self.pending_configuration:
             self.pending_configuration.append(name)
-        elif reg.reflect == "power_cycle" and name not in self.pending_power_cycle:
+        elif reflect == "power_cycle" and name not in self.pending_power_cycle:
             self.pending_power_cycle.append(name)
             log.warning("%s: written; takes effect after the drive is powered off and on again", name)
 
@@ -312,14 +413,16 @@ class _Element(Generic[T]):
         self.codec = codec
         self.spec = codec.spec
         self.index = index
+        self._key: Key = (codec.spec.name, index)
+        self._keys: tuple[Key, ...] = (self._key,)
 
     @property
     def key(self) -> Key:
-        return (self.spec.name, self.index)
+        return self._key
 
     @property
     def keys(self) -> tuple[Key, ...]:
-        return (self.key,)
+        return self._keys
 
     @property
     def name(self) -> str:
@@ -337,17 +440,17 @@ class ReadOnly(_Element[T]):
     """A readable register: ``read()`` gives the engineering value, ``read_raw()`` the raw one."""
 
     def read(self) -> T:
-        return self.codec.decode(self._owner._read_raw_keys(self.keys)[self.key])
+        return self.codec.decode(self._owner._read_raw_keys(self._keys)[self._key])
 
     def read_raw(self) -> int:
-        return self._owner._read_raw_keys(self.keys)[self.key]  # type: ignore[no-any-return]
+        return self._owner._read_raw_keys(self._keys)[self._key]  # type: ignore[no-any-return]
 
 
 class WriteOnly(_Element[T]):
     """A writable register; ``write`` checks type, range and access before sending."""
 
     def write(self, value: T) -> None:
-        self._owner._write_raw_items([(self.key, self.codec.encode(value))])
+        self._owner._write_raw_items([(self._key, self.codec.encode(value))])
 
     def write_raw(self, raw: int) -> None:
         self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
@@ -374,6 +477,7 @@ class _Array(Generic[T, E_co]):
         self.codec = codec
         self.spec = codec.spec
         self._elements = [self.element_type(owner, codec, i) for i in range(codec.spec.count)]
+        self._keys: tuple[Key, ...] = tuple((codec.spec.name, i) for i in range(codec.spec.count))
 
     def __getitem__(self, index: int) -> E_co:
         return self._elements[index]  # type: ignore[return-value]
@@ -386,7 +490,7 @@ class _Array(Generic[T, E_co]):
 
     @property
     def keys(self) -> tuple[Key, ...]:
-        return tuple((self.spec.name, i) for i in range(self.spec.count))
+        return self._keys
 
     @property
     def name(self) -> str:
@@ -426,7 +530,7 @@ class AsyncReadOnly(_Element[T]):
     """Async form of :class:`ReadOnly`."""
 
     async def read(self) -> T:
-        return self.codec.decode((await self._owner._read_raw_keys(self.keys))[self.key])
+        return self.codec.decode((await self._owner._read_raw_keys(self._keys))[self._key])
 
     async def read_raw(self) -> int:
         return (await self._owner._read_raw_keys(self.keys))[self.key]  # type: ignore[no-any-return]
@@ -436,7 +540,7 @@ class AsyncWriteOnly(_Element[T]):
     """Async form of :class:`WriteOnly`."""
 
     async def write(self, value: T) -> None:
-        await self._owner._write_raw_items([(self.key, self.codec.encode(value))])
+        await self._owner._write_raw_items([(self._key, self.codec.encode(value))])
 
     async def write_raw(self, raw: int) -> None:
         await self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
@@ -485,7 +589,10 @@ class _Common(Generic[S]):
     SNAPSHOT: ClassVar[type[SnapshotBase]] = SnapshotBase
     EXCEPTIONS: ClassVar[Mapping[int, type[DeviceException]]] = {}
     CODECS: ClassVar[Mapping[str, Codec[Any]]] = {}
-    _plans: ClassVar[dict[frozenset[Key], tuple[ReadRequest, ...]]]
+    _plans: ClassVar[dict[Any, tuple[ReadRequest, ...]]]
+    _shape: ClassVar[dict[str, int]]
+    _table: ClassVar[dict[Key, tuple[Callable[[int], Any], str | None, int]]]
+    _defaults: ClassVar[dict[str, Any] | None]
 
     _core: Core
     _accessors: dict[str, Any]
@@ -503,15 +610,31 @@ class _Common(Generic[S]):
         cls._plans = {}
 
     @classmethod
-    def plan(cls, keys: Iterable[Key] | None = None) -> tuple[ReadRequest, ...]:
-        """The read requests for ``keys`` (all readable elements when None); computed once and cached."""
-        wanted = frozenset(keys) if keys is not None else frozenset(u.key for u in units(cls.SPEC) if u.key)
+    def _plan_cache(cls) -> dict[Any, tuple[ReadRequest, ...]]:
         cache = cls.__dict__.get("_plans")
         if cache is None:
             cache = cls._plans = {}
-        if wanted not in cache:
-            cache[wanted] = plan_reads(cls.SPEC, wanted)
-        return cache[wanted]
+        return cache
+
+    @classmethod
+    def plan(cls, keys: Iterable[Key] | None = None) -> tuple[ReadRequest, ...]:
+        """The read requests for ``keys`` (all readable elements when None); computed once and cached."""
+        cache = cls._plan_cache()
+        if keys is None:
+            plan = cache.get(None)
+            if plan is None:
+                plan = cache[None] = cls.plan(_tables(cls.SPEC).all_keys)
+            return plan
+        if type(keys) is tuple:  # an accessor's keys: cached as given, skipping the frozenset
+            plan = cache.get(keys)
+            if plan is None:
+                plan = cache[keys] = cls.plan(list(keys))
+            return plan
+        wanted = frozenset(keys)
+        plan = cache.get(wanted)
+        if plan is None:
+            plan = cache[wanted] = plan_reads(cls.SPEC, wanted)
+        return plan
 
     @property
     def unit(self) -> int:
@@ -551,21 +674,79 @@ class _Common(Generic[S]):
             return acc[index]
         return acc
 
+    @classmethod
+    def _snapshot_table(cls) -> dict[Key, tuple[Callable[[int], Any], str | None, int]]:
+        """Per readable element: (decode, snapshot field or None, index in the field's tuple or -1).
+
+        Computed once per class (each element on first use); the count of an array field is
+        ``cls._shape[field]``.
+        """
+        table: dict[Key, tuple[Callable[[int], Any], str | None, int]] | None = cls.__dict__.get("_table")
+        if table is None:
+            names = {f.name for f in dataclasses.fields(cls.SNAPSHOT)}
+            cls._shape = {r.name: r.count for r in cls.SPEC.registers if r.name in names and r.is_array}
+            table = cls._table = {}
+            for reg in cls.SPEC.registers:
+                if reg.readable and reg.name in cls.CODECS:
+                    field = reg.name if reg.name in names else None
+                    for i in range(reg.count):
+                        table[(reg.name, i)] = (cls.CODECS[reg.name].decode, field, i if reg.is_array else -1)
+        return table
+
     def _snapshot(self, raw: Mapping[Key, int]) -> S:
-        values = {k: self.CODECS[k[0]].decode(v) for k, v in raw.items()}
+        table = self._snapshot_table()
+        shape = self._shape
+        values: dict[Key, Any] = {}
         fields: dict[str, Any] = {}
-        names = {f.name for f in dataclasses.fields(self.SNAPSHOT)}
-        for (name, index), value in values.items():
-            spec = self.SPEC.register(name)
-            if name not in names:
+        arrays: dict[str, list[Any]] = {}
+        for key, raw_value in raw.items():
+            entry = table.get(key)
+            if entry is None:  # not a readable element of the map: decode as before, no field
+                values[key] = self.CODECS[key[0]].decode(raw_value)
                 continue
-            if spec.is_array:
-                current = list(fields.get(name, (None,) * spec.count))
-                current[index] = value
-                fields[name] = tuple(current)
-            else:
+            decode, name, index = entry
+            value = values[key] = decode(raw_value)
+            if name is None:
+                continue
+            if index < 0:
                 fields[name] = value
-        return self.SNAPSHOT(_values=values, **fields)  # type: ignore[return-value]
+            else:
+                current = arrays.get(name)
+                if current is None:
+                    current = arrays[name] = [None] * shape[name]
+                current[index] = value
+        for name, items in arrays.items():
+            fields[name] = tuple(items)
+        defaults = self._snapshot_defaults()
+        if defaults is None:
+            return self.SNAPSHOT(_values=values, **fields)  # type: ignore[return-value]
+        # what the dataclass __init__ does (every field set, in order), without its per-field setattr calls
+        snap = object.__new__(self.SNAPSHOT)
+        state = snap.__dict__
+        state.update(defaults)
+        state["_values"] = values
+        state.update(fields)
+        return snap  # type: ignore[return-value]
+
+    @classmethod
+    def _snapshot_defaults(cls) -> dict[str, Any] | None:
+        """Field values of an empty ``SNAPSHOT`` when building it without ``__init__`` is exact, else None.
+
+        Exact for what the client template generates: a frozen dataclass whose fields are all in
+        ``__init__`` and default to None (``_values`` aside), without ``__post_init__`` or
+        ``__slots__``. Computed once per class.
+        """
+        if "_defaults" in cls.__dict__:
+            return cls._defaults
+        snapshot = cls.SNAPSHOT
+        params = getattr(snapshot, "__dataclass_params__", None)
+        fields = dataclasses.fields(snapshot)
+        exact = (params is not None and params.frozen and not hasattr(snapshot, "__post_init__")
+                 and not hasattr(snapshot, "__slots__") and snapshot.__new__ is object.__new__
+                 and all(f.init and (f.name == "_values" or f.default is None) for f in fields))
+        defaults = {f.name: None for f in fields} if exact else None
+        cls._defaults = defaults
+        return defaults
 
     @staticmethod
     def _keys(accessors: Iterable[Readable]) -> list[Key]:
@@ -644,9 +825,11 @@ class ClientBase(_Common[S]):
 
     # plumbing used by accessors
     def _read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
-        self._core.check_readable(keys)
+        core = self._core
+        core.check_readable(keys)
+        plan = (type(keys) is tuple and self._plans.get(keys)) or self.plan(keys)  # this class's own cache
         with self.bus.lock:
-            return _run(self.bus, self._core.read_raw(keys, self.plan(keys)))
+            return _run(self.bus, core.read_raw(keys, plan, checked=True))
 
     def _write_raw_items(self, items: Sequence[tuple[Key, int]]) -> None:
         with self.bus.lock:
@@ -659,10 +842,12 @@ class ClientBase(_Common[S]):
 
     def read_all(self) -> S:
         """Read every readable register (plan computed once per client class)."""
-        keys = [u.key for u in units(self.SPEC) if u.key]
-        self._core.check_readable(keys)
+        core = self._core
+        keys = core.tables.all_keys
+        core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
+        plan = self.plan()
         with self.bus.lock:
-            return self._snapshot(_run(self.bus, self._core.read_raw(keys, self.plan())))
+            return self._snapshot(_run(self.bus, core.read_raw(keys, plan, checked=True)))
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
         """Write several registers; contiguous ones go out in one 10h request where the map allows it.
@@ -762,10 +947,11 @@ class AsyncClientBase(_Common[S]):
         self.close()
 
     async def _read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
-        self._core.check_readable(keys)
-        plan = self.plan(keys)
+        core = self._core
+        core.check_readable(keys)
+        plan = (type(keys) is tuple and self._plans.get(keys)) or self.plan(keys)  # this class's own cache
         async with self.bus.lock:
-            return await _arun(self.bus, self._core.read_raw(keys, plan))
+            return await _arun(self.bus, core.read_raw(keys, plan, checked=True))
 
     async def _write_raw_items(self, items: Sequence[tuple[Key, int]]) -> None:
         op = self._core.write_raw(items)
@@ -776,10 +962,12 @@ class AsyncClientBase(_Common[S]):
         return self._snapshot(await self._read_raw_keys(self._keys(accessors)))
 
     async def read_all(self) -> S:
-        keys = [u.key for u in units(self.SPEC) if u.key]
-        self._core.check_readable(keys)
+        core = self._core
+        keys = core.tables.all_keys
+        core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
+        plan = self.plan()
         async with self.bus.lock:
-            return self._snapshot(await _arun(self.bus, self._core.read_raw(keys, self.plan())))
+            return self._snapshot(await _arun(self.bus, core.read_raw(keys, plan, checked=True)))
 
     async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
         await self._write_raw_items([(acc.key, acc.codec.encode(value)) for acc, value in items])

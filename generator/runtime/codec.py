@@ -136,8 +136,13 @@ class RawCodec(Codec[int]):
 class IntCodec(Codec[int]):
     """Whole-number scale and offset: engineering values are ``int``."""
 
+    def __init__(self, spec: RegisterSpec) -> None:
+        super().__init__(spec)
+        self._scale = int(spec.scale)
+        self._offset = int(spec.offset)
+
     def decode(self, raw: int) -> int:
-        return raw * int(self.spec.scale) + int(self.spec.offset)
+        return raw * self._scale + self._offset
 
     def encode(self, value: int) -> int:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -156,9 +161,14 @@ class IntCodec(Codec[int]):
 class FloatCodec(Codec[float]):
     """Fractional scale or offset: engineering values are ``float`` rounded to the scale's decimals."""
 
+    def __init__(self, spec: RegisterSpec) -> None:
+        super().__init__(spec)
+        self._scale = spec.scale
+        self._offset = spec.offset
+        self._digits = _digits(spec.scale) + _digits(spec.offset)
+
     def decode(self, raw: int) -> float:
-        spec = self.spec
-        return round(raw * spec.scale + spec.offset, _digits(spec.scale) + _digits(spec.offset))
+        return round(raw * self._scale + self._offset, self._digits)
 
     def encode(self, value: float) -> int:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -183,9 +193,11 @@ class EnumCodec(Codec[E]):
     def __init__(self, spec: RegisterSpec, enum_type: type[E]) -> None:
         super().__init__(spec)
         self.enum_type = enum_type
+        self._members: dict[Any, Any] = enum_type._value2member_map_
 
     def decode(self, raw: int) -> E:
-        return self.enum_type(raw)
+        member = self._members.get(raw)  # the member enum_type(raw) returns, without the call
+        return member if member is not None else self.enum_type(raw)
 
     def encode(self, value: E) -> int:
         if not isinstance(value, self.enum_type):
@@ -203,9 +215,13 @@ class FlagCodec(Codec[F]):
     def __init__(self, spec: RegisterSpec, flag_type: type[F]) -> None:
         super().__init__(spec)
         self.flag_type = flag_type
+        self._members: dict[Any, Any] = flag_type._value2member_map_
+        self._mask = (1 << (16 * spec.words)) - 1
 
     def decode(self, raw: int) -> F:
-        return self.flag_type(raw & ((1 << (16 * self.spec.words)) - 1))
+        value = raw & self._mask
+        member = self._members.get(value)  # what flag_type(value) returns (it caches combinations there)
+        return member if member is not None else self.flag_type(value)
 
     def encode(self, value: F) -> int:
         if not isinstance(value, self.flag_type):

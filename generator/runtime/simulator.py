@@ -32,9 +32,10 @@ import contextlib
 import json
 import math
 import os
+import struct
 import tempfile
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -74,6 +75,19 @@ _FALLBACK = {
 _STANDARD_MAX_QUANTITY = {0x03: 125, 0x04: 125, 0x06: 1, 0x10: 123}
 _TYPE_BOUNDS = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF)}
 _STATE_VERSION = 1
+#: Read plans kept per simulator (address, quantity, page state); the cache starts over when full.
+_MAX_READ_PLANS = 4096
+_PACKERS: dict[int, Callable[..., bytes]] = {}
+#: (cells read, per word: (cell or None for a reserved word read as 0, bit shift in the cell's raw value))
+_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int], ...]]
+
+
+def _packer(count: int) -> Callable[..., bytes]:
+    """``struct.Struct(">{count}H").pack``, made once per count."""
+    pack = _PACKERS.get(count)
+    if pack is None:
+        pack = _PACKERS[count] = struct.Struct(f">{count}H").pack
+    return pack
 
 
 class SimulatorError(ValueError):
@@ -112,15 +126,6 @@ def _to_value(reg: RegisterSpec, raw: int) -> float | int:
     if float(reg.scale).is_integer() and float(reg.offset).is_integer():
         return int(raw * int(reg.scale) + int(reg.offset))
     return round(raw * reg.scale + reg.offset, 9)
-
-
-def _words(reg: RegisterSpec, raw: int) -> list[int]:
-    """Wire words of a raw value (two's complement for signed types)."""
-    if reg.words == 1:
-        return [raw & 0xFFFF]
-    value = raw & 0xFFFFFFFF
-    high, low = value >> 16, value & 0xFFFF
-    return [low, high] if reg.word_order == "low_first" else [high, low]
 
 
 def _from_words(reg: RegisterSpec, words: Sequence[int]) -> int:
@@ -255,6 +260,15 @@ class Simulator:
                 start = reg.element_address(index)
                 for word in range(reg.words):
                     self._by_address.setdefault(start + word, []).append(_Slot(name, reg, index, word))
+        # address -> its slot when the first register there has no page (it always wins _resolve)
+        self._static: dict[int, _Slot] = {a: slots[0] for a, slots in self._by_address.items()
+                                          if slots[0].reg.page is None}
+        # every selector a page depends on: the page state of a unit is their values
+        self._selectors: tuple[str, ...] = tuple(sorted(
+            {r.page.selector for r in spec.registers if r.page is not None}
+            | {r.page.selector for r in spec.reserved if r.page is not None}))
+        # (address, quantity, page state) -> read plan (see _read_plan)
+        self._read_plans: dict[tuple[int, int, tuple[int, ...]], _ReadPlan | str] = {}
         unit_ids = list(dict.fromkeys(int(u) for u in units))
         if not unit_ids:
             raise SimulatorError("a simulator needs at least one unit id")
@@ -452,20 +466,47 @@ class Simulator:
             raise _Refused("illegal_quantity")
         if address + quantity > 0x10000:
             raise _Refused("illegal_address")
-        plan: list[_Slot | None] = []
+        selectors = self._selectors
+        state = tuple(unit.values.get(sel, 0) for sel in selectors) if selectors else ()
+        plan = self._read_plans.get((address, quantity, state))
+        if plan is None:
+            plan = self._read_plan(unit, address, quantity)
+            if len(self._read_plans) >= _MAX_READ_PLANS:
+                self._read_plans.clear()
+            self._read_plans[(address, quantity, state)] = plan
+        if isinstance(plan, str):
+            raise _Refused(plan)
+        cells, words = plan
+        self.behaviour.on_read(unit, list(cells))
+        values = unit.values
+        body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
+                                       for cell, shift in words])
+        return bytes((code, 2 * quantity)) + body
+
+    def _read_plan(self, unit: Unit, address: int, quantity: int) -> _ReadPlan | str:
+        """What a read of ``quantity`` words at ``address`` returns in the unit's current pages.
+
+        Either the refusal case or (cells read, per word (cell or None for a reserved 0, shift)).
+        Depends only on the spec and the values of the page selectors, so it is cached per page state.
+        """
+        words: list[tuple[str | None, int]] = []
         for addr in range(address, address + quantity):
             slot = self._resolve(unit, addr)
             if slot is None:
                 if not self._reserved_readable(unit, addr):
-                    raise _Refused("illegal_address")
-            elif not slot.reg.readable:
-                raise _Refused("write_only")
-            plan.append(slot)
-        cells = list(dict.fromkeys(s.cell for s in plan if s is not None))
-        self.behaviour.on_read(unit, cells)
-        words = [0 if s is None else _words(s.reg, unit.values[s.cell])[s.word] for s in plan]
-        body = b"".join(w.to_bytes(2, "big") for w in words)
-        return bytes([code, len(body)]) + body
+                    return "illegal_address"
+                words.append((None, 0))
+                continue
+            if not slot.reg.readable:
+                return "write_only"
+            reg = slot.reg
+            if reg.words == 1:
+                shift = 0
+            else:  # wire order: [high, low], or [low, high] for low_first
+                shift = 16 if (slot.word == 0) != (reg.word_order == "low_first") else 0
+            words.append((slot.cell, shift))
+        cells = tuple(dict.fromkeys(cell for cell, _ in words if cell is not None))
+        return cells, tuple(words)
 
     def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
         if len(data) != 4:
@@ -553,6 +594,9 @@ class Simulator:
         return bool(unit.values.get(page.selector, 0) == page.value)
 
     def _resolve(self, unit: Unit, address: int) -> _Slot | None:
+        static = self._static.get(address)
+        if static is not None:
+            return static
         for slot in self._by_address.get(address, ()):
             if self._page_ok(unit, slot.reg.page):
                 return slot
