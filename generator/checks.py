@@ -225,8 +225,6 @@ class Checker:
                     self.error(bwhere + ("enum",), f"unknown enum {bit['enum']!r}")
                 elif any(not 0 <= v < (1 << width) for v in values):
                     self.error(bwhere + ("enum",), f"enum {bit['enum']} has values that do not fit {width} bits")
-            if width > 1 and not bit.get("enum") and False:
-                pass
 
     def _cells(self) -> list[tuple[int, str, int, tuple[str, int] | None]]:
         """(address, name, register index, page) for every word of every register."""
@@ -305,8 +303,6 @@ class Checker:
         proc = timing.get("processing_ms")
         if proc and proc["min"] > proc["max"]:
             self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
-        if self.data["registers"] and not any(c in codes for c in (3, 4)):
-            pass
 
     def check_reserved(self) -> None:
         cells: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}

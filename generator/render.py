@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +17,6 @@ TEMPLATES = Path(__file__).resolve().parent / "templates"
 
 def _py(value: Any) -> str:
     """A Python literal for any map value: text from a map can never become code."""
-    if isinstance(value, float) and value.is_integer():
-        return repr(value)
     return repr(value)
 
 
@@ -63,16 +61,6 @@ def scaffold(model: str) -> str:
     return environment().get_template("new_map.yaml.jinja").render(model=model)
 
 
-#: Every target: (output path relative to generated/, template, context builder).
-Target = tuple[str, str, Callable[[Model, list[Model]], dict[str, Any]]]
-
-
-def _targets() -> list[Target]:
-    from . import views
-
-    return views.TARGETS
-
-
 def render_all(models: list[Model]) -> dict[str, str]:
     """Every generated file: relative path -> text."""
     from . import views
@@ -80,7 +68,7 @@ def render_all(models: list[Model]) -> dict[str, str]:
     env = environment()
     out: dict[str, str] = {}
     for per_model in (True, False):
-        for rel, template, build in _targets():
+        for rel, template, build in views.TARGETS:
             if ("{model}" in rel) != per_model:
                 continue
             for model in models if per_model else [None]:
