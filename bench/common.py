@@ -110,6 +110,8 @@ class Section:
     detail: list[str] = field(default_factory=list)
     profiles: list[str] = field(default_factory=list)
     error: str | None = None
+    explanation: str = ""
+    """Measured facts for the shortfall paragraph (sections that compute their own explanation)."""
 
 
 def profile_text(fn: Callable[[], Any], top: int = 15, sort: str = "tottime") -> str:

@@ -7,16 +7,27 @@ processes keeps the server's work off the client's interpreter (and its GIL).
 ``tcp MODEL drivemap``      the generated simulator (``generated/MODEL/simulator.py``) on 127.0.0.1
 ``tcp MODEL simdevice``     a plain pymodbus ``SimDevice`` server holding the same register words
 ``serial MODEL PORT BAUD``  the generated simulator (realistic timing) on a serial device path
-``line BAUD``               a paced :class:`VirtualSerialLine` (8N1, 10 bits per byte)
+``lean MODEL PORT BAUD``    a lean reference device on a serial device path: one loop in its own process
+                            that reads a request (framed by pymodbus's ``FramerRTU``), waits exactly the
+                            simulator's processing time from the request's last byte (sleep, then spin the
+                            last 0.3 ms) and writes the very bytes the generated simulator answers
+                            (``Simulator.handle``, realistic timing)
+``line BAUD``               a paced :class:`VirtualSerialLine` (8N1, 10 bits per byte) that records its
+                            traffic; stdin commands ``clear`` and ``dump FILE`` (JSON of the timestamped
+                            chunks per direction, captured and delivered), each answered by ``OK``
 """
 
 from __future__ import annotations
 
 import asyncio
 import importlib
+import json
+import os
+import select
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +100,53 @@ async def _serve_serial(model: str, port: str, baud: int, stop: asyncio.Event) -
     await server.stop()
 
 
+def _lean_device(model: str, port: str, baud: int, max_seconds: float) -> None:
+    """The reference device: no event loop, no server framework, a precise processing delay."""
+    from pymodbus.framer import FramerRTU
+    from pymodbus.pdu import DecodePDU
+
+    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1], realistic_timing=True)
+    delay = sim.reply_delay()
+    framer = FramerRTU(DecodePDU(True))
+    fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)  # the line keeps its ptys raw
+    done = threading.Event()
+    threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    print("READY", port, delay, flush=True)
+    poller = select.poll()
+    poller.register(fd, select.POLLIN)
+    buf = b""
+    end = time.monotonic() + max_seconds
+    try:
+        while not done.is_set() and time.monotonic() < end:
+            if not poller.poll(100):
+                continue
+            try:
+                data = os.read(fd, 512)
+            except BlockingIOError:
+                continue
+            arrived = time.monotonic()
+            buf += data
+            while buf:
+                used, dev_id, _tid, pdu = framer.decode(buf)
+                if not used:
+                    break
+                buf = buf[used:]
+                if not pdu:
+                    continue
+                reply = sim.handle(dev_id, pdu)
+                if reply is None:
+                    continue
+                frame = framer.encode(reply, dev_id, 0)
+                due = arrived + delay
+                if (left := due - time.monotonic() - 0.0003) > 0:
+                    time.sleep(left)
+                while time.monotonic() < due:
+                    pass
+                os.write(fd, frame)
+    finally:
+        os.close(fd)
+
+
 def _stdin_closed(loop: asyncio.AbstractEventLoop, stop: asyncio.Event) -> None:
     sys.stdin.read()
     loop.call_soon_threadsafe(stop.set)
@@ -115,10 +173,26 @@ def main(argv: list[str]) -> int:
         from generator.testing.vserial import VirtualSerialLine
 
         done = threading.Event()
-        threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
-        with VirtualSerialLine(int(argv[1]), pace=True, capture=False, name="bench") as line:
+        with VirtualSerialLine(int(argv[1]), pace=True, capture=True, name="bench") as line:
+
+            def commands() -> None:
+                for command in sys.stdin:
+                    word, _, arg = command.strip().partition(" ")
+                    if word == "clear":
+                        line.clear()
+                    elif word == "dump":
+                        chunks = {f"{d} {which}": [(t, len(b)) for t, b in line.chunks(d, which)]
+                                  for d in ("to_device", "to_master") for which in ("captured", "delivered")}
+                        Path(arg).write_text(json.dumps(chunks), encoding="utf-8")
+                    print("OK", flush=True)
+                done.set()
+
+            threading.Thread(target=commands, daemon=True).start()
             print("READY", line.master_port, line.device_port, flush=True)
             done.wait(max_seconds)
+        return 0
+    if argv[0] == "lean":
+        _lean_device(argv[1], argv[2], int(argv[3]), max_seconds)
         return 0
     asyncio.run(_main_async(argv, max_seconds))
     return 0
@@ -143,6 +217,20 @@ class Child:
             err = self.proc.stderr.read() if self.proc.stderr else ""
             raise RuntimeError(f"servers.py {' '.join(args)} did not start: {line!r} {err[-2000:]}")
         self.fields = line.split()[1:]
+
+    def command(self, text: str, timeout: float = 20.0) -> str:
+        """Send one command line on stdin; the child's one-line answer."""
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write(text + "\n")
+        self.proc.stdin.flush()
+        result: list[str] = []
+        reader = threading.Thread(target=lambda: result.append(self.proc.stdout.readline() if self.proc.stdout else ""),
+                                  daemon=True)
+        reader.start()
+        reader.join(timeout)
+        if not result:
+            raise RuntimeError(f"servers.py: no answer to {text!r}")
+        return result[0].strip()
 
     def close(self) -> None:
         if self.proc.poll() is None:

@@ -1,8 +1,11 @@
 """(3) Wire efficiency: requests per second on a paced virtual serial line vs the physical limit.
 
 Setup: a :class:`VirtualSerialLine` paced at 115200 baud, 8N1 (10 bits per byte), in its own
-process; the generated ``MODEL`` simulator with realistic timing on the device end, in its own
-process; the generated client (sync, then async) on the master end, 8N1 at 115200.
+process, recording the time of every chunk it reads from a sender and writes to a receiver; on the
+device end, in its own process, either the generated ``MODEL`` simulator with realistic timing on
+pymodbus's serial server (``simulator``) or a lean reference device (``lean``: one loop framing with
+pymodbus's ``FramerRTU``, a precise processing delay, the simulator's own reply bytes, see
+``servers.py``); on the master end the generated client and raw pymodbus, sync and async, 8N1.
 
 Physical limit of one transaction (nothing can be faster on this line with this device):
 
@@ -13,23 +16,40 @@ Physical limit of one transaction (nothing can be faster on this line with this 
 t3.5 is the silent interval the map gives at 115200 baud (``TimingSpec``: 3.5 characters, or the
 map's floor above its threshold baud rate); device processing is what the simulator applies
 (``Simulator.reply_delay()``). Limit = 1 / T requests per second.
+
+Where the time goes, from the line's timestamps (``time.monotonic()``, one clock for every process)
+and the client's own trace hooks: each transaction is split into request on the wire (first byte
+read from the client -> last byte handed to the device), device turnaround (-> first reply byte
+read from the device), reply on the wire (-> last byte handed to the client) and client
+turnaround (-> first byte of the next request), the last one split again at the moment pymodbus
+hands the complete reply to its framer (``trace_packet``) and the moment it hands over the next
+request.
 """
 
 from __future__ import annotations
 
 import asyncio
 import importlib
+import json
 import logging
+import os
+import tempfile
 import time
+from collections.abc import Callable
 from typing import Any
 
-from common import Row, Section, abounded, bounded, median, profile_text, spread
+from common import Row, Section, abounded, bounded, median, spread
 from servers import Child
 
 MODEL = "ev"
 BAUD = 115200
 BITS = 10
 GOAL = 0.90
+BYTE = BITS / BAUD
+DEVICES = ("simulator", "lean")
+MODES = ("sync", "raw-sync", "async", "raw-async")
+PHASES = ("request on the wire", "device turnaround", "reply on the wire", "client turnaround",
+          "reply end seen by client", "client work + quiet", "request to the line")
 
 
 def silent_interval(timing: Any) -> float:
@@ -50,94 +70,178 @@ def pick(client_cls: Any) -> tuple[Any, Any]:
     return read, reg
 
 
-def run(quick: bool) -> Section:
-    sec = Section("Wire efficiency (paced virtual serial line, 115200 8N1)")
-    logging.getLogger("drivemap").setLevel(logging.ERROR)  # no baud-rate warnings in the table
-    client_mod = importlib.import_module(f"generated.{MODEL}.client")
+def trace(pymodbus_client: Any, marks: list[tuple[float, bool]]) -> None:
+    """Record (time, sending) each time pymodbus hands bytes out or gets bytes in (its trace hook)."""
+    mgr = getattr(pymodbus_client, "transaction", None) or pymodbus_client.ctx
+    original = mgr.trace_packet
+    clock = time.monotonic
+
+    def hook(sending: bool, data: bytes) -> bytes:
+        marks.append((clock(), sending))
+        return original(sending, data)  # type: ignore[no-any-return]
+
+    mgr.trace_packet = hook
+
+
+def frame_edges(chunks: list[tuple[float, int]], size: int) -> tuple[list[float], list[float]]:
+    """Times of the chunks holding the first and the last byte of each ``size``-byte frame."""
+    firsts: list[float] = []
+    lasts: list[float] = []
+    pos = 0
+    for stamp, n in chunks:
+        for b in range(pos, pos + n):
+            if b % size == 0:
+                firsts.append(stamp)
+            if b % size == size - 1:
+                lasts.append(stamp)
+        pos += n
+    return firsts, lasts
+
+
+def split(capture: dict[str, list[tuple[float, int]]], req: int, resp: int,
+          marks: list[tuple[float, bool]]) -> dict[str, float]:
+    """Median seconds of each phase over the captured transactions (see the module docstring)."""
+    q0, _ = frame_edges(capture["to_device captured"], req)
+    _, q1 = frame_edges(capture["to_device delivered"], req)
+    r0, _ = frame_edges(capture["to_master captured"], resp)
+    _, r1 = frame_edges(capture["to_master delivered"], resp)
+    n = min(len(q0), len(q1), len(r0), len(r1))
+    rx = [t for t, sending in marks if not sending]
+    tx = [t for t, sending in marks if sending]
+    phases: dict[str, list[float]] = {p: [] for p in PHASES}
+    phases["period"] = []
+    for i in range(n - 1):
+        if not q0[i] <= q1[i] <= r0[i] <= r1[i] <= q0[i + 1]:
+            continue  # a frame out of step (a lost or split frame): not a clean transaction
+        phases["request on the wire"].append(q1[i] - q0[i])
+        phases["device turnaround"].append(r0[i] - q1[i])
+        phases["reply on the wire"].append(r1[i] - r0[i])
+        phases["client turnaround"].append(q0[i + 1] - r1[i])
+        phases["period"].append(q0[i + 1] - q0[i])
+        seen = [t for t in rx if r1[i] - 0.0005 <= t <= q0[i + 1]]
+        sent = [t for t in tx if seen and seen[-1] <= t <= q0[i + 1]]
+        if seen and sent:
+            phases["reply end seen by client"].append(seen[-1] - r1[i])
+            phases["client work + quiet"].append(sent[-1] - seen[-1])
+            phases["request to the line"].append(q0[i + 1] - sent[-1])
+    out = {k: median(v) for k, v in phases.items()}
+    out["transactions"] = float(len(phases["period"]))
+    return out
+
+
+class Line:
+    """The paced line child, with its recorder."""
+
+    def __init__(self, child: Child) -> None:
+        self.child = child
+        self.master, self.device = child.fields[0], child.fields[1]
+        fd, self.path = tempfile.mkstemp(prefix="drivemap-wire-", suffix=".json")
+        os.close(fd)
+
+    def clear(self) -> None:
+        self.child.command("clear")
+
+    def dump(self) -> dict[str, list[tuple[float, int]]]:
+        self.child.command(f"dump {self.path}")
+        with open(self.path, encoding="utf-8") as fh:
+            data: dict[str, list[tuple[float, int]]] = json.load(fh)
+        return data
+
+    def remove(self) -> None:
+        os.unlink(self.path)
+
+
+def run_device(device: str, line: Line, client_mod: Any, read_req: Any, reg: Any, rounds: int, count: int,
+               seconds: float, frames: dict[str, tuple[int, int]],
+               results: dict[tuple[str, str, str], dict[str, Any]]) -> dict[str, Any]:
+    """Every client mode and operation against one device; fills ``results``; facts about the run."""
     spec = client_mod.SPEC
-    read_req, reg = pick(client_mod.Client)
-    rounds = 2 if quick else 5
-    count, seconds = (30, 0.4) if quick else (200, 1.0)
-    t35 = silent_interval(spec.timing)
-    frames = {"read 16": (8, 5 + 2 * read_req.count), "write one": (8, 8)}
-    results: dict[str, dict[str, list[float]]] = {}
-    with Child("line", str(BAUD), max_seconds=200) as line, \
-            Child("serial", MODEL, line.fields[1], str(BAUD), max_seconds=200) as server:
-        processing = float(server.fields[1])
-        master = line.fields[0]
-        # ---- sync
-        client = client_mod.Client.serial(master, 1, timeout=1.0, baudrate=BAUD, parity="none", stop_bits=1)
+    kind = ("serial", MODEL, line.device, str(BAUD)) if device == "simulator" else ("lean", MODEL, line.device,
+                                                                                    str(BAUD))
+    facts: dict[str, Any] = {}
+    with Child(*kind, max_seconds=200) as server:
+        facts["processing"] = float(server.fields[1])
+
+        def measure(mode: str, op: str, rates: list[float], marks: list[tuple[float, bool]]) -> None:
+            req, resp = frames[op]
+            results[(device, mode, op)] = {"rates": rates, "phases": split(line.dump(), req, resp, marks)}
+
+        # ---- sync: the generated client, then raw pymodbus with the same t3.5 after each reply
+        client = client_mod.Client.serial(line.master, 1, timeout=1.0, baudrate=BAUD, parity="none", stop_bits=1)
         with client:
             accs = [client.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
             wacc = client.accessor(reg.name)
             value = wacc.read()
             raw_value = wacc.read_raw() & 0xFFFF
-            ops_sync = {"read 16": lambda: client.read(*accs), "write one": lambda: wacc.write(value)}
+            ops: dict[str, Callable[[], Any]] = {"read 16": lambda: client.read(*accs),
+                                                 "write one": lambda: wacc.write(value)}
             before = client.stats.transactions
-            ops_sync["read 16"]()
+            ops["read 16"]()
             assert client.stats.transactions - before == 1, "the 16-register read must be one request"
-            for op, fn in ops_sync.items():
+            marks: list[tuple[float, bool]] = []
+            trace(client.bus.client, marks)
+            for op, fn in ops.items():
+                fn()
+                line.clear()
+                marks.clear()
                 rates = []
                 for _ in range(rounds):
                     n, t = bounded(fn, count, seconds)
                     rates.append(n / t)
-                results[f"sync {op}"] = {"rates": rates}
-            shortfall_profile = {op: fn for op, fn in ops_sync.items()}
-            stats = client.stats
+                measure("sync", op, rates, marks)
+            facts["retries"], facts["timeouts"] = client.stats.retries, client.stats.timeouts
 
-            def limit(op: str) -> float:
-                req, resp = frames[op]
-                return 1.0 / ((req + resp) * BITS / BAUD + max(t35, processing) + t35)
-
-            missed = [op for op in ops_sync if median(results[f"sync {op}"]["rates"]) / limit(op) < GOAL]
-            for op in missed:
-                fn = shortfall_profile[op]
-                sec.profiles.append(f"sync `{op}` over the paced line: cProfile of 50 calls (top by own time):\n\n"
-                                    f"```\n{profile_text(lambda f=fn: [f() for _ in range(50)], top=12)}\n```")
-            retries, timeouts = stats.retries, stats.timeouts
-
-        # ---- raw pymodbus baseline, same line and device, t3.5 of silence after each reply as the map asks
         from pymodbus.client import AsyncModbusSerialClient, ModbusSerialClient
 
-        raw = ModbusSerialClient(master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8, timeout=1.0, retries=0)
+        t35 = facts["t35"] = silent_interval(spec.timing)
+        raw = ModbusSerialClient(line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8, timeout=1.0,
+                                 retries=0)
         raw.connect()
         try:
-            raw_ops = {
+            raw_ops: dict[str, Callable[[], Any]] = {
                 "read 16": lambda: (raw.read_holding_registers(read_req.address, count=read_req.count, device_id=1),
                                     time.sleep(t35)),
-                "write one": lambda: (raw.write_register(reg.address, raw_value,
-                                                         device_id=1), time.sleep(t35)),
+                "write one": lambda: (raw.write_register(reg.address, raw_value, device_id=1), time.sleep(t35)),
             }
+            marks = []
+            trace(raw, marks)
             for op, fn in raw_ops.items():
+                fn()
+                line.clear()
+                marks.clear()
                 rates = []
                 for _ in range(rounds):
                     n, t = bounded(fn, count, seconds)
                     rates.append(n / t)
-                results[f"raw-sync {op}"] = {"rates": rates}
+                measure("raw-sync", op, rates, marks)
         finally:
             raw.close()
 
         # ---- async
         async def async_part() -> None:
-            aclient = client_mod.AsyncClient.serial(master, 1, timeout=1.0, baudrate=BAUD, parity="none",
+            aclient = client_mod.AsyncClient.serial(line.master, 1, timeout=1.0, baudrate=BAUD, parity="none",
                                                     stop_bits=1)
             await aclient.connect()
             try:
                 aaccs = [aclient.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
                 awacc = aclient.accessor(reg.name)
                 avalue = await awacc.read()
-                ops = {"read 16": lambda: aclient.read(*aaccs), "write one": lambda: awacc.write(avalue)}
-                for op, fn in ops.items():
-                    await fn()
+                amarks: list[tuple[float, bool]] = []
+                trace(aclient.bus.client, amarks)
+                aops = {"read 16": lambda: aclient.read(*aaccs), "write one": lambda: awacc.write(avalue)}
+                for op, afn in aops.items():
+                    await afn()
+                    line.clear()
+                    amarks.clear()
                     rates = []
                     for _ in range(rounds):
-                        n, t = await abounded(fn, count, seconds)
+                        n, t = await abounded(afn, count, seconds)
                         rates.append(n / t)
-                    results[f"async {op}"] = {"rates": rates}
+                    measure("async", op, rates, amarks)
             finally:
                 aclient.close()
-            araw = AsyncModbusSerialClient(master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8, timeout=1.0,
-                                           retries=0)
+            araw = AsyncModbusSerialClient(line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8,
+                                           timeout=1.0, retries=0)
             await araw.connect()
             try:
                 async def aread() -> None:
@@ -148,65 +252,140 @@ def run(quick: bool) -> Section:
                     await araw.write_register(reg.address, raw_value, device_id=1)
                     await asyncio.sleep(t35)
 
-                for op, afn in (("read 16", aread), ("write one", awrite)):
-                    await afn()
+                amarks = []
+                trace(araw, amarks)
+                for op, rfn in (("read 16", aread), ("write one", awrite)):
+                    await rfn()
+                    line.clear()
+                    amarks.clear()
                     rates = []
                     for _ in range(rounds):
-                        n, t = await abounded(afn, count, seconds)
+                        n, t = await abounded(rfn, count, seconds)
                         rates.append(n / t)
-                    results[f"raw-async {op}"] = {"rates": rates}
+                    measure("raw-async", op, rates, amarks)
             finally:
                 araw.close()
 
-        started = time.perf_counter()
         asyncio.run(asyncio.wait_for(async_part(), timeout=120))
-        async_s = time.perf_counter() - started
+    return facts
 
-    sec.detail.append(f"Model `{MODEL}` (simulator with realistic timing: reply after {processing * 1000:.2f} ms); "
-                      f"t3.5 at {BAUD} Bd = {t35 * 1000:.3f} ms (the map's floor); read = {read_req.count} registers "
-                      f"at 0x{read_req.address:04X}, write = 06h to `{reg.name}` (0x{reg.address:04X}).")
-    sec.detail.append("")
-    sec.detail.append("| mode | operation | frame bytes (req + resp) | limit T (ms) | limit req/s | achieved req/s "
-                      "| efficiency (range) | lost per request (ms) | rounds |")
-    sec.detail.append("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-    for key, data in results.items():
-        mode, op = key.split(" ", 1)
+
+def run(quick: bool) -> Section:
+    sec = Section("Wire efficiency (paced virtual serial line, 115200 8N1)")
+    logging.getLogger("drivemap").setLevel(logging.ERROR)  # no baud-rate warnings in the table
+    client_mod = importlib.import_module(f"generated.{MODEL}.client")
+    spec = client_mod.SPEC
+    read_req, reg = pick(client_mod.Client)
+    rounds = 2 if quick else 5
+    count, seconds = (30, 0.4) if quick else (120, 0.8)
+    t35 = silent_interval(spec.timing)
+    frames = {"read 16": (8, 5 + 2 * read_req.count), "write one": (8, 8)}
+    results: dict[tuple[str, str, str], dict[str, Any]] = {}
+    facts: dict[str, dict[str, Any]] = {}
+    with Child("line", str(BAUD), max_seconds=250) as child:
+        line = Line(child)
+        try:
+            for device in DEVICES:
+                facts[device] = run_device(device, line, client_mod, read_req, reg, rounds, count, seconds, frames,
+                                           results)
+        finally:
+            line.remove()
+    processing = facts["simulator"]["processing"]
+
+    def limit_t(op: str) -> float:
         req, resp = frames[op]
-        t_limit = (req + resp) * BITS / BAUD + max(t35, processing) + t35
+        return (req + resp) * BYTE + max(t35, processing) + t35
+
+    sec.detail.append(f"Model `{MODEL}` (realistic timing: reply {processing * 1000:.2f} ms after the request); "
+                      f"t3.5 at {BAUD} Bd = {t35 * 1000:.3f} ms (the map's floor); read = {read_req.count} registers "
+                      f"at 0x{read_req.address:04X}, write = 06h to `{reg.name}` (0x{reg.address:04X}). Devices: "
+                      "`simulator` = the generated simulator on pymodbus's serial server (`drivemap simulate`); "
+                      "`lean` = the reference device of `bench/servers.py` (same reply bytes, precise delay).")
+    sec.detail.append("")
+    sec.detail.append("| device | client | operation | frame bytes (req + resp) | limit T (ms) | limit req/s "
+                      "| achieved req/s | efficiency (range) | lost per request (ms) | rounds |")
+    sec.detail.append("|---|---|---|---|---:|---:|---:|---:|---:|---:|")
+    for (device, mode, op), data in results.items():
+        req, resp = frames[op]
+        t_limit = limit_t(op)
         lim = 1.0 / t_limit
         rates = data["rates"]
         effs = [r / lim for r in rates]
         eff = median(effs)
         achieved = median(rates)
-        baseline = mode.startswith("raw")
-        sec.rows.append(Row("3 wire", key if not baseline else f"{key} (raw pymodbus, reference)", eff,
-                            f"≥ {GOAL:.2f}" if not baseline else "—", eff >= GOAL if not baseline else None,
-                            f"{achieved:.1f} of {lim:.1f} req/s"))
-        sec.detail.append(f"| {mode} | {op} | {req} + {resp} | {t_limit * 1000:.3f} | {lim:.1f} | {achieved:.1f} "
-                          f"| {eff:.3f} ({spread(effs)}) | {(1 / achieved - t_limit) * 1000:.3f} | {len(rates)} |")
+        data["eff"] = eff
+        baseline = mode.startswith("raw") or device != "simulator"
+        name = f"{mode} {op}" if device == "simulator" else f"{mode} {op} on the lean device"
+        if mode.startswith("raw"):
+            name += " (raw pymodbus, reference)"
+        elif device != "simulator":
+            name += " (reference)"
+        sec.rows.append(Row("3 wire", name, eff, f"≥ {GOAL:.2f}" if not baseline else "—",
+                            eff >= GOAL if not baseline else None, f"{achieved:.1f} of {lim:.1f} req/s"))
+        sec.detail.append(f"| {device} | {mode} | {op} | {req} + {resp} | {t_limit * 1000:.3f} | {lim:.1f} "
+                          f"| {achieved:.1f} | {eff:.3f} ({spread(effs)}) | {(1 / achieved - t_limit) * 1000:.3f} "
+                          f"| {len(rates)} |")
+
+    # ---- where the time goes
     sec.detail.append("")
-    sec.detail.append("Where the time lost per request goes: raw pymodbus on the same line and device loses the part "
-                      "below drivemap's client (pymodbus transport, simulator server, line relay); the rest is "
-                      "drivemap's client and bus.")
+    sec.detail.append("Where each transaction's time goes (medians over the timed rounds, ms), from the line's own "
+                      "timestamps and the client's pymodbus trace hook; `ideal` is the physical limit's share. "
+                      "Request/reply on the wire: first byte read from the sender -> last byte handed to the "
+                      "receiver (ideal: bytes x 86.8 µs). Device turnaround: last request byte handed to the device "
+                      "-> first reply byte read from it (ideal: max(t3.5, processing)). Client turnaround: last "
+                      "reply byte handed to the client -> first byte of the next request read from it (ideal: "
+                      "t3.5), split into: reply end seen (-> pymodbus hands the complete reply to its framer), "
+                      "client work + quiet (-> pymodbus hands over the next request), request to the line "
+                      "(-> the line reads it).")
     sec.detail.append("")
-    sec.detail.append("| mode | operation | lost by drivemap (ms) | lost by raw pymodbus (ms) | share below the client "
-                      "| drivemap's own (ms) |")
-    sec.detail.append("|---|---|---:|---:|---:|---:|")
-    for mode in ("sync", "async"):
-        for op in frames:
-            ours, raw_ = results.get(f"{mode} {op}"), results.get(f"raw-{mode} {op}")
-            if not ours or not raw_:
-                continue
-            req, resp = frames[op]
-            t_limit = (req + resp) * BITS / BAUD + max(t35, processing) + t35
-            lost_ours = 1 / median(ours["rates"]) - t_limit
-            lost_raw = 1 / median(raw_["rates"]) - t_limit
-            share = lost_raw / lost_ours if lost_ours > 0 else float("nan")
-            sec.detail.append(f"| {mode} | {op} | {lost_ours * 1000:.2f} | {lost_raw * 1000:.2f} | {share:.0%} "
-                              f"| {(lost_ours - lost_raw) * 1000:.2f} |")
+    sec.detail.append("| device | client | operation | request on the wire | device turnaround | reply on the wire "
+                      "| client turnaround | = reply end seen | + client work + quiet | + request to the line "
+                      "| period | transactions |")
+    sec.detail.append("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for op in frames:
+        req, resp = frames[op]
+        sec.detail.append(f"| ideal | — | {op} | {req * BYTE * 1000:.2f} | {max(t35, processing) * 1000:.2f} "
+                          f"| {resp * BYTE * 1000:.2f} | {t35 * 1000:.2f} | 0 | {t35 * 1000:.2f} | 0 "
+                          f"| {limit_t(op) * 1000:.2f} | — |")
+        for device in DEVICES:
+            for mode in MODES:
+                ph = results.get((device, mode, op), {}).get("phases")
+                if not ph:
+                    continue
+                cells = " | ".join(f"{ph[p] * 1000:.2f}" for p in PHASES)
+                sec.detail.append(f"| {device} | {mode} | {op} | {cells} | {ph['period'] * 1000:.2f} "
+                                  f"| {int(ph['transactions'])} |")
     sec.detail.append("")
-    sec.detail.append(f"Sync client retries {retries}, timeouts {timeouts} over the run; async part {async_s:.0f} s.")
+    retries = sum(f["retries"] for f in facts.values())
+    timeouts = sum(f["timeouts"] for f in facts.values())
+    sec.detail.append(f"Generated sync client retries {retries}, timeouts {timeouts} over the run.")
+    sec.explanation = explain(results, frames, t35, processing)
     return sec
+
+
+def explain(results: dict[tuple[str, str, str], dict[str, Any]], frames: dict[str, tuple[int, int]], t35: float,
+            processing: float) -> str:
+    """The shortfall paragraph, with this run's medians."""
+
+    def ph(device: str, mode: str, op: str, phase: str) -> float:
+        value = results.get((device, mode, op), {}).get("phases", {}).get(phase, float("nan"))
+        return float(value) * 1000
+
+    def over(device: str, mode: str, op: str, phase: str, ideal: float) -> str:
+        return f"{ph(device, mode, op, phase) - ideal * 1000:+.2f}"
+
+    lines = []
+    for op, (req, resp) in frames.items():
+        bits = []
+        for device in DEVICES:
+            for mode in MODES:
+                if (device, mode, op) not in results:
+                    continue
+                bits.append(f"{device}/{mode}: device {over(device, mode, op, 'device turnaround', max(t35, processing))}, "
+                            f"wire {ph(device, mode, op, 'request on the wire') + ph(device, mode, op, 'reply on the wire') - (req + resp) * BYTE * 1000:+.2f}, "
+                            f"client {over(device, mode, op, 'client turnaround', t35)}")
+        lines.append(f"* `{op}`, ms above the ideal per phase: " + "; ".join(bits) + ".")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
@@ -216,4 +395,4 @@ if __name__ == "__main__":
     print("\n".join(s.detail))
     for r in s.rows:
         print(r)
-    print("\n\n".join(s.profiles))
+    print(s.explanation)

@@ -29,6 +29,13 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
 * after an EEPROM write, on every transport: the register's ``write_delay_ms`` (the client passes
   it as ``hold_ms``).
 
+The quiet time counts from the end of the reply on the line, not from when the client has finished
+with it: the bus notes when pymodbus hands it the complete reply (its ``trace_packet`` hook), and
+pymodbus's sync serial client hands a reply over only after polling ``in_waiting`` once more
+without a new byte (``ModbusSerialClient._wait_for_data``), so that reply's last byte reached the
+port at least one poll interval (``_recv_interval``) earlier. Without a reply (timeouts,
+broadcasts, rejected replies) it counts from the end of the attempt.
+
 :meth:`Bus.quiet_after` gives that quiet time for an exchange; :attr:`Bus.last_quiet_s` records the
 quiet time kept after the last transaction.
 
@@ -39,6 +46,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -136,6 +144,9 @@ class _BusBase:
         self.name = name
         self._ready_at = 0.0
         self._rx = b""
+        self._rx_at = 0.0  # time.monotonic() when pymodbus last handed received bytes to its framer
+        #: Seconds the line has been silent, at least, when pymodbus hands over a reply (sync serial).
+        self._rx_quiet_s = 0.0
         #: Quiet time (seconds) the bus kept, or is keeping, after the last transaction.
         self.last_quiet_s = 0.0
         # per TimingSpec (by identity): (timing, timeout s, retries, quiet after a reply, after a broadcast)
@@ -150,6 +161,7 @@ class _BusBase:
                 log.debug("%s TX %s", self.name, data.hex(" "))
         else:
             self._rx = data
+            self._rx_at = time.monotonic()
         return data
 
     def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
@@ -224,11 +236,14 @@ class _BusBase:
                     ex.pdu.function_code, problem)
         return max(0.0, started + self.timeout_for(ex.timing) - time.monotonic())
 
-    def _mark_done(self, quiet: float) -> None:
-        """The transaction is over: keep the line quiet for ``quiet`` seconds (:meth:`quiet_after`)."""
+    def _mark_done(self, quiet: float, replied: bool = False) -> None:
+        """The transaction is over: keep the line quiet for ``quiet`` seconds (:meth:`quiet_after`),
+        counted from the end of the reply when ``replied`` (see the module docstring), else from now."""
         self.last_quiet_s = quiet
         if quiet > 0:
-            self._ready_at = max(self._ready_at, time.monotonic() + quiet)
+            now = time.monotonic()
+            since = min(now, self._rx_at - self._rx_quiet_s) if replied and self._rx_at else now
+            self._ready_at = max(self._ready_at, since + quiet)
 
     def _wait_s(self) -> float:
         if not self._ready_at:
@@ -238,6 +253,20 @@ class _BusBase:
             self._ready_at = 0.0
             return 0.0
         return left
+
+
+async def sleep_until(due: float) -> None:
+    """Wait until ``time.monotonic()`` reaches ``due``, late by tens of microseconds rather than a millisecond.
+
+    The event loop rounds a timer's wait up to whole milliseconds (the selector's timeout), so
+    ``asyncio.sleep`` covers whole milliseconds only and the rest (under 1.2 ms) passes yielding to
+    the loop (``asyncio.sleep(0)``), which keeps serving other tasks meanwhile.
+    """
+    whole_ms = math.floor((due - time.monotonic() - 0.0002) * 1000.0)
+    if whole_ms > 0:
+        await asyncio.sleep(whole_ms / 1000.0)
+    while time.monotonic() < due:
+        await asyncio.sleep(0)
 
 
 def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[str, Any], str, int]:
@@ -271,6 +300,8 @@ class Bus(_BusBase):
         self.client = client
         client.set_max_no_responses(1 << 30)  # retries and disconnects are ours
         self.lock = threading.RLock()
+        if isinstance(client, ModbusSerialClient):  # see the module docstring: pymodbus's end-of-reply poll
+            self._rx_quiet_s = float(getattr(client, "_recv_interval", 0.0))
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, timeout: float | None = None, retries: int | None = None) -> Bus:
@@ -344,6 +375,7 @@ class Bus(_BusBase):
                     fc = ex.pdu.function_code
                     stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
                     self._rx = b""
+                    self._rx_at = 0.0
                     ex.pdu.dev_id = ex.unit
                     started = time.monotonic()
                     try:
@@ -363,7 +395,7 @@ class Bus(_BusBase):
                         time.sleep(self._rejected(ex, reply, problem, started))
                         self._mark_done(quiet)
                         continue
-                    self._mark_done(quiet)
+                    self._mark_done(quiet, replied=ex.expect_reply and reply is not None)
                     if not ex.expect_reply:
                         stats.broadcasts += 1
                         return None
@@ -450,12 +482,13 @@ class AsyncBus(_BusBase):
             for attempt in range(attempts):
                 if attempt:
                     stats.retries += 1
-                if self._ready_at and (wait := self._wait_s()) > 0:
-                    await asyncio.sleep(wait)
+                if self._ready_at and self._wait_s() > 0:
+                    await sleep_until(self._ready_at)
                 stats.transactions += 1
                 fc = ex.pdu.function_code
                 stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
                 self._rx = b""
+                self._rx_at = 0.0
                 ex.pdu.dev_id = ex.unit
                 started = time.monotonic()
                 try:
@@ -475,7 +508,7 @@ class AsyncBus(_BusBase):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)
                     continue
-                self._mark_done(quiet)
+                self._mark_done(quiet, replied=ex.expect_reply and reply is not None)
                 if not ex.expect_reply:
                     stats.broadcasts += 1
                     return None
@@ -498,4 +531,5 @@ __all__ = [
     "Exchange",
     "Stats",
     "reply_mismatch",
+    "sleep_until",
 ]

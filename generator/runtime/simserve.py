@@ -11,6 +11,11 @@ Two small framer subclasses watch the serial line: a frame with a bad CRC/LRC is
 pymodbus (no reply) and reported to the simulator (ev records 84h); in RTU, bytes followed by
 more than the 3.5-character silence without forming a frame are dropped, as a device does.
 
+With realistic timing, a reply leaves the simulator's processing time after the request arrived:
+on a serial line counted from the moment the framer found the complete request (on TCP from the
+moment the request is handled), and waited precisely (:func:`generator.runtime.bus.sleep_until`), since
+``asyncio.sleep`` alone wakes up to a millisecond late.
+
 Use from code::
 
     sim = Simulator(SPEC, units=[1, 2])
@@ -44,6 +49,7 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
+from .bus import sleep_until
 from .simulator import Simulator, SimulatorError
 
 __all__ = [
@@ -68,6 +74,20 @@ _RTU_COUNT_POS = {0x0F: 6, 0x10: 6, 0x14: 2, 0x15: 2, 0x17: 10}
 _RTU_MAX = 256
 
 
+class _Arrival:
+    """When the serial framer of one server last found a complete request (0.0: not yet, or taken)."""
+
+    __slots__ = ("at",)
+
+    def __init__(self) -> None:
+        self.at = 0.0
+
+    def take(self, now: float, within: float) -> float:
+        """The arrival time of the request being handled (``now`` when unknown or stale)."""
+        at, self.at = self.at, 0.0
+        return at if now - within <= at <= now else now
+
+
 class _NoReply(NoSuchIdException):
     """Raised from a request's datastore_update: pymodbus sends nothing (ignore_missing_devices)."""
 
@@ -88,6 +108,7 @@ class _SimRequest(ModbusPDU):
     """Any request PDU: kept as bytes and handed to the simulator."""
 
     simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
 
     def __init__(self, dev_id: int = 0, transaction_id: int = 0) -> None:
         super().__init__(dev_id=dev_id, transaction_id=transaction_id)
@@ -116,19 +137,24 @@ class _SimRequest(ModbusPDU):
 
     async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
         sim = self.simulator
+        delay = sim.reply_delay()
+        arrived = self.arrival.take(time.monotonic(), delay) if delay > 0 else 0.0
         response = sim.handle(device_id, bytes([self.function_code]) + self.payload)
         if response is None:
             raise _NoReply(f"unit {device_id}: no reply")
-        delay = sim.reply_delay()
         if delay > 0:
-            await asyncio.sleep(delay)
+            await sleep_until(arrived + delay)
         return _SimResponse(response)
 
 
-def _request_classes(sim: Simulator) -> list[type[ModbusPDU]]:
-    """One request class per function code 01h-7Fh, bound to ``sim`` (registered per server)."""
+def _request_classes(sim: Simulator, arrival: _Arrival | None = None) -> list[type[ModbusPDU]]:
+    """One request class per function code 01h-7Fh, bound to ``sim`` (registered per server).
+
+    ``arrival`` is shared with the server's serial framer (without one: delays count from handling).
+    """
+    arrival = arrival or _Arrival()
     return [
-        type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim})
+        type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim, "arrival": arrival})
         for code in range(0x01, 0x80)
     ]
 
@@ -138,6 +164,7 @@ class _WatchRTU(FramerRTU):
 
     simulator: ClassVar[Simulator]
     silence: ClassVar[float]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
 
     def __init__(self, decoder: Any) -> None:
         super().__init__(decoder)
@@ -154,6 +181,8 @@ class _WatchRTU(FramerRTU):
             frame = self.EMPTY  # 00h / 80h-FFh are no request codes: no reply, a frame error
         if used and not frame:
             self.simulator.frame_error(data[stale] if len(data) > stale else None)
+        if frame:
+            self.arrival.at = now
         if used or frame:
             self._waiting = 0
             return used + stale, dev_id, tid, frame
@@ -171,12 +200,16 @@ class _WatchAscii(FramerAscii):
     """
 
     simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
 
     def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
+        now = time.monotonic()
         total = 0
         while True:
             used, dev_id, tid, frame = self._decode_one(data[total:])
             total += used
+            if frame:
+                self.arrival.at = now
             if frame or not used or total >= len(data):
                 return total, dev_id, tid, frame
 
@@ -268,7 +301,8 @@ class SimServer:
 
     async def start(self) -> None:
         context = [SimDevice(id=uid, simdata=[SimData(0)]) for uid in self.sim.unit_ids]
-        custom = _request_classes(self.sim)
+        arrival = _Arrival()
+        custom = _request_classes(self.sim, arrival)
         server: ModbusTcpServer | ModbusSerialServer
         if self.tcp is not None:
             server = ModbusTcpServer(
@@ -289,9 +323,9 @@ class SimServer:
             watch: type[FramerRTU] | type[FramerAscii]
             if self.mode == "rtu":
                 watch = type("SimFramerRTU", (_WatchRTU,), {
-                    "simulator": self.sim, "silence": _silence_seconds(self.sim, self.baudrate)})
+                    "simulator": self.sim, "silence": _silence_seconds(self.sim, self.baudrate), "arrival": arrival})
             else:
-                watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim})
+                watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
             server.framer = watch
         await server.serve_forever(background=True)
         self._server = server
