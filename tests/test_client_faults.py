@@ -274,9 +274,12 @@ def test_duplicated_and_late_replies_do_not_leak_into_later_transactions() -> No
             assert line.delivered("to_master").count(echo) == 2
             # a reply later than the timeout: attempt 2 gets the (identical) late answer to attempt 1;
             # the answer to attempt 2 comes behind it and must not be taken by the next request
+            # (whether the duplicate echo above was flushed before the read or rejected during it
+            # depends on scheduling; either way it was not accepted, so count from here)
+            before = drive.stats.retries
             line.faults.delay("to_master", TIMEOUT * 1.5)
             assert drive.motor_speed.read() == 321
-            assert drive.stats.retries == 1
+            assert drive.stats.retries - before == 1
             drive.digital_speed_ram[2].write(1001)
             sim.set("motor_speed", 654)
             assert drive.motor_speed.read() == 654
