@@ -257,12 +257,14 @@ class FaultPlan:
 class _Item:
     """A run of bytes scheduled for delivery: byte k is due at ``start + (k + 1) * byte_time``."""
 
-    __slots__ = ("start", "data", "pos")
+    __slots__ = ("start", "data", "pos", "idle_before")
 
-    def __init__(self, start: float, data: bytes) -> None:
+    def __init__(self, start: float, data: bytes, idle_before: float = 0.0) -> None:
         self.start = start
         self.data = data
         self.pos = 0
+        #: silence owed before the first byte, counted from the previous byte's real delivery
+        self.idle_before = idle_before
 
 
 class _Path:
@@ -275,6 +277,7 @@ class _Path:
         self.queue: deque[_Item] = deque()
         self.outbuf = bytearray()
         self.free_at = 0.0  # when the (scheduled) transmitter becomes idle
+        self.last_write = 0.0  # when bytes were last really written to the receiver
         self.frame_open = False
         self.last_arrival = 0.0
         self.frame_fault: FrameFault | None = None
@@ -481,7 +484,7 @@ class VirtualSerialLine:
     def _enqueue(self, path: _Path, data: bytes, ready: float, idle_before: float = 0.0) -> None:
         # Caller holds the lock.  FIFO: an item never starts before the one ahead of it.
         start = max(ready, path.free_at + idle_before)
-        path.queue.append(_Item(start, data))
+        path.queue.append(_Item(start, data, idle_before))
         path.free_at = start + len(data) * self.byte_time
 
     def _on_input(self, path: _Path, data: bytes, now: float) -> None:
@@ -540,6 +543,12 @@ class VirtualSerialLine:
         bt = self.byte_time
         while path.queue:
             item = path.queue[0]
+            if item.idle_before and item.pos == 0:
+                # the silence starts when the previous byte really left, not when it was due
+                if path.outbuf:
+                    return now + self.burst_interval, math.inf
+                item.start = max(item.start, path.last_write + item.idle_before)
+                item.idle_before = 0.0
             if bt == 0.0:
                 if now < item.start:
                     return item.start, math.inf
@@ -578,8 +587,9 @@ class VirtualSerialLine:
                 return
             raise
         if written:
+            path.last_write = time.monotonic()
             if self.capture:
-                path.delivered.append((time.monotonic(), bytes(path.outbuf[:written])))
+                path.delivered.append((path.last_write, bytes(path.outbuf[:written])))
             del path.outbuf[:written]
 
     def _run(self) -> None:
