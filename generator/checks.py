@@ -12,7 +12,7 @@ from typing import Any
 from . import frames
 from .diagnostics import Diagnostic
 from .load import Document, PathT
-from .model import TYPE_BOUNDS, is_keyword
+from .model import TYPE_BOUNDS, camel, is_keyword
 
 #: Attribute names of the generated clients that a register may not take.
 CLIENT_ATTRIBUTES = frozenset(
@@ -23,6 +23,14 @@ CLIENT_ATTRIBUTES = frozenset(
         "connect", "plan", "loopback", "write_many", "self", "cls",
     }
 )
+
+#: Names every generated package defines itself; map enums, bit fields and exceptions may not reuse them.
+FIXED_NAMES = frozenset({
+    "Client", "AsyncClient", "BroadcastClient", "AsyncBroadcastClient", "Snapshot", "Bus", "AsyncBus", "SPEC",
+    "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
+    "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
+    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
+})
 
 STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
 OPERATION_CODES = {"read": (3, 4), "write": (6,), "write_multiple": (16,), "loopback": (8,)}
@@ -37,8 +45,8 @@ class Checker:
         self.register_names: dict[str, int] = {}
 
     def error(self, where: PathT, message: str, *, key: bool = False, related: PathT | None = None,
-              note: str = "first defined here") -> None:
-        rel = ((self.doc.positions.at(related), note),) if related is not None else ()
+              note: str = "first defined here", related_key: bool = False) -> None:
+        rel = ((self.doc.positions.at(related, key=related_key), note),) if related is not None else ()
         self.diagnostics.append(Diagnostic(self.doc.positions.at(where, key=key), message, related=rel))
 
     # --------------------------------------------------------------------- all
@@ -61,8 +69,6 @@ class Checker:
             self.error(("device", "model"), f"model id {model!r} is a Python keyword")
 
     def check_enums(self) -> None:
-        from .views.client import FIXED_NAMES
-
         classes: dict[str, PathT] = {}
         for name in self.data.get("enums", {}):
             if name in FIXED_NAMES:
@@ -70,13 +76,14 @@ class Checker:
             classes[name] = ("enums", name)
         for i, reg in enumerate(self.data["registers"]):
             if reg.get("bits"):
-                cls = reg.get("flags_name") or "".join(p[:1].upper() + p[1:] for p in reg["name"].split("_") if p)
+                cls = reg.get("flags_name") or camel(reg["name"])
                 where: PathT = ("registers", i, "flags_name" if reg.get("flags_name") else "name")
                 if cls in FIXED_NAMES:
                     self.error(where, f"bit-field class name {cls!r} is taken by the generated client package")
                 elif cls in classes:
                     self.error(where, f"bit-field class name {cls!r} clashes with another class of this map",
-                               related=classes[cls], note="the other class is defined here")
+                               related=classes[cls], note="the other class is defined here",
+                               related_key=classes[cls][0] == "enums")
                 classes.setdefault(cls, where)
         for name, enum in self.data.get("enums", {}).items():
             seen_v: dict[int, int] = {}

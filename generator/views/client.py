@@ -12,16 +12,9 @@ import keyword
 from dataclasses import dataclass
 from typing import Any
 
+from ..checks import FIXED_NAMES
 from ..model import Bit, Model, Register, camel
 from .common import header
-
-#: Names every generated package defines itself; map enums, bit fields and exceptions may not reuse them.
-FIXED_NAMES = frozenset({
-    "Client", "AsyncClient", "BroadcastClient", "AsyncBroadcastClient", "Snapshot", "Bus", "AsyncBus", "SPEC",
-    "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
-    "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
-    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
-})
 
 
 def _attr(name: str) -> str:
