@@ -6,8 +6,8 @@ so that peak memory (``ru_maxrss``) belongs to that build alone. In the worker:
 * imports happen first and are not timed (they are the same for every map);
 * a warm-up build of a 10-register synthetic map compiles the Jinja templates and the JSON
   Schema validator once, so the timed build measures the per-map cost, not one-time setup;
-* the timed build is ``compile_map`` (load, schema, checks, model) + ``render_all`` +
-  ``write_outputs`` into a temporary folder — what ``drivemap build`` does per map;
+* the timed build is ``compile_map`` (load, schema, checks, model) + ``render_tree`` +
+  ``write_tree`` into a temporary folder — what ``drivemap build`` does per map;
 * peak memory is ``ru_maxrss`` after the build minus ``ru_maxrss`` before it (the growth the
   build caused), plus the absolute peak.
 
@@ -41,16 +41,16 @@ def worker(args: list[str]) -> dict[str, Any]:
     """Run in the child: build the given maps, print timings as JSON."""
     from synthetic import write_synthetic
 
-    from generator import cli
-    from generator.compiler import compile_map
-    from generator.render import render_all, write_outputs
+    from drivemap import cli
+    from drivemap.build import render_tree, write_tree
+    from drivemap.compiler import compile_map
 
     mode, target = args[0], args[1]
     profile = "--profile" in args
     with tempfile.TemporaryDirectory(prefix="drivemap-bench-") as tmp:
         folder = Path(tmp)
         warm = write_synthetic(folder, 10)
-        write_outputs(render_all([compile_map(warm)]), folder / "warm-out")
+        write_tree(folder / "warm-out", render_tree([compile_map(warm)]))
         before = _rss_mb()
         out = folder / "out"
         result: dict[str, Any] = {}
@@ -72,7 +72,7 @@ def worker(args: list[str]) -> dict[str, Any]:
         else:
             model = compile_map(path)
             t1 = time.perf_counter()
-            write_outputs(render_all([model]), out)
+            write_tree(out, render_tree([model]), force=True)
             t2 = time.perf_counter()
             result["registers"] = len(model.registers)
             result["bytes"] = path.stat().st_size

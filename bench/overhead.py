@@ -134,7 +134,7 @@ def run(quick: bool) -> Section:
     sec = Section("Client overhead (TCP loopback)")
     rounds = 3 if quick else 7
     count, seconds = (40, 0.3) if quick else (300, 0.6)
-    client_mod = importlib.import_module(f"generated.{MODEL}.client")
+    client_mod = importlib.import_module(f"drivemap_models.{MODEL}.client")
     reg = pick_register(client_mod.SPEC)
     requests = {"read_all": len(client_mod.Client.plan()), "read one": 1, "write one": 1}
     sec.detail.append(f"Model `{MODEL}`, register `{reg.name}` (0x{reg.address:04X}) for the single read/write; "

@@ -5,7 +5,7 @@ Four counts per model, all for the same target set (every readable register elem
 * **drivemap** — the number of read requests ``Client.read_all()`` actually sends to the
   generated simulator over TCP (``client.stats``), page-switch writes counted apart; it is
   checked against ``len(Client.plan())``.
-* **lower bound** — computed here, independently of ``generator/runtime/planner.py``, from the
+* **lower bound** — computed here, independently of ``generator/drivemap/runtime/planner.py``, from the
   ``SPEC`` alone (see :func:`lower_bound`): an exact dynamic programme over the targets of each
   page context, combined as ``max(relaxed single line, sum over page contexts)`` per connected
   address run, which no valid plan can beat.
@@ -149,10 +149,10 @@ def measured_read_all(model: str) -> tuple[int, int, int]:
     """(read requests, other requests, len(plan)) of ``Client.read_all()`` against the simulator."""
     from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInputRegistersRequest
 
-    from generator.runtime.simserve import ThreadedSimServer
+    from drivemap.runtime.simserve import ThreadedSimServer
 
-    client_mod = importlib.import_module(f"generated.{model}.client")
-    sim_mod = importlib.import_module(f"generated.{model}.simulator")
+    client_mod = importlib.import_module(f"drivemap_models.{model}.client")
+    sim_mod = importlib.import_module(f"drivemap_models.{model}.simulator")
     sim = sim_mod.Simulator([1])
     with ThreadedSimServer(sim, tcp=("127.0.0.1", 0)) as server:
         assert server.address is not None
@@ -185,7 +185,7 @@ def run(quick: bool) -> Section:
                       "| lower bound | naive | contiguous-only | naive / drivemap | contiguous / drivemap |")
     sec.detail.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for model in MODELS:
-        spec = importlib.import_module(f"generated.{model}.spec").SPEC
+        spec = importlib.import_module(f"drivemap_models.{model}.spec").SPEC
         lb = lower_bound(spec)
         naive = len(targets(spec))
         contiguous = contiguous_only(spec)

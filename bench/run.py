@@ -79,7 +79,7 @@ one 2-word element that is never split). Counts are read requests.
 Ratio = time per operation of the generated client / raw pymodbus for the same requests
 (median of the per-round ratios; rounds interleave the two clients and alternate their order).
 The model is vfd1000 (no EEPROM write delay, no broadcast gap). Inter-frame gaps and silent
-intervals are serial-line rules: the bus does not keep them on Modbus TCP (`generator/runtime/bus.py`,
+intervals are serial-line rules: the bus does not keep them on Modbus TCP (`generator/drivemap/runtime/bus.py`,
 `Bus.quiet_after`).""",
     "Simulator throughput (TCP loopback)": "",
     "Wire efficiency (paced virtual serial line, 115200 8N1)": """\
@@ -139,10 +139,10 @@ def _explain_overhead(s: Section) -> str:
     return """\
 Where the time goes (profiles below): the sockets, `select` and pymodbus's transaction code are
 shared with raw pymodbus and dominate both; the extra per request is the client runtime's Python
-work: building the request through the core's operation generator (`generator/runtime/client.py`,
+work: building the request through the core's operation generator (`generator/drivemap/runtime/client.py`,
 `Core.write_raw` / `Core.read_raw` driven by `_run`), the value check and encoding
-(`generator/runtime/codec.py`), the reply check that refuses replies to other requests
-(`generator/runtime/bus.py`, `reply_mismatch`) and the statistics and trace hooks. Per-spec tables
+(`generator/drivemap/runtime/codec.py`), the reply check that refuses replies to other requests
+(`generator/drivemap/runtime/bus.py`, `reply_mismatch`) and the statistics and trace hooks. Per-spec tables
 (page selectors, readable names, read_all keys, function codes) are computed once per class, and
 plans are cached. What is left is about 30-40 µs per request on this machine, against 300-800 µs for
 the request itself; the client and the simulator share the machine's two cores, so single rounds
@@ -155,7 +155,7 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
 
 """ + s.explanation + """
 
-* **Line relay** (`generator/testing/vserial.py`, its own process): request and reply on the wire
+* **Line relay** (`generator/drivemap/testing/vserial.py`, its own process): request and reply on the wire
   are within about 0.05 ms of bytes × 86.8 µs each; the relay is not where the time goes.
 * **Device**: the lean device turns around 0.15–0.35 ms late (two cross-process wake-ups through the
   relay on 2 shared cores: it waits exactly 4.00 ms from the moment it reads the request). The
@@ -165,7 +165,7 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   `add_writer` callback (`pymodbus/transport/serialtransport.py`, `write` → `intern_write_ready`: one
   more event-loop turn). Before the fix the simulator waited with a bare `asyncio.sleep(0.004)` from
   the start of `datastore_update`, which the event loop rounds up to the next millisecond (device
-  turnaround 5.2–5.3 ms before, 4.4–4.6 ms now); `generator/runtime/simserve.py` now counts from the
+  turnaround 5.2–5.3 ms before, 4.4–4.6 ms now); `generator/drivemap/runtime/simserve.py` now counts from the
   request's arrival and waits precisely (`sleep_until`).
 * **Client, sync**: pymodbus's sync serial client notices the end of a reply only by polling
   `in_waiting` every `_recv_interval` = max(4 characters, 1 ms) and returns after a poll that sees no
@@ -177,7 +177,7 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   raw loop (t3.5 after the call returns) spends ≈ 2.1 ms.
 * **Client, async**: the reply is seen within ≈ 0.2 ms (event loop reader). The bus's quiet time
   used to be an `asyncio.sleep` that the loop rounds up to whole milliseconds (≈ +0.7 ms, still
-  visible in the `raw-async` rows); `generator/runtime/bus.py` `sleep_until` now sleeps whole
+  visible in the `raw-async` rows); `generator/drivemap/runtime/bus.py` `sleep_until` now sleeps whole
   milliseconds and yields the rest, so "client work + quiet" is ≈ t3.5 + 0.05 ms. The request then
   takes 0.2–0.3 ms to reach the line: pymodbus builds the frame after the wait, and its serial
   transport writes through an `add_writer` callback (one more loop turn) before the relay reads it.
@@ -193,9 +193,9 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
 def _explain_sim(s: Section) -> str:
     return """\
 The generated simulator runs each request through pymodbus's `custom_pdu` path
-(`generator/runtime/simserve.py`, `_SimRequest.datastore_update`: an async call per request, the
+(`generator/drivemap/runtime/simserve.py`, `_SimRequest.datastore_update`: an async call per request, the
 request kept as bytes, a new `_SimResponse`) and then `Simulator.handle`
-(`generator/runtime/simulator.py`), which checks the dialect (function, quantity, pages, access)
+(`generator/drivemap/runtime/simulator.py`), which checks the dialect (function, quantity, pages, access)
 and serves reads from a cached per-(address, quantity, page) plan, where the plain server copies a
 slice of its register list. The profile below is of `Simulator.handle` alone."""
 
@@ -203,15 +203,15 @@ slice of its register list. The profile below is of `Simulator.handle` alone."""
 def _explain_compiler(s: Section) -> str:
     return """\
 Cost per register grows with the map: rendering `client.py` is quadratic. In
-`generator/templates/client.py.jinja` (lines 182 and 200) the `BroadcastClient` and
+`generator/drivemap/templates/client.py.jinja` (lines 182 and 200) the `BroadcastClient` and
 `AsyncBroadcastClient` bodies look up each broadcast-writable accessor with
 `accessors | selectattr("name", "equalto", name) | first` — a linear scan per register, so
 O(registers²) Jinja filter calls (`select_or_reject`, `_filter_test_common`, `getitem` at the top of
-the profile below). Fix (in `generator/views/client.py`): give the template the accessor objects
+the profile below). Fix (in `generator/drivemap/views/client.py`): give the template the accessor objects
 directly (e.g. `broadcast_sync` as a list of (accessor, class) pairs) or a dict by name. Loading
-(PyYAML's pure-Python scanner with a position table, `generator/load.py`) and JSON-Schema validation
+(PyYAML's pure-Python scanner with a position table, `generator/drivemap/load.py`) and JSON-Schema validation
 are the largest linear costs; a 10,000-register map (~1.9 MB) is close to the loader's 2 MiB cap
-(`MAX_MAP_BYTES`, `generator/load.py`). When the largest map times out, its µs/register is the
+(`MAX_MAP_BYTES`, `generator/drivemap/load.py`). When the largest map times out, its µs/register is the
 timeout divided by the registers: a lower bound."""
 
 

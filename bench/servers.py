@@ -39,8 +39,8 @@ from common import ROOT  # noqa: E402
 
 def same_words(model: str) -> dict[int, int]:
     """address -> word of every address ``read_all`` reads, as the generated simulator answers it."""
-    client_mod = importlib.import_module(f"generated.{model}.client")
-    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1])
+    client_mod = importlib.import_module(f"drivemap_models.{model}.client")
+    sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1])
     words: dict[int, int] = {}
     for req in client_mod.Client.plan():
         pdu = bytes([0x03]) + req.address.to_bytes(2, "big") + req.count.to_bytes(2, "big")
@@ -57,9 +57,9 @@ async def _serve_tcp(model: str, kind: str, stop: asyncio.Event) -> None:
     from pymodbus.simulator import DataType, SimData, SimDevice
 
     if kind == "drivemap":
-        from generator.runtime.simserve import SimServer
+        from drivemap.runtime.simserve import SimServer
 
-        sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1])
+        sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1])
         server = SimServer(sim, tcp=("127.0.0.1", 0))
         await server.start()
         assert server.address is not None
@@ -90,9 +90,9 @@ async def _serve_tcp(model: str, kind: str, stop: asyncio.Event) -> None:
 
 
 async def _serve_serial(model: str, port: str, baud: int, stop: asyncio.Event) -> None:
-    from generator.runtime.simserve import SimServer
+    from drivemap.runtime.simserve import SimServer
 
-    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1], realistic_timing=True)
+    sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1], realistic_timing=True)
     server = SimServer(sim, serial=port, mode="rtu", baudrate=baud, parity="none", stop_bits=1, data_bits=8)
     await server.start()
     print("READY", port, sim.reply_delay(), flush=True)
@@ -105,7 +105,7 @@ def _lean_device(model: str, port: str, baud: int, max_seconds: float) -> None:
     from pymodbus.framer import FramerRTU
     from pymodbus.pdu import DecodePDU
 
-    sim = importlib.import_module(f"generated.{model}.simulator").Simulator([1], realistic_timing=True)
+    sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1], realistic_timing=True)
     delay = sim.reply_delay()
     framer = FramerRTU(DecodePDU(True))
     fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)  # the line keeps its ptys raw
@@ -170,7 +170,7 @@ def main(argv: list[str]) -> int:
         max_seconds = float(argv[i + 1])
         argv = argv[:i] + argv[i + 2:]
     if argv[0] == "line":
-        from generator.testing.vserial import VirtualSerialLine
+        from drivemap.testing.vserial import VirtualSerialLine
 
         done = threading.Event()
         with VirtualSerialLine(int(argv[1]), pace=True, capture=True, name="bench") as line:

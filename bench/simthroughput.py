@@ -27,7 +27,7 @@ def run(quick: bool) -> Section:
 
     rounds = 3 if quick else 7
     count, seconds = (200, 0.3) if quick else (3000, 1.0)
-    plan = importlib.import_module(f"generated.{MODEL}.client").Client.plan()
+    plan = importlib.import_module(f"drivemap_models.{MODEL}.client").Client.plan()
     requests = [(r.address, r.count) for r in plan]
     with Child("tcp", MODEL, "drivemap") as ours, Child("tcp", MODEL, "simdevice") as plain:
         clients: dict[str, Any] = {}
@@ -89,7 +89,7 @@ def profile_simulator(requests: list[tuple[int, int]]) -> str:
     """cProfile of the generated simulator's request handling (the core, in process)."""
     from common import profile_text
 
-    sim = importlib.import_module(f"generated.{MODEL}.simulator").Simulator([1])
+    sim = importlib.import_module(f"drivemap_models.{MODEL}.simulator").Simulator([1])
     pdus = [bytes([3]) + a.to_bytes(2, "big") + n.to_bytes(2, "big") for a, n in requests]
 
     def work() -> None:

@@ -20,7 +20,7 @@ SCAFFOLD_REGISTERS = 7  # registers of the scaffold itself
 
 
 def synthetic_map(model: str, registers: int) -> dict[str, Any]:
-    from generator.render import scaffold
+    from drivemap.render import scaffold
 
     doc: dict[str, Any] = yaml.safe_load(scaffold(model))
     doc["device"]["coverage"] = f"Synthetic benchmark map with {registers} registers."

@@ -273,7 +273,7 @@ def run_device(device: str, line: Line, client_mod: Any, read_req: Any, reg: Any
 def run(quick: bool) -> Section:
     sec = Section("Wire efficiency (paced virtual serial line, 115200 8N1)")
     logging.getLogger("drivemap").setLevel(logging.ERROR)  # no baud-rate warnings in the table
-    client_mod = importlib.import_module(f"generated.{MODEL}.client")
+    client_mod = importlib.import_module(f"drivemap_models.{MODEL}.client")
     spec = client_mod.SPEC
     read_req, reg = pick(client_mod.Client)
     rounds = 2 if quick else 5

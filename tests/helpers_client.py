@@ -9,19 +9,19 @@ from collections.abc import Iterator
 from types import ModuleType
 from typing import Any
 
-from generator.runtime.simserve import ThreadedSimServer
-from generator.testing.vserial import VirtualSerialLine
+from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.testing.vserial import VirtualSerialLine
 
 MODELS = ("edx", "ev", "v2", "vfd1000")
 TIMEOUT = 0.3  # response timeout for tests (seconds); every test is bounded
 
 
 def package(model: str) -> ModuleType:
-    return importlib.import_module(f"generated.{model}")
+    return importlib.import_module(f"drivemap_models.{model}")
 
 
 def simulator(model: str, units: tuple[int, ...] = (1,)) -> Any:
-    return importlib.import_module(f"generated.{model}.simulator").Simulator(units=list(units))
+    return importlib.import_module(f"drivemap_models.{model}.simulator").Simulator(units=list(units))
 
 
 @contextlib.contextmanager

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from generator.cli import main
+from drivemap.cli import main
 
 HERE = Path(__file__).resolve().parent
 CORPUS = HERE / "bad_maps"
@@ -64,7 +64,7 @@ def _limited() -> None:
 def test_hostile_input_in_a_subprocess(case: str) -> None:
     """The real command, bounded to 1 GiB of memory and 60 s: exit 1, one located message."""
     proc = subprocess.run(
-        [sys.executable, "-m", "generator.cli", "validate", f"tests/bad_maps/{case}.yaml"],
+        [sys.executable, "-m", "drivemap.cli", "validate", f"tests/bad_maps/{case}.yaml"],
         cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
     )
     assert proc.returncode == 1
@@ -80,7 +80,7 @@ def test_fifty_megabyte_map_is_refused(tmp_path: Path) -> None:
             handle.write(line)
     assert big.stat().st_size >= 50 * 1024 * 1024
     proc = subprocess.run(
-        [sys.executable, "-m", "generator.cli", "validate", str(big)],
+        [sys.executable, "-m", "drivemap.cli", "validate", str(big)],
         cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
     )
     assert proc.returncode == 1

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from generator.cli import main
+from drivemap.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))
@@ -44,19 +44,21 @@ def test_build_prints_one_line_per_model_and_check_sees_staleness(tmp_path: Path
     for model in MAPS:
         assert sum(line.startswith(f"{model}: ") for line in lines) == 1
     assert run("check", "--out", str(out_dir))[0] == 0
-    # a hand edit, a deleted file and a stray file are all reported
+    # a hand edit and a deleted file are reported; a file drivemap did not write is the user's
     client = out_dir / "ev" / "client.py"
     client.write_text(client.read_text(encoding="utf-8") + "# edited\n", encoding="utf-8")
     (out_dir / "v2" / "spec.py").unlink()
-    (out_dir / "edx" / "stray.py").write_text("", encoding="utf-8")
+    (out_dir / "edx" / "helper.py").write_text("# mine\n", encoding="utf-8")
     code, _, err = run("check", "--out", str(out_dir))
     assert code == 1
     assert "ev/client.py: differs" in err
     assert "v2/spec.py: missing" in err
-    assert "edx/stray.py: not produced by any map" in err
-    # build repairs all of it
-    assert run("build", "--out", str(out_dir))[0] == 0
+    assert "helper.py" not in err
+    # build repairs drivemap's files, says which had been edited, and keeps the user's
+    code, out, _ = run("build", "--out", str(out_dir))
+    assert code == 0 and "ev/client.py: it had been edited by hand" in out
     assert run("check", "--out", str(out_dir))[0] == 0
+    assert (out_dir / "edx" / "helper.py").read_text(encoding="utf-8") == "# mine\n"
 
 
 def test_committed_generated_tree_is_current() -> None:
@@ -141,7 +143,7 @@ def test_new_refuses_bad_model_id() -> None:
 
 def test_console_script_exit_codes(tmp_path: Path) -> None:
     exe = shutil.which("drivemap")
-    cmd = [exe] if exe else [sys.executable, "-m", "generator.cli"]
+    cmd = [exe] if exe else [sys.executable, "-m", "drivemap.cli"]
     bad = tmp_path / "bad.yaml"
     bad.write_text("drivemap: 1\n", encoding="utf-8")
     proc = subprocess.run([*cmd, "validate", str(bad)], capture_output=True, text=True, timeout=60, cwd=ROOT)

@@ -8,8 +8,8 @@ from typing import Any
 
 import pytest
 
-from generator.runtime import bus as bus_module
-from generator.runtime.errors import (
+from drivemap.runtime import bus as bus_module
+from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,
     DriveError,

@@ -25,10 +25,10 @@ from typing import Any
 import pytest
 from pymodbus.framer import FramerAscii, FramerRTU
 
-from generator.runtime.bus import DEFAULT_RETRIES
-from generator.runtime.errors import DeviceException, DriveTimeout, PartialWrite
-from generator.runtime.spec import DeviceSpec, FunctionSpec
-from generator.testing.vserial import FrameFault, VirtualSerialLine
+from drivemap.runtime.bus import DEFAULT_RETRIES
+from drivemap.runtime.errors import DeviceException, DriveTimeout, PartialWrite
+from drivemap.runtime.spec import DeviceSpec, FunctionSpec
+from drivemap.testing.vserial import FrameFault, VirtualSerialLine
 from tests.helpers_client import package, serial_server
 
 TIMEOUT = 0.2  # response timeout of every client here (seconds)

@@ -6,8 +6,8 @@ from typing import Any
 
 import pytest
 
-from generator.runtime import bus as bus_module
-from generator.runtime.errors import AccessError, BroadcastRead, DriveTimeout, NotBroadcastable, ValueOutOfRange
+from drivemap.runtime import bus as bus_module
+from drivemap.runtime.errors import AccessError, BroadcastRead, DriveTimeout, NotBroadcastable, ValueOutOfRange
 from tests.helpers_client import MODELS, TIMEOUT, package, serial_server
 
 BAUD = 38400

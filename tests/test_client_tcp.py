@@ -13,8 +13,8 @@ from pymodbus.framer import FramerType
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
-from generator.runtime.errors import BroadcastRead, DeviceException, DriveTimeout, ValueOutOfRange
-from generator.runtime.simserve import _request_classes
+from drivemap.runtime.errors import BroadcastRead, DeviceException, DriveTimeout, ValueOutOfRange
+from drivemap.runtime.simserve import _request_classes
 from tests.helpers_client import TIMEOUT, package, serial_server, simulator, tcp_server
 
 ev = package("ev")

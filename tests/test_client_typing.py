@@ -10,7 +10,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 GOOD = """
-from generated.ev import AsyncClient, Client, MotorState, NetIn, ScCcMode, Snapshot
+from drivemap_models.ev import AsyncClient, Client, MotorState, NetIn, ScCcMode, Snapshot
 
 
 def use(drive: Client) -> None:
@@ -34,7 +34,7 @@ async def ause(drive: AsyncClient) -> None:
 """
 
 BAD = """
-from generated.ev import Client, MotorState
+from drivemap_models.ev import Client, MotorState
 
 
 def misuse(drive: Client) -> None:

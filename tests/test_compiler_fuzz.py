@@ -16,9 +16,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from generator.compiler import compile_map
-from generator.diagnostics import CompileError
-from generator.render import render_all
+from drivemap.build import render_tree
+from drivemap.compiler import compile_map
+from drivemap.diagnostics import CompileError
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = sorted((ROOT / "maps").glob("*.yaml"))
@@ -86,7 +86,7 @@ def test_mutated_map_builds_or_reports_located_errors(map_path: Path, tmp_path_f
             assert LOCATED.match(diag.format()), diag.format()
     else:
         # it built: it must render too
-        assert render_all([model])
+        assert render_tree([model])
 
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -24,11 +24,14 @@ import yaml
 from markdown_it import MarkdownIt
 from markdown_it.token import Token
 
-from generator.compiler import compile_map, map_paths
-from generator.diagnostics import CompileError
-from generator.model import Model
-from generator.render import _md, environment, render_all
-from generator.views import TARGETS, docs, postprocess
+from drivemap.build import render_tree, write_tree
+from drivemap.compiler import compile_map, map_paths
+from drivemap.diagnostics import CompileError
+from drivemap.exporters.base import Options
+from drivemap.exporters.docs import DocsExporter
+from drivemap.model import Model
+from drivemap.render import _md, environment
+from drivemap.views import docs
 
 ROOT = Path(__file__).resolve().parent.parent
 GENERATED = ROOT / "generated"
@@ -52,21 +55,13 @@ def models() -> list[Model]:
 @pytest.fixture(scope="module")
 def outputs(models: list[Model]) -> dict[str, str]:
     """The docs pages, rendered through their registered targets exactly as ``drivemap build`` does."""
-    env = environment()
-    out: dict[str, str] = {}
-    for path, template, build in TARGETS:
-        if not path.startswith("docs/"):
-            continue
-        for model in models if "{model}" in path else [None]:
-            name = path.format(model=model.name) if model is not None else path
-            out[name] = postprocess(name, env.get_template(template).render(**build(model, models)))  # type: ignore[arg-type]
-    return out
+    return {f"docs/{rel}": text for rel, text in DocsExporter().render_all(models, Options()).items()}
 
 
 @pytest.fixture(scope="module")
 def target_paths(models: list[Model]) -> set[str]:
     """Every file ``drivemap build`` writes under generated/ (links may point at any of them)."""
-    return {path.format(model=m.name) for path, _, _ in TARGETS for m in models}
+    return set(render_tree(models))
 
 
 def by_name(models: list[Model], name: str) -> Model:
@@ -272,7 +267,7 @@ def test_every_bitfield_has_a_table_and_a_diagram(model_id: str, pages: dict[str
 
 def test_bit_diagram_layout() -> None:
     """A 16-bit field with a 2-bit field: numbers, markers and one ladder line per field."""
-    from generator.model import Bit
+    from drivemap.model import Bit
 
     m = compile_map(MAPS[0])
     reg = dataclasses.replace(
@@ -432,16 +427,16 @@ def test_map_text_cannot_break_tables_or_inject_html(models: list[Model]) -> Non
     examples = tuple(dataclasses.replace(e, title=evil, notes=evil, source=evil) for e in m.examples)
     hostile = dataclasses.replace(m, registers=regs, device=device, examples=examples,
                                   _by_name={r.name: r for r in regs})
-    text = environment().get_template("model.md.jinja").render(**docs.context(hostile, [hostile]))
+    text = environment().get_template("model.md.jinja").render(**docs.context(hostile, Options()))
     page = parse(text)
     html = [t for t in page.tokens if t.type in ("html_block", "html_inline")]
-    assert [t.content.strip() for t in html] == [f"<!-- {docs.header(hostile)} -->"]
+    assert [t.content.strip() for t in html] == [f"<!-- {docs.header(hostile, Options())} -->"]
     for t in page.tokens:
         for child in t.children or []:
             assert child.type != "html_inline"
             if child.type == "link_open":
                 assert not str(child.attrs["href"]).startswith("http://e")
-    original = parse(environment().get_template("model.md.jinja").render(**docs.context(m, [m])))
+    original = parse(environment().get_template("model.md.jinja").render(**docs.context(m, Options())))
     assert [len(t) for s in page.sections for t in s.tables] == [len(t) for s in original.sections for t in s.tables]
     flat = evil.replace("\n", " ")
     assert [s.title for s in page.sections if s.level <= 2] == [
@@ -478,20 +473,18 @@ def _wait_for_port(port: int, proc: subprocess.Popen[bytes], timeout: float = 20
 @pytest.fixture(scope="module")
 def built_tree(tmp_path_factory: pytest.TempPathFactory, models: list[Model]) -> Path:
     """A fresh generated/ tree (client, simulator, spec) so the snippet runs what this code generates."""
-    from generator.render import write_outputs
-
     root = tmp_path_factory.mktemp("docs_snippets")
-    write_outputs(render_all(models), root / "generated")
+    write_tree(root / "generated", render_tree(models))
     return root
 
 
 @pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_snippet_runs_against_the_simulator(model_id: str, pages: dict[str, Page], target_paths: set[str],
                                             request: pytest.FixtureRequest) -> None:
-    pytest.importorskip("generator.runtime.simulator", reason="the simulator runtime is not written yet")
-    pytest.importorskip("generator.runtime.simserve", reason="`drivemap simulate` (simserve) is not written yet")
+    pytest.importorskip("drivemap.runtime.simulator", reason="the simulator runtime is not written yet")
+    pytest.importorskip("drivemap.runtime.simserve", reason="`drivemap simulate` (simserve) is not written yet")
     assert f"{model_id}/client.py" in target_paths, (
-        "the generated client (generator/views/client.py) is missing: the page's snippet cannot run")
+        "the generated client (generator/drivemap/views/client.py) is missing: the page's snippet cannot run")
     built_tree: Path = request.getfixturevalue("built_tree")
     section = pages[f"docs/{model_id}.md"].section("How to use it")
     shells = [c for info, c in section.fences if info == "sh"]
@@ -501,7 +494,7 @@ def test_snippet_runs_against_the_simulator(model_id: str, pages: dict[str, Page
     address = f"{docs.SNIPPET_HOST}:{docs.SNIPPET_PORT}"
     argv = shlex.split(shells[0].strip())
     assert argv[:2] == ["drivemap", "simulate"] and address in argv
-    argv = [sys.executable, "-m", "generator"] + [a.replace(address, f"127.0.0.1:{port}") for a in argv[1:]]
+    argv = [sys.executable, "-m", "drivemap"] + [a.replace(address, f"127.0.0.1:{port}") for a in argv[1:]]
     code = pythons[0]
     assert f"port={docs.SNIPPET_PORT}" in code
     code = code.replace(f"port={docs.SNIPPET_PORT}", f"port={port}")

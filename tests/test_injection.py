@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from generator.compiler import compile_map
-from generator.render import render_all, write_outputs
+from drivemap.build import render_tree, write_tree
+from drivemap.compiler import compile_map
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -38,7 +38,7 @@ def payloads(marker: Path) -> list[str]:
 
 
 def hostile_map(marker: Path) -> tuple[dict[str, object], list[str]]:
-    scaffold = ROOT / "generator" / "templates" / "new_map.yaml.jinja"
+    scaffold = ROOT / "generator" / "drivemap" / "templates" / "new_map.yaml.jinja"
     base = yaml.safe_load(scaffold.read_text(encoding="utf-8").replace("{{ model }}", "hostile"))
     texts = payloads(marker)
     base["device"]["title"] = texts[0]
@@ -75,7 +75,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[st
     map_path.write_text(yaml.safe_dump(data, allow_unicode=True, sort_keys=False), encoding="utf-8")
     model = compile_map(map_path)
     out = work / "pkg" / "generated_hostile"
-    write_outputs(render_all([model]), out)
+    write_tree(out, render_tree([model]))
     assert not marker.exists(), "rendering executed map text"
     return out, marker, texts
 

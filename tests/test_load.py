@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from generator import load
+from drivemap import load
 
 ROOT = Path(__file__).resolve().parent.parent
-FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "templates" / "new_map.yaml.jinja"]
+FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "drivemap" / "templates" / "new_map.yaml.jinja"]
 
 
 @pytest.mark.skipif(not getattr(yaml, "__with_libyaml__", False), reason="PyYAML built without libyaml: one path only")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from generator.export import export_model
+from drivemap.export import export_model
 
 MODEL = "vfd1000"
 

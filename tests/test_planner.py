@@ -1,6 +1,6 @@
 """The read planner is optimal: read_all() uses exactly the lower-bound number of requests.
 
-The lower bound is computed here independently of generator.runtime.planner: an exhaustive search
+The lower bound is computed here independently of drivemap.runtime.planner: an exhaustive search
 (memoised on the set of covered targets) that always branches on the leftmost uncovered target and
 tries every window, in every page context, that can cover it. It shares only the *rules* with the
 planner (max quantity, never span an address that is not a readable register or a readable
@@ -142,7 +142,7 @@ def test_subset_plan_is_cached_and_minimal() -> None:
 
 
 def _spec(registers: list[Any], reserved: tuple[Any, ...] = (), max_quantity: int = 16) -> Any:
-    from generator.runtime.spec import DeviceSpec, FunctionSpec, SerialSpec, TimingSpec
+    from drivemap.runtime.spec import DeviceSpec, FunctionSpec, SerialSpec, TimingSpec
 
     return DeviceSpec(model="synthetic", title="synthetic", modes=("rtu",), unit_min=1, unit_max=247,
                       broadcast_address=None, serial=SerialSpec(), function_codes=(FunctionSpec(3, max_quantity, None),),
@@ -151,8 +151,8 @@ def _spec(registers: list[Any], reserved: tuple[Any, ...] = (), max_quantity: in
 
 def test_pages_share_unpaged_neighbours() -> None:
     """Greedy per page would need 3 requests; the exact plan needs 2 (+ the selector)."""
-    from generator.runtime.planner import plan_reads
-    from generator.runtime.spec import PageSpec, RegisterSpec
+    from drivemap.runtime.planner import plan_reads
+    from drivemap.runtime.spec import PageSpec, RegisterSpec
 
     regs = [RegisterSpec("sel", 100, access="rw"),
             RegisterSpec("common", 0, access="r", count=8),
@@ -169,8 +169,8 @@ def test_pages_share_unpaged_neighbours() -> None:
 def test_random_maps_match_lower_bound() -> None:
     import random
 
-    from generator.runtime.planner import plan_reads
-    from generator.runtime.spec import PageSpec, RegisterSpec, ReservedSpec
+    from drivemap.runtime.planner import plan_reads
+    from drivemap.runtime.spec import PageSpec, RegisterSpec, ReservedSpec
 
     rng = random.Random(1234)
     for trial in range(60):

@@ -29,13 +29,13 @@ from typing import Any
 
 import pytest
 
-from generator import frames
-from generator.compiler import compile_map, map_paths
-from generator.model import Example, Model
-from generator.runtime.codec import EnumCodec, FieldsCodec, FlagCodec
-from generator.runtime.errors import DeviceException, TransportError
-from generator.runtime.simserve import ThreadedSimServer
-from generator.testing import VirtualSerialLine
+from drivemap import frames
+from drivemap.compiler import compile_map, map_paths
+from drivemap.model import Example, Model
+from drivemap.runtime.codec import EnumCodec, FieldsCodec, FlagCodec
+from drivemap.runtime.errors import DeviceException, TransportError
+from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.testing import VirtualSerialLine
 
 MODELS: dict[str, Model] = {m.name: m for m in (compile_map(p) for p in map_paths())}
 CASES = [(m, ex) for m in MODELS.values() for ex in m.examples]
@@ -65,7 +65,7 @@ class Exchange:
 
 def serial_overrides(model: Model, mode: str) -> dict[str, Any]:
     """Settings for a pty line: the map's defaults where it has them, else explicit ones."""
-    spec = importlib.import_module(f"generated.{model.name}").SPEC.serial
+    spec = importlib.import_module(f"drivemap_models.{model.name}").SPEC.serial
     options: dict[str, Any] = {"mode": mode}
     if spec.baudrate is None:
         options["baudrate"] = 9600
@@ -147,7 +147,7 @@ def perform(model: Model, ex: Example, client: Any) -> Any:
 
 
 def make_simulator(model: Model, ex: Example) -> Any:
-    sim_module = importlib.import_module(f"generated.{model.name}.simulator")
+    sim_module = importlib.import_module(f"drivemap_models.{model.name}.simulator")
     units = [1, 2] if ex.meaning.broadcast else [ex.meaning.unit]
     sim = sim_module.Simulator(units)
     for name, value in ex.preset:
@@ -157,7 +157,7 @@ def make_simulator(model: Model, ex: Example) -> Any:
 
 def run_with_simulator(model: Model, ex: Example) -> tuple[Exchange, Any]:
     """Client on the master end, the generated simulator on the device end."""
-    client_cls = importlib.import_module(f"generated.{model.name}").Client
+    client_cls = importlib.import_module(f"drivemap_models.{model.name}").Client
     sim = make_simulator(model, ex)
     if ex.inject_exception is not None:
         sim.inject_exception(ex.inject_exception)
@@ -215,7 +215,7 @@ class ScriptedDevice:
 
 
 def run_with_reply(model: Model, ex: Example, reply: bytes) -> Exchange:
-    client_cls = importlib.import_module(f"generated.{model.name}").Client
+    client_cls = importlib.import_module(f"drivemap_models.{model.name}").Client
     with VirtualSerialLine() as line:
         device = ScriptedDevice(line, reply)
         try:
@@ -363,7 +363,7 @@ def test_zz_every_example_was_run() -> None:
 
 
 def test_zz_examples_command_agrees_with_the_run(capsys: pytest.CaptureFixture[str]) -> None:
-    from generator.cli import main
+    from drivemap.cli import main
 
     if not SEEN:
         pytest.fail("the round-trip tests did not run in this session (run the whole module)")

@@ -14,14 +14,14 @@ from typing import Any
 
 import pytest
 
-from generator.behaviours import Behaviour, behaviour_class, behaviour_for
-from generator.runtime.simulator import Simulator, SimulatorError
+from drivemap.behaviours import Behaviour, behaviour_class, behaviour_for
+from drivemap.runtime.simulator import Simulator, SimulatorError
 
 MODELS = ["ev", "v2", "edx", "vfd1000"]
 
 
 def sim_class(model: str) -> Any:
-    return importlib.import_module(f"generated.{model}.simulator").Simulator
+    return importlib.import_module(f"drivemap_models.{model}.simulator").Simulator
 
 
 def read(addr: int, qty: int) -> bytes:
@@ -44,8 +44,8 @@ def exc(fc: int, code: int) -> bytes:
 # ---- generated module ---------------------------------------------------------------------------
 @pytest.mark.parametrize("model", MODELS)
 def test_generated_simulator_is_bound_to_spec_and_behaviour(model: str) -> None:
-    module = importlib.import_module(f"generated.{model}.simulator")
-    spec = importlib.import_module(f"generated.{model}.spec").SPEC
+    module = importlib.import_module(f"drivemap_models.{model}.simulator")
+    spec = importlib.import_module(f"drivemap_models.{model}.spec").SPEC
     sim = module.Simulator()
     assert sim.spec is spec and module.MODEL == model
     assert type(sim.behaviour) is behaviour_class(model)
@@ -119,7 +119,7 @@ DIALECT = {
 
 
 def _codes(model: str) -> dict[str, int | None]:
-    spec = importlib.import_module(f"generated.{model}.spec").SPEC
+    spec = importlib.import_module(f"drivemap_models.{model}.spec").SPEC
     out: dict[str, int | None] = {}
     for case in ("illegal_function", "illegal_address", "illegal_quantity", "out_of_range", "read_only", "busy", "bad_length"):
         out[case] = Simulator(spec).exception_code(case)
@@ -425,7 +425,7 @@ def test_reply_delay() -> None:
 
 # ---- every printed example, PDU level (the serial round trip is tests of issue 7) ---------------------
 def _examples() -> list[Any]:
-    from generator.compiler import compile_map, map_paths
+    from drivemap.compiler import compile_map, map_paths
 
     out = []
     for path in map_paths():
@@ -438,7 +438,7 @@ def _examples() -> list[Any]:
 
 @pytest.mark.parametrize("model, ex", _examples())
 def test_printed_example_answered_exactly(model: Any, ex: Any) -> None:
-    from generator.frames import parse
+    from drivemap.frames import parse
 
     request = parse(ex.wire_request, ex.mode)
     units = [1, 2] if ex.meaning.broadcast else [ex.meaning.unit]

@@ -4,14 +4,14 @@ corrupt frame, and still answers a valid request afterwards.
 Two levels:
 
 * pure (hypothesis, cheap): ``Simulator.handle(unit, pdu)`` never raises for any bytes, and the
-  server's framers (pymodbus's RTU/ASCII framers as :mod:`generator.runtime.simserve` extends
+  server's framers (pymodbus's RTU/ASCII framers as :mod:`drivemap.runtime.simserve` extends
   them) never raise for any byte stream and only ever hand over a request whose own CRC/LRC is
   right;
 * on the line: 10,000 frames (random bytes, random ``:``-hex lines, and valid requests - from
   the maps' printed examples and generated from the spec - mutated by bit flips, truncation,
   extension, wrong unit ids, garbage before and between frames) go over a
-  :class:`~generator.testing.vserial.VirtualSerialLine` to a generated simulator served by
-  :class:`~generator.runtime.simserve.ThreadedSimServer` in RTU and in ASCII.
+  :class:`~drivemap.testing.vserial.VirtualSerialLine` to a generated simulator served by
+  :class:`~drivemap.runtime.simserve.ThreadedSimServer` in RTU and in ASCII.
 
 Line fuzz, how it stays fast: frames are written in batches with a few milliseconds between them
 (frames that get no answer cost no timeout); each batch ends with a valid probe request, and the
@@ -41,10 +41,10 @@ from hypothesis import strategies as st
 from pymodbus.framer import FramerAscii, FramerRTU
 from pymodbus.pdu import DecodePDU
 
-from generator.runtime import simserve
-from generator.runtime.simulator import Simulator
-from generator.runtime.spec import DeviceSpec, RegisterSpec
-from generator.testing.vserial import VirtualSerialLine
+from drivemap.runtime import simserve
+from drivemap.runtime.simulator import Simulator
+from drivemap.runtime.spec import DeviceSpec, RegisterSpec
+from drivemap.testing.vserial import VirtualSerialLine
 
 MODELS = ["ev", "v2", "edx", "vfd1000"]
 BAUDRATE = 19200
@@ -61,11 +61,11 @@ SILENCE = 0.005
 
 
 def sim_class(model: str) -> Any:
-    return importlib.import_module(f"generated.{model}.simulator").Simulator
+    return importlib.import_module(f"drivemap_models.{model}.simulator").Simulator
 
 
 def spec_of(model: str) -> DeviceSpec:
-    spec: DeviceSpec = importlib.import_module(f"generated.{model}.spec").SPEC
+    spec: DeviceSpec = importlib.import_module(f"drivemap_models.{model}.spec").SPEC
     return spec
 
 
@@ -195,8 +195,8 @@ def check_reply(reply: bytes, requests: list[bytes], units: list[int]) -> None:
 # ==== frame generation ===============================================================================
 def printed_examples(model: str) -> list[bytes]:
     """unit + PDU of every legible printed example request of the map (none if it does not compile)."""
-    from generator.compiler import compile_map, map_paths
-    from generator.frames import parse
+    from drivemap.compiler import compile_map, map_paths
+    from drivemap.frames import parse
 
     bodies: list[bytes] = []
     for path in map_paths():

@@ -25,15 +25,15 @@ from pymodbus.client import AsyncModbusTcpClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerRTU
 
-from generator.runtime.simserve import SimServer, ThreadedSimServer, is_loopback, parse_tcp
-from generator.runtime.simulator import SimulatorError
-from generator.testing.vserial import VirtualSerialLine
+from drivemap.runtime.simserve import SimServer, ThreadedSimServer, is_loopback, parse_tcp
+from drivemap.runtime.simulator import SimulatorError
+from drivemap.testing.vserial import VirtualSerialLine
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def sim_class(model: str) -> Any:
-    return importlib.import_module(f"generated.{model}.simulator").Simulator
+    return importlib.import_module(f"drivemap_models.{model}.simulator").Simulator
 
 
 def rtu(hexbytes: str) -> bytes:
@@ -330,7 +330,7 @@ def _read_line(proc: subprocess.Popen[str], timeout: float) -> str:
 def _simulate(*args: str) -> subprocess.Popen[str]:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.Popen(
-        [sys.executable, "-m", "generator.cli", "simulate", *args],
+        [sys.executable, "-m", "drivemap.cli", "simulate", *args],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
 

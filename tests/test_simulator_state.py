@@ -33,7 +33,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from generator.runtime.spec import DeviceSpec, RegisterSpec
+from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = "ev"  # the seed model with EEPROM-class registers
@@ -41,12 +41,12 @@ ROUNDS = 6
 
 
 def spec() -> DeviceSpec:
-    value: DeviceSpec = importlib.import_module(f"generated.{MODEL}.spec").SPEC
+    value: DeviceSpec = importlib.import_module(f"drivemap_models.{MODEL}.spec").SPEC
     return value
 
 
 def sim_class() -> Any:
-    return importlib.import_module(f"generated.{MODEL}.simulator").Simulator
+    return importlib.import_module(f"drivemap_models.{MODEL}.simulator").Simulator
 
 
 def eeprom_registers() -> list[RegisterSpec]:
@@ -73,7 +73,7 @@ def _env() -> dict[str, str]:
 
 def simulate(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "generator.cli", "simulate", *args],
+        [sys.executable, "-m", "drivemap.cli", "simulate", *args],
         cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
 
@@ -227,7 +227,7 @@ def test_non_loopback_bind_is_refused(where: str) -> None:
 
 def test_generated_module_refuses_non_loopback_too() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", f"generated.{MODEL}.simulator", "--tcp", "0.0.0.0:0"],
+        [sys.executable, "-m", f"drivemap_models.{MODEL}.simulator", "--tcp", "0.0.0.0:0"],
         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=30,
     )
     assert proc.returncode == 2 and "--allow-remote" in proc.stderr, proc.stderr

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from generated.ev import Client
-from generated.ev.simulator import Simulator
-from generator.runtime.bus import Bus
-from generator.runtime.errors import InvalidValue
-from generator.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.bus import Bus
+from drivemap.runtime.errors import InvalidValue
+from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap_models.ev import Client
+from drivemap_models.ev.simulator import Simulator
 
 
 def test_fixed_port_unit_is_valid_and_answers() -> None:

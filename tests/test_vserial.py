@@ -1,4 +1,4 @@
-"""Tests of the virtual serial line (generator/testing/vserial.py).
+"""Tests of the virtual serial line (generator/drivemap/testing/vserial.py).
 
 Only lower bounds on durations are asserted (physics); never upper wall-clock bounds.
 """
@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 import serial
 
-from generator.testing import DIRECTIONS, FrameFault, VirtualSerialLine, open_pair, split_frames
+from drivemap.testing import DIRECTIONS, FrameFault, VirtualSerialLine, open_pair, split_frames
 
 ALL_BYTES = bytes(range(256))
 

@@ -1,0 +1,120 @@
+"""What a project's build produces, folder by folder, and models served straight from a map.
+
+``drivemap build`` runs the ``python`` exporter into the project's ``out`` folder, the ``docs``
+exporter into its ``docs`` folder and every committed export of ``[[tool.drivemap.exports]]``;
+:func:`outputs_by_root` groups those files by the folder whose manifest owns them.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from .diagnostics import CompileError, Diagnostic, Location
+from .exporters import available
+from .exporters.base import Exporter, Options
+from .exporters.docs import DocsExporter
+from .exporters.python import PythonExporter
+from .inmemory import load_spec
+from .model import Model
+from .project import Project, display
+
+__all__ = ["export_files", "options_for", "outputs_by_root", "simulator_factory"]
+
+
+def options_for(project: Project, values: Mapping[str, Any] | None = None) -> Options:
+    return Options(package=project.package, root=project.root, out=project.out, docs=project.docs,
+                   values=dict(values or {}))
+
+
+def _owner(path: Path, roots: Sequence[Path]) -> Path:
+    """The outermost root that contains ``path``."""
+    for root in sorted(roots, key=lambda r: len(r.parts)):
+        if path.is_relative_to(root):
+            return root
+    return path.parent
+
+
+def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tuple[dict[str, str], bool]]:
+    """root folder -> (relative path -> text, prune?) for everything ``build`` writes."""
+    options = options_for(project)
+    out, docs = project.out.resolve(), project.docs.resolve()
+    files: dict[Path, str] = {}
+    for folder, exporter in ((out, PythonExporter()), (docs, DocsExporter())):
+        for rel, text in exporter.render_all(models, options).items():
+            files[folder / rel] = text
+    by_name = {m.name: m for m in models}
+    for entry in project.exports:
+        model = by_name.get(entry.model)
+        where = Location(display(project.config or project.root), 1, 1)
+        if model is None:
+            raise CompileError([Diagnostic(where, f"exports: no map of model {entry.model!r} in the project")])
+        exporter_cls = available().get(entry.format)
+        if exporter_cls is None:
+            raise CompileError([Diagnostic(where, f"exports: no exporter named {entry.format!r}")])
+        rendered = exporter_cls().render(model, options_for(project, entry.options))
+        files[entry.output.resolve()] = _single(rendered, entry.format)
+    roots = [out, docs]
+    grouped: dict[Path, tuple[dict[str, str], bool]] = {}
+    for path, text in files.items():
+        root = _owner(path, roots)
+        prune = root in roots
+        grouped.setdefault(root, ({}, prune))[0][path.relative_to(root).as_posix()] = text
+    return grouped
+
+
+def _single(files: Mapping[str, str], name: str) -> str:
+    if len(files) != 1:
+        raise CompileError([Diagnostic(Location("exports", 1, 1), f"exporter {name!r} writes several files; "
+                                                                  "committed exports take single-file exporters")])
+    return next(iter(files.values()))
+
+
+def export_files(exporter: Exporter, model: Model, project: Project, values: Mapping[str, Any],
+                 output: str | None) -> dict[str, str]:
+    """The files of ``drivemap export`` (for a multi-file exporter writing to a folder, the
+    folder is where the docs or package links point)."""
+    options = options_for(project, values)
+    if output is not None and exporter.multi_file:
+        target = Path(output).resolve()
+        options = Options(package=options.package, root=options.root, out=target, docs=target, values=options.values)
+    return exporter.render_all([model], options)
+
+
+def simulator_factory(model: Model, project: Project) -> Any:
+    """A simulator factory for a compiled map (no build needed): its spec rendered in memory and
+    the behaviour the project or an installed distribution registers for the model id."""
+    from .behaviours import behaviour_for, load_modules
+    from .runtime.simulator import Simulator
+
+    root = str(project.root)
+    if project.behaviours and root not in sys.path:
+        sys.path.insert(0, root)
+    try:
+        load_modules(project.behaviours)
+    except ImportError as exc:
+        where = Location(display(project.config or project.root), 1, 1)
+        raise CompileError([Diagnostic(where, f"behaviours: cannot import {exc.name or exc}: {exc}")]) from None
+    spec = load_spec(model, options_for(project))
+
+    def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:
+        return Simulator(spec, units, behaviour=behaviour_for(model.name), **kwargs)
+
+    return factory
+
+
+def render_tree(models: Sequence[Model], options: Options | None = None) -> dict[str, str]:
+    """Every file of a build in the default layout (docs in ``docs/`` inside the package folder)."""
+    options = options or Options()
+    files = PythonExporter().render_all(models, options)
+    files.update({f"docs/{rel}": text for rel, text in DocsExporter().render_all(models, options).items()})
+    return files
+
+
+def write_tree(root: Path, files: Mapping[str, str], *, force: bool = False) -> None:
+    """Write ``files`` into ``root`` as ``drivemap build`` does (manifest, staged, pruned)."""
+    from . import output
+
+    output.write(output.plan(root, files, prune=True, force=force))

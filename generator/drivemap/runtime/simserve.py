@@ -1,0 +1,508 @@
+"""Serve a :class:`~drivemap.runtime.simulator.Simulator` with pymodbus: TCP, RTU or ASCII.
+
+pymodbus does the transports, the framing and the CRC/LRC; every request PDU goes, through
+``custom_pdu`` request classes registered for every function code 01h-7Fh, to
+:meth:`Simulator.handle`, which answers in the device's dialect (vendor exception codes such as
+51h-55H or 20h included: pymodbus's ``ExceptionResponse`` carries any code byte). Requests the
+device must not answer (other units, broadcasts, error cases whose code is null) leave through
+pymodbus's ``ignore_missing_devices`` path, so nothing is sent.
+
+Two small framer subclasses watch the serial line: a frame with a bad CRC/LRC is dropped by
+pymodbus (no reply) and reported to the simulator (ev records 84h); in RTU, bytes followed by
+more than the 3.5-character silence without forming a frame are dropped, as a device does.
+
+With realistic timing, a reply leaves the simulator's processing time after the request arrived:
+on a serial line counted from the moment the framer found the complete request (on TCP from the
+moment the request is handled), and waited precisely (:func:`drivemap.runtime.bus.sleep_until`), since
+``asyncio.sleep`` alone wakes up to a millisecond late.
+
+Use from code::
+
+    sim = Simulator(SPEC, units=[1, 2])
+    with ThreadedSimServer(sim, tcp=("127.0.0.1", 0)) as server:
+        host, port = server.address
+        ...
+
+or ``async with SimServer(sim, serial=port, mode="rtu") as server: ...``; from the shell,
+``drivemap simulate MODEL --tcp 127.0.0.1:5020``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import ipaddress
+import signal
+import socket
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from types import TracebackType
+from typing import Any, ClassVar
+
+from pymodbus.exceptions import NoSuchIdException
+from pymodbus.framer import FramerAscii, FramerRTU, FramerType
+from pymodbus.pdu import ModbusPDU
+from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.simulator import SimData, SimDevice
+
+from .bus import sleep_until
+from .simulator import Simulator, SimulatorError
+
+__all__ = [
+    "SimServer",
+    "SimulatorFactory",
+    "ThreadedSimServer",
+    "main",
+    "parse_tcp",
+    "serve_cli",
+]
+
+#: ``factory(units, state_file=..., realistic_timing=...)`` -> Simulator (a generated ``Simulator`` class).
+SimulatorFactory = Callable[..., Simulator]
+
+_PARITY = {None: "N", "none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
+_DEFAULT_BAUDRATE = 9600
+#: RTU request sizes of standard function codes (unit + PDU + CRC); None = byte count at that position.
+_RTU_FIXED = {0x01: 8, 0x02: 8, 0x03: 8, 0x04: 8, 0x05: 8, 0x06: 8, 0x07: 4, 0x08: 8, 0x0B: 4, 0x0C: 4,
+              0x11: 4, 0x16: 10, 0x18: 6, 0x2B: 7}
+_RTU_COUNT_POS = {0x0F: 6, 0x10: 6, 0x14: 2, 0x15: 2, 0x17: 10}
+_RTU_MAX = 256
+
+
+class _Arrival:
+    """When the serial framer of one server last found a complete request (0.0: not yet, or taken)."""
+
+    __slots__ = ("at",)
+
+    def __init__(self) -> None:
+        self.at = 0.0
+
+    def take(self, now: float, within: float) -> float:
+        """The arrival time of the request being handled (``now`` when unknown or stale)."""
+        at, self.at = self.at, 0.0
+        return at if now - within <= at <= now else now
+
+
+class _NoReply(NoSuchIdException):
+    """Raised from a request's datastore_update: pymodbus sends nothing (ignore_missing_devices)."""
+
+
+class _SimResponse(ModbusPDU):
+    """A response PDU built by the simulator (function code + data, exception replies included)."""
+
+    def __init__(self, pdu: bytes = b"\x00") -> None:
+        super().__init__()
+        self.function_code = pdu[0]
+        self.payload = pdu[1:]
+
+    def encode(self) -> bytes:
+        return self.payload
+
+
+class _SimRequest(ModbusPDU):
+    """Any request PDU: kept as bytes and handed to the simulator."""
+
+    simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def __init__(self, dev_id: int = 0, transaction_id: int = 0) -> None:
+        super().__init__(dev_id=dev_id, transaction_id=transaction_id)
+        self.payload = b""
+
+    def decode(self, data: bytes) -> None:
+        self.payload = bytes(data)
+
+    def encode(self) -> bytes:
+        return self.payload
+
+    @classmethod
+    def calculateRtuFrameSize(cls, data: bytes) -> int:  # noqa: N802 (pymodbus API)
+        """Size of the RTU request at the start of ``data`` (0: wait for more bytes)."""
+        code = cls.function_code
+        if code in _RTU_FIXED:
+            return _RTU_FIXED[code]
+        if code in _RTU_COUNT_POS:
+            pos = _RTU_COUNT_POS[code]
+            return data[pos] + pos + 3 if len(data) > pos else 0
+        # Unknown function code: the frame ends where a CRC fits (a device uses the silence).
+        for size in range(4, min(len(data), _RTU_MAX) + 1):
+            if FramerRTU.compute_CRC(data[: size - 2]) == int.from_bytes(data[size - 2 : size], "big"):
+                return size
+        return len(data) if len(data) >= _RTU_MAX else 0
+
+    async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+        sim = self.simulator
+        delay = sim.reply_delay()
+        arrived = self.arrival.take(time.monotonic(), delay) if delay > 0 else 0.0
+        response = sim.handle(device_id, bytes([self.function_code]) + self.payload)
+        if response is None:
+            raise _NoReply(f"unit {device_id}: no reply")
+        if delay > 0:
+            await sleep_until(arrived + delay)
+        return _SimResponse(response)
+
+
+def _request_classes(sim: Simulator, arrival: _Arrival | None = None) -> list[type[ModbusPDU]]:
+    """One request class per function code 01h-7Fh, bound to ``sim`` (registered per server).
+
+    ``arrival`` is shared with the server's serial framer (without one: delays count from handling).
+    """
+    arrival = arrival or _Arrival()
+    return [
+        type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim, "arrival": arrival})
+        for code in range(0x01, 0x80)
+    ]
+
+
+class _WatchRTU(FramerRTU):
+    """pymodbus's RTU framer, plus: report bad CRCs; drop stale partial frames after a silence."""
+
+    simulator: ClassVar[Simulator]
+    silence: ClassVar[float]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def __init__(self, decoder: Any) -> None:
+        super().__init__(decoder)
+        self._waiting = 0
+        self._since = 0.0
+
+    def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
+        now = time.monotonic()
+        stale = 0
+        if self._waiting and len(data) > self._waiting and now - self._since > self.silence:
+            stale = self._waiting  # these bytes never became a frame before the line went quiet
+        used, dev_id, tid, frame = super().decode(data[stale:])
+        if frame and not 0x01 <= frame[0] <= 0x7F:
+            frame = self.EMPTY  # 00h / 80h-FFh are no request codes: no reply, a frame error
+        if used and not frame:
+            self.simulator.frame_error(data[stale] if len(data) > stale else None)
+        if frame:
+            self.arrival.at = now
+        if used or frame:
+            self._waiting = 0
+            return used + stale, dev_id, tid, frame
+        self._waiting = len(data) - stale
+        self._since = now
+        return stale, dev_id, tid, frame
+
+
+class _WatchAscii(FramerAscii):
+    """pymodbus's ASCII framer, fed one frame at a time; frames whose LRC, hex or code is bad are reported.
+
+    Framing follows the Modbus serial line spec (2.5.2.1): a ':' always starts a new frame (the
+    bytes of an unfinished one before it are dropped) and the end marker ends it. Each frame is
+    then decoded by pymodbus alone, so a broken frame never takes the next one with it.
+    """
+
+    simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
+        now = time.monotonic()
+        total = 0
+        while True:
+            used, dev_id, tid, frame = self._decode_one(data[total:])
+            total += used
+            if frame:
+                self.arrival.at = now
+            if frame or not used or total >= len(data):
+                return total, dev_id, tid, frame
+
+    def _decode_one(self, data: bytes) -> tuple[int, int, int, bytes]:
+        end = data.find(self.end)
+        if end == -1:
+            last = data.rfind(self.START)  # keep only the frame being received
+            return (last if last != -1 else len(data)), 0, 0, self.EMPTY
+        start = data.rfind(self.START, 0, end)
+        stop = end + len(self.end)
+        if start == -1:
+            return stop, 0, 0, self.EMPTY  # a line without a start: noise
+        candidate = data[start:stop]
+        try:
+            _, dev_id, tid, frame = super().decode(candidate)
+        except ValueError:  # pymodbus parses the unit id outside its try block: non-hex raises
+            dev_id, tid, frame = 0, 0, self.EMPTY
+        if not frame or not 0x01 <= frame[0] <= 0x7F:  # bad hex/LRC, too short, or 00h / 80h-FFh
+            try:
+                unit: int | None = bytes.fromhex(candidate[1:3].decode("ascii"))[0]
+            except (ValueError, UnicodeDecodeError, IndexError):
+                unit = None
+            self.simulator.frame_error(unit)
+            frame = self.EMPTY
+        return stop, dev_id, tid, frame
+
+
+def _silence_seconds(sim: Simulator, baudrate: int) -> float:
+    """How long the line must be quiet before unfinished bytes are dropped (>= 3.5 characters).
+
+    Never below 50 ms: the host's scheduling, not the line, decides when bytes are seen here.
+    """
+    chars = sim.spec.timing.silent_interval_chars or 3.5
+    return max(chars * 11 / baudrate, 0.05)
+
+
+class SimServer:
+    """A running simulator: a pymodbus server on TCP or a serial device, plus a ticker.
+
+    Exactly one of ``tcp=(host, port)`` (port 0 = any free port) and ``serial=DEVICE``.
+    """
+
+    def __init__(
+        self,
+        sim: Simulator,
+        *,
+        tcp: tuple[str, int] | None = None,
+        serial: str | None = None,
+        mode: str | None = None,
+        baudrate: int | None = None,
+        parity: str | None = None,
+        stop_bits: int | None = None,
+        data_bits: int | None = None,
+        allow_remote: bool = False,
+        tick_interval: float = 0.02,
+    ) -> None:
+        if (tcp is None) == (serial is None):
+            raise SimulatorError("give exactly one of tcp=(host, port) and serial=DEVICE")
+        if tcp is not None and not allow_remote and not is_loopback(tcp[0]):
+            raise SimulatorError(f"refusing to listen on non-loopback address {tcp[0]!r} (use --allow-remote)")
+        self.sim = sim
+        self.tcp = tcp
+        self.serial = serial
+        spec_serial = sim.spec.serial
+        self.mode = mode or spec_serial.mode or "rtu"
+        if serial is not None and self.mode not in ("rtu", "ascii"):
+            raise SimulatorError(f"serial mode must be rtu or ascii, not {self.mode!r}")
+        if serial is not None and self.mode not in sim.spec.modes:
+            raise SimulatorError(f"{sim.spec.model} does not speak Modbus {self.mode.upper()} (modes: {', '.join(sim.spec.modes)})")
+        self.baudrate = baudrate or spec_serial.baudrate or _DEFAULT_BAUDRATE
+        self.parity = _PARITY.get(parity if parity is not None else spec_serial.parity, "N")
+        self.stop_bits = stop_bits or spec_serial.stop_bits or 1
+        self.data_bits = data_bits or spec_serial.data_bits or 8
+        self.tick_interval = tick_interval
+        self._server: ModbusTcpServer | ModbusSerialServer | None = None
+        self._ticker: asyncio.Task[None] | None = None
+        self.address: tuple[str, int] | None = None
+
+    def describe(self) -> str:
+        units = ", ".join(str(u) for u in self.sim.unit_ids)
+        if self.address is not None:
+            host, port = self.address
+            shown = f"[{host}]" if ":" in host else host
+            return f"{self.sim.spec.model} simulator listening on tcp {shown}:{port} (units {units})"
+        return (
+            f"{self.sim.spec.model} simulator listening on serial {self.serial} "
+            f"({self.mode}, {self.baudrate} baud, {self.data_bits}{self.parity}{self.stop_bits}, units {units})"
+        )
+
+    async def start(self) -> None:
+        context = [SimDevice(id=uid, simdata=[SimData(0)]) for uid in self.sim.unit_ids]
+        arrival = _Arrival()
+        custom = _request_classes(self.sim, arrival)
+        server: ModbusTcpServer | ModbusSerialServer
+        if self.tcp is not None:
+            server = ModbusTcpServer(
+                context, framer=FramerType.SOCKET, address=self.tcp, ignore_missing_devices=True, custom_pdu=custom
+            )
+        else:
+            server = ModbusSerialServer(
+                context,
+                framer=FramerType.RTU if self.mode == "rtu" else FramerType.ASCII,
+                port=self.serial or "",
+                baudrate=self.baudrate,
+                parity=self.parity,
+                stopbits=self.stop_bits,
+                bytesize=self.data_bits,
+                ignore_missing_devices=True,
+                custom_pdu=custom,
+            )
+            watch: type[FramerRTU] | type[FramerAscii]
+            if self.mode == "rtu":
+                watch = type("SimFramerRTU", (_WatchRTU,), {
+                    "simulator": self.sim, "silence": _silence_seconds(self.sim, self.baudrate), "arrival": arrival})
+            else:
+                watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
+            server.framer = watch
+        await server.serve_forever(background=True)
+        self._server = server
+        if self.tcp is not None:
+            sockets = getattr(server.transport, "sockets", None) or []
+            name = sockets[0].getsockname() if sockets else self.tcp
+            self.address = (str(name[0]), int(name[1]))
+        self._ticker = asyncio.create_task(self._tick_forever())
+
+    async def _tick_forever(self) -> None:
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(self.tick_interval)
+            now = time.monotonic()
+            self.sim.tick(now - last)
+            last = now
+
+    async def stop(self) -> None:
+        if self._ticker is not None:
+            self._ticker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._ticker
+            self._ticker = None
+        if self._server is not None:
+            await self._server.shutdown()  # type: ignore[no-untyped-call]
+            self._server = None
+        self.sim.save_state()
+
+    async def __aenter__(self) -> SimServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+
+class ThreadedSimServer:
+    """A :class:`SimServer` on its own event loop in a background thread (for synchronous code)."""
+
+    def __init__(self, sim: Simulator, **options: Any) -> None:
+        self.server = SimServer(sim, **options)
+        self.sim = sim
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        return self.server.address
+
+    def start(self, timeout: float = 10.0) -> ThreadedSimServer:
+        self._thread = threading.Thread(target=self._run, name=f"{self.sim.spec.model}-simulator", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError("simulator server did not start")
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        try:
+            loop.run_until_complete(self.server.start())
+        except BaseException as exc:  # reported to start()
+            self._error = exc
+            self._ready.set()
+            loop.close()
+            return
+        self._ready.set()
+        try:
+            loop.run_forever()
+        finally:
+            loop.run_until_complete(self.server.stop())
+            loop.run_until_complete(loop.shutdown_asyncgens())
+            loop.close()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        if self._loop is not None and self._thread is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(timeout)
+        self._thread = None
+
+    def __enter__(self) -> ThreadedSimServer:
+        return self.start()
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        self.stop()
+
+
+# ==== command line ==========================================================================
+def is_loopback(host: str) -> bool:
+    """True when every address ``host`` names is a loopback address."""
+    if host in ("localhost", "localhost.localdomain"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(str(info[4][0]).split("%")[0]).is_loopback for info in infos)
+
+
+def parse_tcp(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``[::1]:5020`` for IPv6) -> (host, port)."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise SimulatorError(f"--tcp wants HOST:PORT, not {text!r}")
+    return host.strip("[]"), int(port)
+
+
+def serve_cli(args: argparse.Namespace) -> int:
+    """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0."""
+    try:
+        return run(args.factory, args)
+    except (SimulatorError, RuntimeError, OSError) as exc:
+        print(f"drivemap simulate: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
+    """Build the simulator from parsed options and serve it in the foreground."""
+    kwargs: dict[str, Any] = {"state_file": args.state, "realistic_timing": args.realistic_timing}
+    sim = factory(args.units or [1], **kwargs)
+    server = SimServer(
+        sim,
+        tcp=parse_tcp(args.tcp) if args.tcp else None,
+        serial=args.serial,
+        mode=args.mode,
+        baudrate=args.baudrate,
+        allow_remote=args.allow_remote,
+    )
+    asyncio.run(_serve_until_signal(server))
+    return 0
+
+
+async def _serve_until_signal(server: SimServer) -> None:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    await server.start()
+    try:
+        print(server.describe(), flush=True)
+        await stop.wait()
+    finally:
+        await server.stop()
+        print(f"{server.sim.spec.model} simulator stopped", flush=True)
+
+
+def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
+    """The options of ``drivemap simulate`` (also used by generated ``simulator.py`` modules)."""
+    if with_model:
+        parser.add_argument("model")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--tcp", metavar="HOST:PORT")
+    where.add_argument("--serial", metavar="DEVICE")
+    parser.add_argument("--mode", choices=["rtu", "ascii"], default=None)
+    parser.add_argument("--baudrate", type=int, default=None)
+    parser.add_argument("--unit", type=int, action="append", dest="units")
+    parser.add_argument("--state", default=None, help="JSON file keeping EEPROM-class registers across restarts")
+    parser.add_argument("--realistic-timing", action="store_true")
+    parser.add_argument("--allow-remote", action="store_true", help="allow binding to a non-loopback address")
+
+
+def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = None) -> int:
+    """Entry point of a generated ``simulator.py``: same options as ``drivemap simulate``."""
+    module = getattr(factory, "__module__", "") or f"{model}.simulator"
+    parser = argparse.ArgumentParser(prog=f"python -m {module}", description=f"Run the {model} simulator.")
+    add_arguments(parser, with_model=False)
+    args = parser.parse_args(argv)
+    args.model = model
+    try:
+        return run(factory, args)
+    except (SimulatorError, RuntimeError, OSError) as exc:
+        print(f"{model} simulator: error: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,680 @@
+"""The simulator core: a register store per unit id and the device's Modbus dialect.
+
+Everything here is read from a :class:`~drivemap.runtime.spec.DeviceSpec` (the generated
+``SPEC``), never from a map: the exception code of each error case (``exception_policy``), the
+communication error codes a device records (``comm_error_policy``, ``comm_error_history``), which
+function codes exist and which may be broadcast, register access, ranges, pages and storage.
+
+The core works on PDUs (function code + data) and knows nothing about transports;
+:mod:`drivemap.runtime.simserve` puts it behind a pymodbus server (TCP, RTU, ASCII).
+Behaviour (what a drive does when it is told to run) lives in :mod:`drivemap.behaviours`.
+
+Error cases and what the simulator answers (the code comes from the map's exception_policy):
+
+``illegal_function``  function code not listed in the map (or an 08h sub-function other than 0000h)
+``illegal_address``   an address that is neither a register nor a readable reserved address;
+                      a write to a reserved address; a write that covers only half of a 32-bit register
+``illegal_quantity``  quantity 0 or above the function code's ``max_quantity``
+``bad_length``        a PDU whose length does not fit its function (10h byte count != 2 x quantity)
+``out_of_range``      a written value outside the register's type, min/max or enum values
+``read_only``         a write to a register without ``w`` access
+``write_only``        a read of a register without ``r`` access
+``busy``              a write to a ``refuse_while_running`` register while the behaviour says running
+
+A case the map leaves out falls back to a related case (write_only/read_only -> illegal_address,
+bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard Modbus code
+(01h, 02h, 03h, 03h, 02h, 02h, 06h, 03h). A case whose code is ``null`` gets no reply.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import struct
+import tempfile
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
+
+if TYPE_CHECKING:
+    from ..behaviours import Behaviour
+
+__all__ = [
+    "CASES",
+    "STANDARD_CODES",
+    "Simulator",
+    "SimulatorError",
+    "Unit",
+]
+
+#: Standard Modbus exception code of every error case (used when the map names no code).
+STANDARD_CODES: dict[str, int] = {
+    "illegal_function": 0x01,
+    "illegal_address": 0x02,
+    "illegal_quantity": 0x03,
+    "out_of_range": 0x03,
+    "read_only": 0x02,
+    "write_only": 0x02,
+    "busy": 0x06,
+    "bad_length": 0x03,
+}
+CASES = tuple(STANDARD_CODES)
+_FALLBACK = {
+    "write_only": "illegal_address",
+    "read_only": "illegal_address",
+    "bad_length": "illegal_quantity",
+    "busy": "out_of_range",
+}
+#: Largest quantity a standard Modbus PDU can carry, per function code (when the map gives none).
+_STANDARD_MAX_QUANTITY = {0x03: 125, 0x04: 125, 0x06: 1, 0x10: 123}
+_TYPE_BOUNDS = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF)}
+_STATE_VERSION = 1
+#: Read plans kept per simulator (address, quantity, page state); the cache starts over when full.
+_MAX_READ_PLANS = 4096
+_PACKERS: dict[int, Callable[..., bytes]] = {}
+#: (cells read, per word: (cell or None for a reserved word read as 0, bit shift in the cell's raw value))
+_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int], ...]]
+
+
+def _packer(count: int) -> Callable[..., bytes]:
+    """``struct.Struct(">{count}H").pack``, made once per count."""
+    pack = _PACKERS.get(count)
+    if pack is None:
+        pack = _PACKERS[count] = struct.Struct(f">{count}H").pack
+    return pack
+
+
+class SimulatorError(ValueError):
+    """A bad call of the simulator API (unknown register, value that does not fit, bad unit)."""
+
+
+class _Refused(Exception):
+    """Internal: the request hits an error case; the dialect decides the answer."""
+
+    def __init__(self, case: str) -> None:
+        super().__init__(case)
+        self.case = case
+
+
+@dataclass(frozen=True)
+class _Slot:
+    """One 16-bit address of one register cell."""
+
+    cell: str
+    reg: RegisterSpec
+    index: int
+    word: int  # 0 = first word on the wire
+
+
+def _cell_names(reg: RegisterSpec) -> Iterator[tuple[str, int]]:
+    for i in range(reg.count):
+        yield reg.element_name(i), i
+
+
+def _to_raw(reg: RegisterSpec, value: float) -> int:
+    raw = (value - reg.offset) / reg.scale
+    return int(round(raw))
+
+
+def _to_value(reg: RegisterSpec, raw: int) -> float | int:
+    if float(reg.scale).is_integer() and float(reg.offset).is_integer():
+        return int(raw * int(reg.scale) + int(reg.offset))
+    return round(raw * reg.scale + reg.offset, 9)
+
+
+def _from_words(reg: RegisterSpec, words: Sequence[int]) -> int:
+    if reg.words == 1:
+        value = words[0]
+        bits = 16
+    else:
+        first, second = words
+        high, low = (second, first) if reg.word_order == "low_first" else (first, second)
+        value = (high << 16) | low
+        bits = 32
+    if reg.signed and value >= 1 << (bits - 1):
+        value -= 1 << bits
+    return value
+
+
+class Unit:
+    """The state of one unit id: raw register values, pending configuration, behaviour scratch.
+
+    Behaviours read and change a unit through these methods; names are cell names
+    (``motor_speed``, ``digital_speed[3]``).
+    """
+
+    def __init__(self, sim: Simulator, unit_id: int) -> None:
+        self.sim = sim
+        self.id = unit_id
+        self.values: dict[str, int] = {}
+        #: Values in effect for registers that take effect at Configuration (reflect "configuration").
+        self.applied: dict[str, int] = {}
+        #: Free space for the behaviour (ramps, timers, edge detection).
+        self.scratch: dict[str, Any] = {}
+        self.injected: int | None = None
+        for reg in sim.spec.registers:
+            for name, index in _cell_names(reg):
+                default = reg.default_at(index)
+                raw = _to_raw(reg, default) if default is not None else 0
+                self.values[name] = raw
+                if reg.reflect == "configuration":
+                    self.applied[name] = raw
+
+    # ---- reading -------------------------------------------------------------------------
+    def has(self, name: str) -> bool:
+        return name in self.values
+
+    def raw(self, name: str) -> int:
+        """Raw value (signed for s16/s32) as a read would see it."""
+        return self.values[self.sim._check_cell(name)]
+
+    def get(self, name: str) -> float | int:
+        """Engineering value (raw * scale + offset)."""
+        return _to_value(self.sim._reg_of(name), self.raw(name))
+
+    def effective_raw(self, name: str) -> int:
+        """The value in effect: for configuration-class registers the one applied at Configuration."""
+        self.sim._check_cell(name)
+        return self.applied.get(name, self.values[name])
+
+    def bit(self, name: str, bit: str) -> int:
+        spec = self.sim._bit(name, bit)
+        return (self.raw(name) & spec.mask) >> spec.offset
+
+    # ---- changing (no dialect checks: this is the device itself changing its state) --------
+    def set_raw(self, name: str, raw: int) -> None:
+        reg = self.sim._reg_of(name)
+        low, high = _TYPE_BOUNDS[reg.type]
+        raw = int(raw)
+        if not low <= raw <= high:
+            raise SimulatorError(f"{name}: raw value {raw} does not fit {reg.type}")
+        self.values[name] = raw
+        if reg.storage == "eeprom":
+            self.sim._dirty = True
+
+    def set(self, name: str, value: float) -> None:
+        self.set_raw(name, _to_raw(self.sim._reg_of(name), value))
+
+    def set_bit(self, name: str, bit: str, value: int) -> None:
+        spec = self.sim._bit(name, bit)
+        raw = self.raw(name) & 0xFFFF
+        raw = (raw & ~spec.mask) | ((int(value) << spec.offset) & spec.mask)
+        self.set_raw(name, raw)
+
+    def apply_configuration(self) -> None:
+        """Make every pending configuration-class value take effect."""
+        for name in self.applied:
+            self.applied[name] = self.values[name]
+
+    def record_comm_error(self, code: int) -> None:
+        """Push a communication error code into the history register (newest first)."""
+        name = self.sim.spec.comm_error_history
+        if name is None:
+            return
+        reg = self.sim.spec.register(name)
+        for i in range(reg.count - 1, 0, -1):
+            self.values[reg.element_name(i)] = self.values[reg.element_name(i - 1)]
+        self.values[reg.element_name(0)] = code
+
+
+class Simulator:
+    """A simulated device: one register store per unit id, answering in the device's dialect.
+
+    ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
+    PDU, or ``None`` when the device stays silent (another unit's request, a broadcast, an error
+    case the device does not answer). All methods are thread-safe.
+    """
+
+    def __init__(
+        self,
+        spec: DeviceSpec,
+        units: Sequence[int] = (1,),
+        *,
+        behaviour: Behaviour | None = None,
+        state_file: str | os.PathLike[str] | None = None,
+        realistic_timing: bool = False,
+    ) -> None:
+        if behaviour is None:
+            from ..behaviours import Behaviour
+
+            behaviour = Behaviour()
+        self.spec = spec
+        self.behaviour = behaviour
+        self.realistic_timing = realistic_timing
+        self.state_file = Path(state_file) if state_file is not None else None
+        self._lock = threading.RLock()
+        self._dirty = False
+        self._regs: dict[str, RegisterSpec] = {}
+        self._cells: dict[str, tuple[RegisterSpec, int]] = {}
+        self._by_address: dict[int, list[_Slot]] = {}
+        for reg in spec.registers:
+            self._regs[reg.name] = reg
+            for name, index in _cell_names(reg):
+                self._cells[name] = (reg, index)
+                start = reg.element_address(index)
+                for word in range(reg.words):
+                    self._by_address.setdefault(start + word, []).append(_Slot(name, reg, index, word))
+        # address -> its slot when the first register there has no page (it always wins _resolve)
+        self._static: dict[int, _Slot] = {a: slots[0] for a, slots in self._by_address.items()
+                                          if slots[0].reg.page is None}
+        # every selector a page depends on: the page state of a unit is their values
+        self._selectors: tuple[str, ...] = tuple(sorted(
+            {r.page.selector for r in spec.registers if r.page is not None}
+            | {r.page.selector for r in spec.reserved if r.page is not None}))
+        # (address, quantity, page state) -> read plan (see _read_plan)
+        self._read_plans: dict[tuple[int, int, tuple[int, ...]], _ReadPlan | str] = {}
+        unit_ids = list(dict.fromkeys(int(u) for u in units))
+        if not unit_ids:
+            raise SimulatorError("a simulator needs at least one unit id")
+        for uid in unit_ids:
+            if not spec.valid_unit(uid):
+                raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
+        self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
+        if self.state_file is not None and self.state_file.exists():
+            self._load_state(self.state_file)
+        for unit in self.units.values():
+            self.behaviour.on_start(unit)
+        self._dirty = False
+
+    # ==== public API ========================================================================
+    @property
+    def unit_ids(self) -> list[int]:
+        return list(self.units)
+
+    def unit(self, unit_id: int | None = None) -> Unit:
+        """One unit (the first when ``unit_id`` is None)."""
+        if unit_id is None:
+            return next(iter(self.units.values()))
+        try:
+            return self.units[unit_id]
+        except KeyError:
+            raise SimulatorError(f"unit {unit_id} is not simulated (units: {self.unit_ids})") from None
+
+    def _targets(self, unit: int | None) -> list[Unit]:
+        return list(self.units.values()) if unit is None else [self.unit(unit)]
+
+    def set(self, name: str, value: float, unit: int | None = None) -> None:
+        """Preset a register (engineering value) on one unit or, by default, on every unit.
+
+        A preset is the device's state, not a Modbus write: no dialect checks, no behaviour hook;
+        configuration-class registers are set as already applied.
+        """
+        with self._lock:
+            for target in self._targets(unit):
+                target.set(name, value)
+                if name in target.applied:
+                    target.applied[name] = target.values[name]
+            self._save_if_dirty()
+
+    def set_raw(self, name: str, raw: int, unit: int | None = None) -> None:
+        """Preset a register's raw value (see :meth:`set`)."""
+        with self._lock:
+            for target in self._targets(unit):
+                target.set_raw(name, raw)
+                if name in target.applied:
+                    target.applied[name] = target.values[name]
+            self._save_if_dirty()
+
+    def get(self, name: str, unit: int | None = None) -> float | int:
+        """Engineering value of a register on one unit (the first by default)."""
+        with self._lock:
+            return self.unit(unit).get(name)
+
+    def get_raw(self, name: str, unit: int | None = None) -> int:
+        with self._lock:
+            return self.unit(unit).raw(name)
+
+    def inject_exception(self, code: int, unit: int | None = None) -> None:
+        """Answer the next request (to ``unit``, or to any simulated unit) with exception ``code``.
+
+        One-shot: the request is not executed; later requests are served normally.
+        """
+        if not 0 <= code <= 0xFF:
+            raise SimulatorError(f"exception code {code} is not a byte")
+        with self._lock:
+            for target in self._targets(unit):
+                target.injected = code
+
+    def tick(self, dt: float) -> None:
+        """Let ``dt`` seconds of device time pass (behaviour ``on_tick`` on every unit)."""
+        with self._lock:
+            for unit in self.units.values():
+                self.behaviour.on_tick(unit, dt)
+            self._save_if_dirty()
+
+    def advance(self, seconds: float, step: float = 0.01) -> None:
+        """Run :meth:`tick` in steps of ``step`` for ``seconds`` (deterministic tests)."""
+        steps = max(1, math.ceil(seconds / step - 1e-9))
+        for _ in range(steps):
+            self.tick(seconds / steps)
+
+    def reply_delay(self) -> float:
+        """Seconds the real device needs before it answers (0 unless realistic timing is on).
+
+        The map's processing time (midpoint of min..max); without one, its inter-frame gap
+        (v2/edx: a reply comes no sooner than 10 ms after the request).
+        """
+        if not self.realistic_timing:
+            return 0.0
+        t = self.spec.timing
+        if t.processing_ms is not None:
+            return (t.processing_ms[0] + t.processing_ms[1]) / 2000.0
+        if t.inter_frame_gap_ms is not None:
+            return t.inter_frame_gap_ms / 1000.0
+        return 0.0
+
+    def frame_error(self, unit_id: int | None) -> None:
+        """A frame with a bad CRC/LRC or a broken format arrived: no reply; record it if the map says so."""
+        with self._lock:
+            unit = self.units.get(unit_id) if unit_id is not None else None
+            if unit is not None:
+                self._record(unit, "bad_frame")
+
+    def save_state(self) -> None:
+        """Write EEPROM-class registers to the state file now (atomically)."""
+        with self._lock:
+            if self.state_file is not None:
+                self._write_state(self.state_file)
+                self._dirty = False
+
+    def exception_code(self, case: str) -> int | None:
+        """The code this device answers for an error case (None: no reply)."""
+        seen: set[str] = set()
+        current: str | None = case
+        while current is not None and current not in seen:
+            seen.add(current)
+            for item in self.spec.exception_policy:
+                if item.case == current:
+                    return item.code
+            current = _FALLBACK.get(current)
+        return STANDARD_CODES[case]
+
+    # ==== request handling ====================================================================
+    def handle(self, unit_id: int, pdu: bytes) -> bytes | None:
+        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply)."""
+        if not pdu:
+            return None
+        with self._lock:
+            try:
+                if self.spec.broadcast_address is not None and unit_id == self.spec.broadcast_address:
+                    self._broadcast(pdu)
+                    return None
+                unit = self.units.get(unit_id)
+                if unit is None:
+                    return None
+                injected = unit.injected
+                if injected is not None:
+                    for other in self.units.values():
+                        if other.injected == injected:
+                            other.injected = None
+                    return bytes([pdu[0] | 0x80, injected])
+                try:
+                    return self._serve(unit, pdu[0], pdu[1:], broadcast=False)
+                except _Refused as refused:
+                    self._record(unit, refused.case)
+                    answer = self.exception_code(refused.case)
+                    return None if answer is None else bytes([pdu[0] | 0x80, answer])
+            finally:
+                self._save_if_dirty()
+
+    def _broadcast(self, pdu: bytes) -> None:
+        fc = self.spec.function(pdu[0])
+        if fc is None or fc.broadcast is not True or pdu[0] not in (0x06, 0x10):
+            return  # the device ignores broadcast requests it cannot execute
+        for unit in self.units.values():
+            try:
+                self._serve(unit, pdu[0], pdu[1:], broadcast=True)
+            except _Refused as refused:
+                self._record(unit, refused.case)
+
+    def _record(self, unit: Unit, case: str) -> None:
+        for item in self.spec.comm_error_policy:
+            if item.case == case:
+                if item.code is not None:
+                    unit.record_comm_error(item.code)
+                return
+
+    def _serve(self, unit: Unit, code: int, data: bytes, *, broadcast: bool) -> bytes:
+        fc = self.spec.function(code)
+        if fc is None:
+            raise _Refused("illegal_function")
+        if code in (0x03, 0x04):
+            return self._read(unit, fc.code, fc.max_quantity, data)
+        if code == 0x06:
+            return self._write_single(unit, data, broadcast)
+        if code == 0x10:
+            return self._write_multiple(unit, fc.max_quantity, data, broadcast)
+        if code == 0x08:
+            return self._loopback(data)
+        raise _Refused("illegal_function")
+
+    def _max_quantity(self, code: int, limit: int | None) -> int:
+        return limit if limit is not None else _STANDARD_MAX_QUANTITY.get(code, 125)
+
+    def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        if not 1 <= quantity <= self._max_quantity(code, limit):
+            raise _Refused("illegal_quantity")
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        selectors = self._selectors
+        state = tuple(unit.values.get(sel, 0) for sel in selectors) if selectors else ()
+        plan = self._read_plans.get((address, quantity, state))
+        if plan is None:
+            plan = self._read_plan(unit, address, quantity)
+            if len(self._read_plans) >= _MAX_READ_PLANS:
+                self._read_plans.clear()
+            self._read_plans[(address, quantity, state)] = plan
+        if isinstance(plan, str):
+            raise _Refused(plan)
+        cells, words = plan
+        self.behaviour.on_read(unit, list(cells))
+        values = unit.values
+        body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
+                                       for cell, shift in words])
+        return bytes((code, 2 * quantity)) + body
+
+    def _read_plan(self, unit: Unit, address: int, quantity: int) -> _ReadPlan | str:
+        """What a read of ``quantity`` words at ``address`` returns in the unit's current pages.
+
+        Either the refusal case or (cells read, per word (cell or None for a reserved 0, shift)).
+        Depends only on the spec and the values of the page selectors, so it is cached per page state.
+        """
+        words: list[tuple[str | None, int]] = []
+        for addr in range(address, address + quantity):
+            slot = self._resolve(unit, addr)
+            if slot is None:
+                if not self._reserved_readable(unit, addr):
+                    return "illegal_address"
+                words.append((None, 0))
+                continue
+            if not slot.reg.readable:
+                return "write_only"
+            reg = slot.reg
+            if reg.words == 1:
+                shift = 0
+            else:  # wire order: [high, low], or [low, high] for low_first
+                shift = 16 if (slot.word == 0) != (reg.word_order == "low_first") else 0
+            words.append((slot.cell, shift))
+        cells = tuple(dict.fromkeys(cell for cell, _ in words if cell is not None))
+        return cells, tuple(words)
+
+    def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        word = int.from_bytes(data[2:4], "big")
+        self._write(unit, address, [word], broadcast)
+        return bytes([0x06]) + data
+
+    def _write_multiple(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
+        if len(data) < 5:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        count = data[4]
+        if not 1 <= quantity <= self._max_quantity(0x10, limit):
+            raise _Refused("illegal_quantity")
+        if count != 2 * quantity or len(data) != 5 + count:
+            raise _Refused("bad_length")
+        words = [int.from_bytes(data[5 + 2 * i : 7 + 2 * i], "big") for i in range(quantity)]
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        self._write(unit, address, words, broadcast)
+        return bytes([0x10]) + data[0:4]
+
+    def _loopback(self, data: bytes) -> bytes:
+        if len(data) < 2:
+            raise _Refused("bad_length")
+        if int.from_bytes(data[0:2], "big") != 0:
+            raise _Refused("illegal_function")
+        return bytes([0x08]) + data
+
+    def _write(self, unit: Unit, address: int, words: list[int], broadcast: bool) -> None:
+        """Validate every word, then apply all of them (a refused request changes nothing)."""
+        changes: list[tuple[str, RegisterSpec, int]] = []
+        i = 0
+        while i < len(words):
+            slot = self._resolve(unit, address + i)
+            if slot is None:
+                raise _Refused("illegal_address")
+            reg = slot.reg
+            if slot.word != 0 or i + reg.words > len(words):
+                raise _Refused("illegal_address")  # half of a 32-bit register
+            if broadcast and not reg.broadcast:
+                raise _Refused("illegal_address")
+            if not reg.writable:
+                raise _Refused("read_only")
+            changes.append((slot.cell, reg, _from_words(reg, words[i : i + reg.words])))
+            i += reg.words
+        if any(reg.refuse_while_running for _, reg, _ in changes) and self.behaviour.is_running(unit):
+            raise _Refused("busy")
+        for _, reg, raw in changes:
+            if not self._in_range(reg, raw):
+                raise _Refused("out_of_range")
+        for cell, reg, raw in changes:
+            unit.values[cell] = raw
+            if reg.storage == "eeprom":
+                self._dirty = True
+            if (
+                self.spec.configuration is not None
+                and reg.name == self.spec.configuration[0]
+                and raw == self.spec.configuration[1]
+            ):
+                unit.apply_configuration()
+            self.behaviour.on_write(unit, cell, raw)
+
+    def _in_range(self, reg: RegisterSpec, raw: int) -> bool:
+        low, high = _TYPE_BOUNDS[reg.type]
+        if not low <= raw <= high:
+            return False
+        if reg.enum_values and raw not in reg.enum_values:
+            return False
+        value = raw * reg.scale + reg.offset
+        tolerance = abs(reg.scale) / 2
+        if reg.min is not None and value < reg.min - tolerance:
+            return False
+        if reg.max is not None and value > reg.max + tolerance:
+            return False
+        return True
+
+    # ==== addresses ===========================================================================
+    def _page_ok(self, unit: Unit, page: PageSpec | None) -> bool:
+        if page is None:
+            return True
+        return bool(unit.values.get(page.selector, 0) == page.value)
+
+    def _resolve(self, unit: Unit, address: int) -> _Slot | None:
+        static = self._static.get(address)
+        if static is not None:
+            return static
+        for slot in self._by_address.get(address, ()):
+            if self._page_ok(unit, slot.reg.page):
+                return slot
+        return None
+
+    def _reserved_readable(self, unit: Unit, address: int) -> bool:
+        """Reserved addresses the map marks readable answer 0; unknown or unreadable ones are refused."""
+        return any(
+            r.start <= address <= r.end and r.readable is True and self._page_ok(unit, r.page)
+            for r in self.spec.reserved
+        )
+
+    # ==== names ===============================================================================
+    def _check_cell(self, name: str) -> str:
+        if name not in self._cells:
+            if name in self._regs:
+                raise SimulatorError(f"{name} is an array; name an element, e.g. {name}[0]")
+            raise SimulatorError(f"{self.spec.model} has no register {name!r}")
+        return name
+
+    def _reg_of(self, name: str) -> RegisterSpec:
+        return self._cells[self._check_cell(name)][0]
+
+    def _bit(self, name: str, bit: str) -> BitSpec:
+        for spec in self._reg_of(name).bits:
+            if spec.name == bit:
+                return spec
+        raise SimulatorError(f"{name} has no bit {bit!r}")
+
+    # ==== persistence ===========================================================================
+    def _eeprom_cells(self) -> list[str]:
+        return [name for name, (reg, _) in self._cells.items() if reg.storage == "eeprom"]
+
+    def _save_if_dirty(self) -> None:
+        if self._dirty and self.state_file is not None:
+            self._write_state(self.state_file)
+        self._dirty = False
+
+    def _write_state(self, path: Path) -> None:
+        cells = self._eeprom_cells()
+        data = {
+            "model": self.spec.model,
+            "version": _STATE_VERSION,
+            "units": {str(uid): {name: unit.values[name] for name in cells} for uid, unit in self.units.items()},
+        }
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as handle:
+                json.dump(data, handle, indent=2, sort_keys=True)
+                handle.write("\n")
+                handle.flush()
+                os.fsync(handle.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+
+    def _load_state(self, path: Path) -> None:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise SimulatorError(f"{path}: cannot read simulator state: {exc}") from exc
+        if not isinstance(data, dict) or data.get("model") != self.spec.model:
+            raise SimulatorError(f"{path}: state file is not for model {self.spec.model!r}")
+        units = data.get("units", {})
+        if not isinstance(units, dict):
+            raise SimulatorError(f"{path}: 'units' must be a mapping")
+        eeprom = set(self._eeprom_cells())
+        for uid, values in units.items():
+            unit = self.units.get(int(uid))
+            if unit is None or not isinstance(values, dict):
+                continue
+            for name, raw in values.items():
+                if name in eeprom and isinstance(raw, int):
+                    reg = self._cells[name][0]
+                    low, high = _TYPE_BOUNDS[reg.type]
+                    if low <= raw <= high:
+                        unit.values[name] = raw
+

@@ -1,0 +1,251 @@
+"""View of ``generated/<model>/client.py`` and ``generated/<model>/__init__.py``: the typed client.
+
+Everything the templates need is computed here: class names (checked against keywords, each
+other and the fixed names of the package), the Python value type of every register, the runtime
+codec and accessor class for it, docstrings and the exact imports (so generated code stays
+ruff-clean).
+"""
+
+from __future__ import annotations
+
+import keyword
+from dataclasses import dataclass
+from typing import Any
+
+from ..checks import FIXED_NAMES
+from ..exporters.base import Options
+from ..model import Bit, Model, Register, camel
+from .common import header
+
+
+def _attr(name: str) -> str:
+    """A snake_case attribute for an UPPER_CASE bit name (keywords get a trailing underscore)."""
+    low = name.lower()
+    return low + "_" if keyword.iskeyword(low) or keyword.issoftkeyword(low) else low
+
+
+def _num(value: float | None) -> str:
+    if value is None:
+        return "—"
+    return str(int(value)) if float(value).is_integer() else repr(float(value))
+
+
+def bits_kind(reg: Register) -> str | None:
+    """``flags`` (IntFlag: single bits only), ``fields`` (frozen dataclass) or None."""
+    if not reg.bits:
+        return None
+    if reg.multibit or any(b.enum for b in reg.bits):
+        return "fields"
+    return "flags"
+
+
+def value_type(reg: Register) -> str:
+    if reg.enum:
+        return reg.enum
+    if reg.bits:
+        return reg.bits_class or camel(reg.name)
+    return "int" if reg.is_integer else "float"
+
+
+def _field_type(bit: Bit) -> str:
+    if bit.enum:
+        return bit.enum
+    return "bool" if bit.width == 1 else "int"
+
+
+@dataclass(frozen=True)
+class AccessorView:
+    name: str
+    type: str
+    sync_class: str
+    async_class: str
+    codec: str
+    doc: list[str]
+    broadcast: bool
+    readable: bool
+    is_array: bool
+
+
+def _doc(model: Model, reg: Register) -> list[str]:
+    lines = [reg.label or reg.description or reg.name]
+    if reg.label and reg.description:
+        lines.append(reg.description)
+    where = f"Address 0x{reg.address:04X}"
+    if reg.is_array:
+        where += f", {reg.count} elements, stride {reg.stride}"
+    if reg.param:
+        where += f"; parameter {reg.param}"
+    if reg.element_params and reg.is_array:
+        where += f" ({', '.join(reg.element_params)})"
+    lines.append(where + f"; {reg.type}, access {reg.access}.")
+    unit = f" {reg.unit}" if reg.unit else ""
+    scale = f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else "")
+    lines.append(f"Unit:{unit or ' none'}; {scale}; range {_num(reg.min)} .. {_num(reg.max)}{unit}.")
+    defaults = [d for d in reg.defaults]
+    dtext = ", ".join(_num(d) for d in defaults) if any(d is not None for d in defaults) else "—"
+    lines.append(f"Default: {dtext}; reflect: {reg.reflect}; storage: {reg.storage}"
+                 + (f" (write delay {_num(reg.write_delay_ms)} ms)" if reg.write_delay_ms else "") + ".")
+    if reg.page:
+        lines.append(f"Page: valid while {reg.page.selector} = {reg.page.value}.")
+    if reg.command_value is not None:
+        lines.append(f"Command: writing {reg.command_value} executes it.")
+    if reg.broadcast:
+        lines.append("May be written by broadcast.")
+    lines.append(f"Manual: {reg.source}.")
+    return lines
+
+
+def _codec(model: Model, reg: Register) -> tuple[str, str]:
+    """(codec class, constructor expression)."""
+    spec = f"SPEC.register({reg.name!r})"
+    kind = bits_kind(reg)
+    if reg.enum:
+        return "EnumCodec", f"EnumCodec({spec}, {reg.enum})"
+    if kind == "flags":
+        return "FlagCodec", f"FlagCodec({spec}, {value_type(reg)})"
+    if kind == "fields":
+        fields = ", ".join(
+            f"Field({_attr(b.name)!r}, {b.name!r}" + (f", {b.enum})" if b.enum else ")") for b in reg.bits
+        )
+        return "FieldsCodec", f"FieldsCodec({spec}, {value_type(reg)}, ({fields},))"
+    if reg.is_integer:
+        return "IntCodec", f"IntCodec({spec})"
+    return "FloatCodec", f"FloatCodec({spec})"
+
+
+def _access_class(reg: Register, asynchronous: bool) -> str:
+    base = {"r": "ReadOnly", "w": "WriteOnly", "rw": "ReadWrite"}[reg.access]
+    return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
+
+
+def _exception_class(name: str) -> str:
+    cls = camel(name)
+    if not cls[:1].isalpha():
+        cls = "Code" + cls
+    return cls if cls.endswith("Error") else cls + "Error"
+
+
+def _check_names(model: Model, names: list[tuple[str, str]]) -> None:
+    seen: dict[str, str] = {}
+    for name, what in names:
+        if name in FIXED_NAMES:
+            raise ValueError(f"{model.path}: {what} {name!r} clashes with a name of the generated package")
+        if keyword.iskeyword(name) or not name.isidentifier():
+            raise ValueError(f"{model.path}: {what} {name!r} is not a usable class name")
+        if name in seen and seen[name] != what:
+            raise ValueError(f"{model.path}: {what} {name!r} clashes with {seen[name]} {name!r}")
+        seen[name] = what
+
+
+def _isort_key(name: str) -> tuple[int, str]:
+    """ruff/isort order inside ``from x import (...)``: CONSTANTS, Classes, functions."""
+    return (0 if name.isupper() else 1 if name[:1].isupper() else 2, name)
+
+
+def context(model: Model, options: Options) -> dict[str, Any]:
+    enums = [
+        {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
+         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
+        for e in model.enums
+    ]
+    flags: list[dict[str, Any]] = []
+    records: list[dict[str, Any]] = []
+    seen_bits: set[str] = set()
+    for reg in model.registers:
+        kind = bits_kind(reg)
+        cls = value_type(reg)
+        if kind is None or reg.enum or cls in seen_bits:
+            continue
+        seen_bits.add(cls)
+        doc = f"Bits of {reg.name} (0x{reg.address:04X}, {reg.source})."
+        if kind == "flags":
+            flags.append({"name": cls, "doc": doc,
+                          "members": [{"name": b.name, "value": f"0x{b.mask:04X}", "doc": b.label} for b in reg.bits]})
+        else:
+            records.append({"name": cls, "doc": doc, "fields": [
+                {"name": _attr(b.name), "type": _field_type(b),
+                 "doc": f"{b.label} (bit{'s' if b.width > 1 else ''} {b.offset}"
+                        + (f"..{b.offset + b.width - 1}" if b.width > 1 else "") + ")"}
+                for b in reg.bits]})
+    for rec in records:
+        names = [f["name"] for f in rec["fields"]]
+        if len(set(names)) != len(names):
+            raise ValueError(f"{model.path}: bit names of {rec['name']} collide once lower-cased")
+
+    exceptions = []
+    used: set[str] = set()
+    for ex in model.protocol.exceptions:
+        cls = _exception_class(ex.name)
+        if cls in used or cls in FIXED_NAMES:
+            cls = f"{cls[:-5]}{ex.code:02X}Error"
+        used.add(cls)
+        exceptions.append({"name": cls, "code": f"0x{ex.code:02X}", "code_name": ex.name, "meaning": ex.meaning,
+                           "source": ex.source})
+
+    _check_names(model, [(e["name"], "enum") for e in enums] + [(f["name"], "bit-field class") for f in flags]
+                 + [(r["name"], "bit-field class") for r in records] + [(e["name"], "exception class") for e in exceptions])
+
+    accessors: list[AccessorView] = []
+    codecs: list[dict[str, str]] = []
+    codec_classes: set[str] = set()
+    for reg in model.registers:
+        codec_class, expr = _codec(model, reg)
+        codec_classes.add(codec_class)
+        var = f"_codec_{reg.name}"
+        codecs.append({"var": var, "name": reg.name, "expr": expr, "type": f"{codec_class}"})
+        accessors.append(AccessorView(
+            name=reg.name, type=value_type(reg), sync_class=_access_class(reg, False),
+            async_class=_access_class(reg, True), codec=var, doc=_doc(model, reg),
+            broadcast=reg.broadcast and reg.writable, readable=reg.readable, is_array=reg.is_array,
+        ))
+    if any(r["fields"] and any(f["type"] not in ("bool", "int") for f in r["fields"]) or r["fields"] for r in records):
+        codec_classes.add("Field")
+
+    has_broadcast = model.protocol.broadcast_address is not None
+    bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
+    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
+    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]
+
+    runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
+    for a in accessors:
+        runtime_names.update({a.sync_class, a.async_class})
+    runtime_names.update(cls for _, cls in broadcast_sync)
+    runtime_names.update(cls for _, cls in broadcast_async)
+
+    snapshot_fields = [
+        {"name": a.name, "type": f"tuple[{a.type} | None, ...] | None" if a.is_array else f"{a.type} | None"}
+        for a in accessors if a.readable
+    ]
+    all_names = (["AsyncBroadcastClient", "BroadcastClient"] if has_broadcast else []) + [
+        "AsyncClient", "Client", "CODECS", "EXCEPTIONS", "Snapshot",
+    ] + [e["name"] for e in enums] + [f["name"] for f in flags] + [r["name"] for r in records] + [
+        e["name"] for e in exceptions]
+    return {
+        "header": header(model, options),
+        "package": options.package,
+        "model": model,
+        "title": model.device.title,
+        "enums": enums,
+        "flags": flags,
+        "records": records,
+        "exceptions": exceptions,
+        "accessors": accessors,
+        "codecs": codecs,
+        "codec_imports": sorted(codec_classes | {"Codec"} | ({"DriveEnum"} if enums else set())),
+        "runtime_imports": sorted(runtime_names),
+        "need_enum": bool(flags),
+        "need_dataclasses": True,
+        "has_broadcast": has_broadcast,
+        "broadcast_address": model.protocol.broadcast_address,
+        "broadcast_sync": broadcast_sync,
+        "broadcast_async": broadcast_async,
+        "snapshot_fields": snapshot_fields,
+        "client_all": sorted(all_names, key=lambda n: (n.lower(), n)),
+        "package_all": sorted(set(all_names) | {
+            "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
+            "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
+            "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
+        }, key=lambda n: (n.lower(), n)),
+        "client_exports": sorted(all_names, key=_isort_key),
+        "loopback": model.protocol.function(0x08) is not None,
+    }
