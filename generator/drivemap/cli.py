@@ -22,12 +22,15 @@ from .project import Project, display, load_project
 
 
 class UsageError(Exception):
-    """A bad command line: printed as ``drivemap: error: ...`` with exit status 1."""
+    """A bad command line: printed as ``drivemap VERB: error: ...`` with exit status 1."""
+
+    def __init__(self, prog: str, message: str) -> None:
+        super().__init__(f"{prog}: error: {message}")
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
-        raise UsageError(f"{self.prog}: {message}")
+        raise UsageError(self.prog, message)
 
 
 def _project(args: argparse.Namespace, maps: Sequence[str] | None = None) -> Project:
@@ -169,9 +172,9 @@ def cmd_export(args: argparse.Namespace) -> int:
             print(f"{name.ljust(width)}  {cls.help}")
         return 0
     if args.model is None:
-        raise UsageError("drivemap export: give MODEL or PATH (or --list)")
+        raise UsageError("drivemap export", "give MODEL or PATH (or --list)")
     if args.format not in exporters:
-        raise UsageError(f"drivemap export: unknown format {args.format!r} (installed: {', '.join(exporters)})")
+        raise UsageError("drivemap export", f"unknown format {args.format!r} (installed: {', '.join(exporters)})")
     exporter = exporters[args.format]()
     own = _Parser(prog=f"drivemap export MODEL --format {args.format}", add_help=False)
     exporter.add_arguments(own)
@@ -306,7 +309,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args, rest = parser().parse_known_args(argv)
         if rest and args.command != "export":
-            raise UsageError(f"drivemap {args.command}: unrecognized arguments: {' '.join(rest)}")
+            raise UsageError(f"drivemap {args.command}", f"unrecognized arguments: {' '.join(rest)}")
         args.rest = rest
         result: int = args.func(args)
         return result

@@ -1,0 +1,178 @@
+"""drivemap as users get it: a wheel installed in a fresh virtualenv, run in folders outside this checkout.
+
+The wheel is built from this checkout, installed into a new virtualenv, and every verb runs in an
+empty folder elsewhere: ``new``, ``validate``, ``build``, ``check``, the generated client imported
+and talking to ``drivemap simulate``; a project configured in ``pyproject.toml`` built from a
+sub-folder; the seed maps and the schema found inside the package. Neither the installed package nor
+this checkout may change while that happens.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SEED_MAPS = sorted((ROOT / "maps").glob("*.yaml"))
+
+
+def tree_digest(root: Path) -> dict[str, str]:
+    """relative path -> sha256 of every file below ``root`` (Python's byte-code caches left out)."""
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and "__pycache__" not in p.parts}
+
+
+def checkout_digest() -> dict[str, str]:
+    digest: dict[str, str] = {}
+    for folder in ("generator", "generated", "maps", "schemas"):
+        digest.update({f"{folder}/{k}": v for k, v in tree_digest(ROOT / folder).items()})
+    return digest
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    dist = tmp_path_factory.mktemp("dist")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(ROOT)],
+                   check=True, capture_output=True, text=True, timeout=600)
+    (found,) = dist.glob("drivemap-*.whl")
+    return found
+
+
+@pytest.fixture(scope="module")
+def env(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A fresh virtualenv with only the wheel (and its dependencies) installed; returns its bin/."""
+    where = tmp_path_factory.mktemp("venv") / "v"
+    venv.EnvBuilder(with_pip=True).create(where)
+    bindir = where / "bin"
+    subprocess.run([str(bindir / "python"), "-m", "pip", "install", "-q", str(wheel)], check=True,
+                   capture_output=True, text=True, timeout=900)
+    return bindir
+
+
+def site_package(bindir: Path) -> Path:
+    out = subprocess.run([str(bindir / "python"), "-c", "import drivemap, os; print(os.path.dirname(drivemap.__file__))"],
+                         check=True, capture_output=True, text=True, cwd="/").stdout.strip()
+    return Path(out)
+
+
+def drivemap(bindir: Path, cwd: Path, *argv: str) -> subprocess.CompletedProcess[str]:
+    clean = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    clean["PATH"] = f"{bindir}{os.pathsep}{clean.get('PATH', '')}"
+    return subprocess.run([str(bindir / "drivemap"), *argv], cwd=cwd, env=clean, capture_output=True, text=True,
+                          timeout=300)
+
+
+def ok(bindir: Path, cwd: Path, *argv: str) -> str:
+    proc = drivemap(bindir, cwd, *argv)
+    assert proc.returncode == 0, f"drivemap {' '.join(argv)}:\n{proc.stdout}\n{proc.stderr}"
+    assert "Traceback" not in proc.stderr
+    return proc.stdout
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_the_wheel_carries_the_package_schema_and_seed_maps_only(wheel: Path) -> None:
+    names = zipfile.ZipFile(wheel).namelist()
+    tops = {n.split("/", 1)[0] for n in names if not n.split("/", 1)[0].endswith((".dist-info", ".data"))}
+    assert tops == {"drivemap", "drivemap_models"}
+    with zipfile.ZipFile(wheel) as z:
+        assert z.read("drivemap/data/drivemap.schema.json") == (ROOT / "schemas" / "drivemap.schema.json").read_bytes()
+        for seed in SEED_MAPS:
+            assert z.read(f"drivemap/data/maps/{seed.name}") == seed.read_bytes()
+        assert "drivemap/templates/client.py.jinja" in names
+        assert "drivemap_models/ev/client.py" in names and "drivemap_models/py.typed" in names
+        entry_points = z.read(next(n for n in names if n.endswith(".dist-info/entry_points.txt"))).decode()
+    assert "drivemap.exporters" in entry_points and "drivemap.behaviours" in entry_points
+
+
+def test_a_new_project_end_to_end_from_the_wheel(env: Path, tmp_path: Path) -> None:
+    package_before = tree_digest(site_package(env))
+    checkout_before = checkout_digest()
+    work = tmp_path / "acme-project"
+    work.mkdir()
+    ok(env, work, "new", "acme")
+    assert "maps/acme.yaml: ok" in ok(env, work, "validate")
+    ok(env, work, "build")
+    assert "up to date" in ok(env, work, "check")
+    port = free_port()
+    server = subprocess.Popen([str(env / "drivemap"), "simulate", "acme", "--tcp", f"127.0.0.1:{port}"], cwd=work,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(port)
+        script = (
+            "import json\n"
+            "from generated.acme import Client\n"
+            f"with Client.tcp('127.0.0.1', port={port}, unit=1) as drive:\n"
+            "    drive.frequency_command.write(12.5)\n"
+            "    print(json.dumps({'frequency_command': drive.frequency_command.read()}))\n"
+        )
+        proc = subprocess.run([str(env / "python"), "-c", script], cwd=work, capture_output=True, text=True,
+                              timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads(proc.stdout) == {"frequency_command": 12.5}
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    assert tree_digest(site_package(env)) == package_before
+    assert checkout_digest() == checkout_before
+
+
+def test_a_configured_project_from_a_subfolder(env: Path, tmp_path: Path) -> None:
+    work = tmp_path / "plant"
+    work.mkdir()
+    (work / "pyproject.toml").write_text(
+        '[project]\nname = "plant"\n\n[tool.drivemap]\nmaps = "devices"\nout = "src/plantdrives"\n', "utf-8")
+    ok(env, work, "new", "acme")
+    sub = work / "devices" / "notes"
+    sub.mkdir()
+    ok(env, sub, "build")
+    assert (work / "src" / "plantdrives" / "acme" / "client.py").is_file()
+    assert "up to date" in ok(env, sub, "check")
+    proc = subprocess.run([str(env / "python"), "-c", "import plantdrives.acme as m; print(m.SPEC.model)"],
+                          cwd=work / "src", capture_output=True, text=True, timeout=60)
+    assert proc.stdout.strip() == "acme", proc.stderr
+
+
+def test_seed_maps_schema_and_exports_work_from_an_empty_folder(env: Path, tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    data = json.loads(ok(env, empty, "export", "ev"))
+    assert data["model"] == "ev"
+    assert "edx: frames 18" in ok(env, empty, "examples", "edx")
+    schema = Path(ok(env, empty, "schema").strip())
+    assert schema.is_relative_to(site_package(env))
+    assert schema.read_bytes() == (ROOT / "schemas" / "drivemap.schema.json").read_bytes()
+    assert "json" in ok(env, empty, "export", "--list")
+    proc = subprocess.run([str(env / "python"), "-c", "import drivemap_models.ev as m; print(m.Client.__name__)"],
+                          cwd=empty, capture_output=True, text=True, timeout=60)
+    assert proc.stdout.strip() == "Client", proc.stderr
+    for name in ("generator", "generated"):
+        probe = subprocess.run([str(env / "python"), "-c", f"import {name}"], cwd=empty, capture_output=True,
+                               text=True, timeout=60)
+        assert probe.returncode != 0, f"a top-level module {name!r} is installed"
+    assert sorted(p.name for p in empty.iterdir()) == []
+
+
+def _wait_for(port: int, timeout: float = 20.0) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+                return
+        except OSError:
+            time.sleep(0.1)
+    pytest.fail(f"simulator did not listen on 127.0.0.1:{port}")
