@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from drivemap.cli import main
+from drivemap.load import MAX_MAP_BYTES
 
 HERE = Path(__file__).resolve().parent
 CORPUS = HERE / "bad_maps"
@@ -78,13 +79,13 @@ def test_fifty_megabyte_map_is_refused(tmp_path: Path) -> None:
         line = "# " + "x" * 1021 + "\n"
         for _ in range(50 * 1024):
             handle.write(line)
-    assert big.stat().st_size >= 50 * 1024 * 1024
+    assert big.stat().st_size >= 50 * 1024 * 1024 > MAX_MAP_BYTES
     proc = subprocess.run(
         [sys.executable, "-m", "drivemap.cli", "validate", str(big)],
         cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
     )
     assert proc.returncode == 1
-    assert proc.stderr.splitlines()[0] == f"{big}:1:1: error: file larger than 4194304 bytes; refused"
+    assert proc.stderr.splitlines()[0] == f"{big}:1:1: error: file larger than {MAX_MAP_BYTES} bytes; refused"
 
 
 def test_all_errors_of_a_file_in_one_run(tmp_path: Path) -> None:
@@ -101,3 +102,43 @@ def test_missing_file() -> None:
     code, _, err = run_validate(ROOT / "maps" / "no_such_map.yaml")
     assert code == 1
     assert err.startswith("maps/no_such_map.yaml:1:1: error: cannot read file")
+
+
+@pytest.mark.parametrize("text", [
+    "[" * 1_000_000,
+    "a: " + "{x: " * 25_000 + "1" + "}" * 25_000,
+    "a:\n" + "".join("  " * i + "- \n" for i in range(1, 60)),
+])
+def test_deep_nesting_is_refused_before_anything_recurses(tmp_path: Path, text: str) -> None:
+    """25,000- and 1,000,000-deep documents end in one located error, quickly (no crash, no hang)."""
+    deep = tmp_path / "deep.yaml"
+    deep.write_text(text, encoding="utf-8")
+    proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "validate", str(deep)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60, preexec_fn=_limited)
+    assert proc.returncode == 1
+    assert "nesting deeper than 40 levels" in proc.stderr.splitlines()[0]
+    assert proc.stderr.startswith(f"{deep}:")
+
+
+def test_special_files_are_refused_without_reading(tmp_path: Path) -> None:
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    zero = tmp_path / "zero.yaml"
+    zero.symlink_to("/dev/zero")
+    for path in (fifo, zero, tmp_path):
+        proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "validate", str(path)], cwd=ROOT,
+                              capture_output=True, text=True, timeout=30, preexec_fn=_limited)
+        assert proc.returncode == 1, path
+        if path != tmp_path:
+            assert proc.stderr.splitlines()[0] == f"{path}:1:1: error: not a regular file (a FIFO, device or folder); refused"
+
+
+def test_a_large_realistic_map_is_not_refused_for_its_size(tmp_path: Path) -> None:
+    """The one size limit admits an 11 MB map (the size of 60,000 registers)."""
+    from drivemap.load import load_file
+
+    text = (CORPUS / "huge_integer.yaml").read_text(encoding="utf-8").replace("123456789012345678901234567890", "0x0101")
+    big = tmp_path / "big.yaml"
+    big.write_text(text + ("#" + "x" * 99 + "\n") * 110_000, encoding="utf-8")
+    assert 11_000_000 < big.stat().st_size < MAX_MAP_BYTES
+    assert load_file(big).data["device"]["model"] == "huge_integer"

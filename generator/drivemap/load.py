@@ -8,6 +8,7 @@ bombs and ambiguity out. The result is plain Python data plus a :class:`Position
 from __future__ import annotations
 
 import os
+import stat
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,10 +17,13 @@ from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from .diagnostics import CompileError, Diagnostic, Location
 
-#: Maps larger than this are refused before parsing (bounded time and memory).
-MAX_MAP_BYTES = 4 * 1024 * 1024
-#: Deepest nesting accepted.
+#: Maps larger than this are refused while reading (bounded time and memory). A map of all 65,536
+#: words of one table takes about 12 MiB; 32 MiB leaves room for two full tables with notes.
+MAX_MAP_BYTES = 32 * 1024 * 1024
+#: Deepest nesting accepted (checked on the parser's events, before anything recurses).
 MAX_DEPTH = 40
+#: Largest integer magnitude accepted anywhere in a map (a 64-bit register's range fits).
+MAX_INT = 2**64
 
 PathT = tuple[str | int, ...]
 
@@ -144,10 +148,33 @@ class _Builder:
         except (yaml.YAMLError, ValueError, OverflowError) as exc:
             self.errors.append(Diagnostic(_loc(self.path, node), f"bad scalar: {exc}"))
             return None
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_INT:
+            self.errors.append(Diagnostic(_loc(self.path, node), "integer too large (more than 2**64 in magnitude)"))
+            return None
         if isinstance(value, float) and (value != value or value in (float("inf"), float("-inf"))):
             self.errors.append(Diagnostic(_loc(self.path, node), "NaN and infinity are not allowed"))
             return None
         return value
+
+
+def _check_depth(text: str, path: str) -> None:
+    """Refuse nesting deeper than MAX_DEPTH from the parser's events (a state machine, no recursion),
+    so neither libyaml's nor PyYAML's recursive composer ever sees a deep document."""
+    loader_class = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=loader_class):
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    mark = event.start_mark
+                    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+                    raise CompileError([Diagnostic(Location(path, line, col),
+                                                   f"nesting deeper than {MAX_DEPTH} levels")])
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+    except (yaml.YAMLError, ValueError):
+        return  # the composer reports syntax errors with their location
 
 
 def _compose_fast(text: str) -> Node | None:
@@ -177,6 +204,7 @@ def load_text(text: str, path: str) -> Document:
     """Parse ``text`` (the contents of ``path``); raise :class:`CompileError` on any problem."""
     if len(text.encode("utf-8", "surrogatepass")) > MAX_MAP_BYTES:
         raise CompileError([Diagnostic(Location(path, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
+    _check_depth(text, path)
     node = _compose_fast(text)
     if node is None:
         node = _compose_python(text, path)
@@ -222,14 +250,18 @@ def _compose_python(text: str, path: str) -> Node | None:
 def load_file(path: str | os.PathLike[str]) -> Document:
     """Read and parse one map file."""
     shown = os.fspath(path)
+    too_big = CompileError([Diagnostic(Location(shown, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
     try:
-        size = os.path.getsize(shown)
-        if size > MAX_MAP_BYTES:
-            raise CompileError([Diagnostic(Location(shown, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
+        if not stat.S_ISREG(os.stat(shown).st_mode):
+            raise CompileError([Diagnostic(Location(shown, 1, 1), "not a regular file (a FIFO, device or folder); refused")])
+        if os.path.getsize(shown) > MAX_MAP_BYTES:
+            raise too_big
         with open(shown, "rb") as handle:
-            raw = handle.read()
+            raw = handle.read(MAX_MAP_BYTES + 1)  # bounded even if the file grows while it is read
     except OSError as exc:
         raise CompileError([Diagnostic(Location(shown, 1, 1), f"cannot read file: {exc.strerror}")]) from None
+    if len(raw) > MAX_MAP_BYTES:
+        raise too_big
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -28,7 +28,20 @@ def schema() -> dict[str, Any]:
 
 @lru_cache(maxsize=1)
 def validator() -> jsonschema.Draft202012Validator:
-    return jsonschema.Draft202012Validator(schema())
+    made: jsonschema.Draft202012Validator = _StrictIntegers(schema())
+    return made
+
+
+def _is_integer(_checker: Any, instance: Any) -> bool:
+    """``integer`` means a YAML integer: JSON Schema would also accept ``1.0``, which the model
+    and the generated code must never see where an int is promised."""
+    return isinstance(instance, int) and not isinstance(instance, bool)
+
+
+_StrictIntegers = jsonschema.validators.extend(  # type: ignore[no-untyped-call]
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("integer", _is_integer),
+)
 
 
 def dotted(path: Iterable[str | int]) -> str:
