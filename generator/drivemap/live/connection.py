@@ -204,7 +204,7 @@ def _serial_reason(device: str, exc: OSError) -> str:
 def why_unreachable(link: Link) -> str:
     """Why a TCP link does not connect (tried once more with a plain socket for the reason)."""
     if link.serial:
-        return f"cannot open {link.device}"
+        return f"cannot open {link.device} as {link.line().split(' ', 2)[2]}: the port refuses these settings"
     try:
         with socket.create_connection((link.host, link.port), timeout=link.timeout or 3.0):
             pass
