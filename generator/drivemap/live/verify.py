@@ -25,7 +25,7 @@ from .pages import Cell, current_pages, on_shown_page, restore, selectors
 from .session import Session, session_for
 from .target import load_target, project_of
 from .verify_checks import Results, check_alone, check_batches, check_reserved
-from .verify_report import Header, write_report
+from .verify_report import Header, report_paths, write_report
 from .verify_write import candidates, check_writes
 
 
@@ -51,6 +51,8 @@ def cmd_verify(args: argparse.Namespace) -> int:
     if args.eeprom and not args.write_safe:
         raise LiveError(EXIT_INPUT, "--eeprom only goes with --write-safe")
     target = load_target(args.model, project_of(args.maps))
+    stem = args.report or f"verify-{target.model.name}-unit{args.unit if args.unit is not None else 1}"
+    report_paths(stem, args.force)  # refuse a foreign file before talking to the device
     started = time.strftime("%Y-%m-%d %H:%M:%S")
     checks = "read alone, batches, reserved, values" + (", write-safe" + (" (EEPROM too)" if args.eeprom else "")
                                                         if args.write_safe else "")
@@ -60,7 +62,6 @@ def cmd_verify(args: argparse.Namespace) -> int:
         except TransportError as exc:
             raise explain(exc, session.link, target, "verify", garbled=False) from None
         header = Header(target.model.name, target.model.path, session.link.describe(), started, checks)
-    stem = args.report or f"verify-{target.model.name}-unit{session.link.unit}"
     md, js = write_report(stem, header, results, args.force)
     summary(results, md, js)
     return EXIT_DISAGREE if results.disagreements else EXIT_OK

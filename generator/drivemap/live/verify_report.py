@@ -72,13 +72,19 @@ def _table(header: Header, findings: list[Finding]) -> list[str]:
     return rows
 
 
-def write_report(stem: str, header: Header, results: Results, force: bool) -> tuple[Path, Path]:
+def report_paths(stem: str, force: bool) -> tuple[Path, Path]:
+    """STEM.md and STEM.json, refused when either exists and drivemap verify did not write it."""
     base = Path(stem[:-3] if stem.endswith(".md") else stem[:-5] if stem.endswith(".json") else stem)
     md, js = base.with_name(base.name + ".md"), base.with_name(base.name + ".json")
     for path, marker in ((md, MARKER_MD), (js, MARKER_JSON)):
         if path.exists() and not force and marker not in path.read_text(encoding="utf-8", errors="replace")[:400]:
             raise LiveError(EXIT_INPUT, f"--report: {path} exists and was not written by drivemap verify; "
                                         "not overwritten (choose another --report, or --force)")
+    return md, js
+
+
+def write_report(stem: str, header: Header, results: Results, force: bool) -> tuple[Path, Path]:
+    md, js = report_paths(stem, force)
     _atomic(md, as_markdown(header, results))
     _atomic(js, as_json(header, results))
     return md, js
