@@ -66,7 +66,7 @@ def meaning(target: Target, reg: Register, value: Any) -> str:
     """The enum label or the labels of the bits that are set."""
     if reg.enum is not None and isinstance(value, enum.Enum):
         labels = {v.value: v.label for v in target.model.enum(reg.enum).values}
-        return labels.get(int(value), "not a value of the map")
+        return labels.get(value.value, "not a value of the map")
     if isinstance(value, enum.IntFlag):
         return ", ".join(b.label for b in reg.bits if int(value) & b.mask)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
@@ -78,7 +78,7 @@ def _field_label(target: Target, reg: Register, attribute: str, value: Any) -> s
     bit = next((b for b in reg.bits if b.name.lower() == attribute), None)
     if bit is not None and bit.enum is not None and isinstance(value, enum.Enum):
         labels = {v.value: v.label for v in target.model.enum(bit.enum).values}
-        return f"{attribute} {labels.get(int(value), value.name)}"
+        return f"{attribute} {labels.get(value.value, value.name)}"
     return f"{attribute} {to_text(value)}"
 
 

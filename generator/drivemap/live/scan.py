@@ -174,7 +174,7 @@ def eta(probes: int, link: Link) -> str:
 def probe_all(result: Scan, settings: list[Link], units: list[int], targets: list[Target],
               all_settings: bool, err: Console) -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeRemainingColumn())
-    with Progress(*columns, console=err, transient=True) as progress:
+    with Progress(*columns, console=err, transient=True, disable=not err.is_terminal) as progress:
         task = progress.add_task("probing", total=len(settings) * len(units))
         if settings and settings[0].serial:
             check_serial_device(settings[0].device)

@@ -52,7 +52,7 @@ class Target:
 
     def line_of(self, *where: str | int) -> int:
         """Line of an item of the map (``"reserved", 2`` or ``"protocol", "exceptions", 1``)."""
-        return self._document_positions.at(tuple(where)).line
+        return int(self._document_positions.at(tuple(where)).line)
 
     def exception_line(self, code: int) -> int | None:
         for i, item in enumerate(self.model.protocol.exceptions):

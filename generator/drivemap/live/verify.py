@@ -108,7 +108,8 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
 
     def __init__(self, total: int) -> None:
         columns = (TextColumn("verifying"), BarColumn(), TaskProgressColumn(), TimeRemainingColumn())
-        self.progress = Progress(*columns, console=Console(stderr=True), transient=True)
+        err = Console(stderr=True)
+        self.progress = Progress(*columns, console=err, transient=True, disable=not err.is_terminal)
         self.task = self.progress.add_task("verify", total=total)
 
     def __enter__(self) -> Callable[[], None]:

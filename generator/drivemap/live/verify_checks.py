@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from ..model import Register
-from ..runtime.errors import DeviceException, DriveError, DriveTimeout, TransportError
+from ..runtime.errors import DeviceException, DriveError, DriveTimeout
 from ..runtime.planner import Key, ReadRequest
 from .fingerprint import value_problem
 from .session import Session
