@@ -8,11 +8,11 @@ import socket
 from pathlib import Path
 
 import pytest
+from helpers_client import serial_server, simulator, tcp_server
+from helpers_live import cli, no_traceback, simulate, wrong_map
 
 from drivemap.runtime.simserve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
-from helpers_client import serial_server, simulator, tcp_server
-from helpers_live import cli, no_traceback, simulate, wrong_map
 
 
 def _one_error_line(proc: object, code: int) -> str:

@@ -8,10 +8,11 @@ import subprocess
 import sys
 import time
 
-from drivemap.runtime.simserve import ThreadedSimServer
-from drivemap.testing.vserial import VirtualSerialLine
 from helpers_client import simulator, tcp_server
 from helpers_live import ENV, ROOT, cli
+
+from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.testing.vserial import VirtualSerialLine
 
 
 def test_scan_tcp_finds_units_and_the_map_that_fits() -> None:

@@ -18,7 +18,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pyte
-
 from helpers_client import serial_server, tcp_server
 from helpers_live import ENV, ROOT, cli
 
