@@ -1,4 +1,5 @@
-"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema.
+"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema,
+and at the drive (:mod:`drivemap.live`): read | write | watch | scan | verify.
 
 Every verb acts on the project of the working directory (:mod:`drivemap.project`); explicit paths
 and flags win over its ``[tool.drivemap]`` settings. Every bad input ends in ``path:line:col:
@@ -302,13 +303,16 @@ def parser() -> argparse.ArgumentParser:
     add_arguments(s, with_model=True)
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_simulate)
+    from .live import add_parsers
+
+    add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     try:
         args, rest = parser().parse_known_args(argv)
-        if rest and args.command != "export":
+        if rest and args.command != "export" and not getattr(args, "takes_rest", False):
             raise UsageError(f"drivemap {args.command}", f"unrecognized arguments: {' '.join(rest)}")
         args.rest = rest
         result: int = args.func(args)

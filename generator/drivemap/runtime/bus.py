@@ -88,6 +88,8 @@ class Stats:
     """Replies that did not answer the request sent (see :func:`reply_mismatch`), never returned."""
     bytes_sent: int = 0
     bytes_received: int = 0
+    bytes_garbled: int = 0
+    """Bytes received during attempts that got no valid reply (noise, wrong baud rate or parity)."""
     by_function: dict[int, int] = field(default_factory=dict)
     """Requests sent per function code (retries included)."""
 
@@ -384,6 +386,7 @@ class Bus(_BusBase):
                         raise TransportError(f"{self.name}: {exc}") from exc
                     except (ModbusIOException, TimeoutError) as exc:
                         self.stats.timeouts += 1
+                        self.stats.bytes_garbled += len(self._rx)
                         self._flush_rx("RX (no valid reply)")
                         log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
                                   attempt + 1, attempts, exc)
@@ -497,6 +500,7 @@ class AsyncBus(_BusBase):
                     raise TransportError(f"{self.name}: {exc}") from exc
                 except (ModbusIOException, TimeoutError) as exc:
                     self.stats.timeouts += 1
+                    self.stats.bytes_garbled += len(self._rx)
                     self._flush_rx("RX (no valid reply)")
                     log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
                               attempt + 1, attempts, exc)

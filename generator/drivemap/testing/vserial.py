@@ -49,6 +49,20 @@ Faults (``line.faults``, see :class:`FaultPlan`)
     except ``duplicate`` and ``suffix``, which are emitted when the frame ends (after
     ``frame_gap`` of silence).  Everything is thread-safe and deterministic.
 
+Line settings (``line_settings=True``)
+    The relay reads the termios settings each end has set (baud rate, parity, data and stop
+    bits; pyserial sets them on open) and passes bytes as two UARTs would.  Same settings:
+    unchanged.  Different baud rates: the receiver samples at the wrong rate and makes up
+    characters (modelled as every byte inverted, both directions: no valid frame survives).
+    Same baud rate, another character format: the receiver sees the sender's parity bit (or
+    stop bit) where it expects its own parity or stop bit.  The master end checks it, as
+    pyserial enables parity checking and Linux delivers a character with a parity or framing
+    error as 0x00 (termios: neither IGNPAR nor PARMRK); the device end is lenient and keeps the
+    data bits, as many drives do.  So a wrong parity gives garbled replies, a wrong baud rate
+    silence (the device never sees a valid request).  Some kernels refuse or drop parity
+    settings on a pty (even parity fails to set, odd keeps only PARODD): ``device_parity``
+    ("N", "E" or "O") then declares the device end's parity instead of reading it.
+
 Caveat: pyserial discards pending input when it opens a port, so open both ends before
 sending.  The relay keeps both pty slaves open itself, so ends may be closed and reopened
 (pymodbus reconnects) without the line hanging up.
@@ -314,6 +328,8 @@ class VirtualSerialLine:
         burst_interval: float = 0.001,
         spin: float = 0.0002,
         name: str = "vserial",
+        line_settings: bool = False,
+        device_parity: str | None = None,
     ) -> None:
         if pace and not baudrate:
             raise ValueError("pace=True needs a baudrate")
@@ -351,6 +367,12 @@ class VirtualSerialLine:
             "to_device": _Path("to_device", m_master, d_master),
             "to_master": _Path("to_master", d_master, m_master),
         }
+        self.line_settings = line_settings or device_parity is not None
+        if device_parity not in (None, "N", "E", "O"):
+            raise ValueError("device_parity must be 'N', 'E' or 'O'")
+        self.device_parity = device_parity
+        self._slave_fds: dict[Direction, tuple[int, int]] = {
+            "to_device": (m_slave, d_slave), "to_master": (d_slave, m_slave)}  # (sender, receiver)
         self._stop = False
         self._thread = threading.Thread(target=self._run, name=f"{name}-relay", daemon=True)
         self._thread.start()
@@ -491,6 +513,8 @@ class VirtualSerialLine:
         # Caller holds the lock.
         if self.capture:
             path.captured.append((now, data))
+        if self.line_settings:
+            data = self._through_uarts(path.name, data)
         if path.frame_open and now - path.last_arrival > self.frame_gap:
             self._close_frame(path, now)
         fault = path.frame_fault
@@ -533,6 +557,30 @@ class VirtualSerialLine:
         path.frame_open = False
         path.frame_fault = None
         path.frame_out = bytearray()
+
+    def _through_uarts(self, direction: Direction, data: bytes) -> bytes:
+        """What the receiving end's UART makes of ``data`` (see "Line settings" in the module docstring)."""
+        sender, receiver = (_uart_settings(fd) for fd in self._slave_fds[direction])
+        if self.device_parity is not None:
+            if direction == "to_device":
+                receiver = (receiver[0], self.device_parity, *receiver[2:])
+            else:
+                sender = (sender[0], self.device_parity, *sender[2:])
+        if sender == receiver:
+            return data
+        if sender[0] != receiver[0]:
+            return bytes(b ^ 0xFF for b in data)
+        if direction == "to_device":
+            return data
+        out = bytearray()
+        for b in data:
+            sent = _parity_bit(b, sender[1]) if sender[1] != "N" else 1  # the bit after the data bits
+            if receiver[1] != "N":
+                ok = sent == _parity_bit(b, receiver[1])
+            else:
+                ok = sent == 1  # read as the stop bit
+            out.append(b if ok else 0)
+        return bytes(out)
 
     def _collect_due(self, path: _Path, now: float) -> tuple[float, float]:
         """Move due bytes to the output buffer.
@@ -684,6 +732,21 @@ class VirtualSerialLine:
             for path in self._paths.values():
                 if path.src == fd:
                     self._on_input(path, data, now)
+
+
+def _uart_settings(fd: int) -> tuple[int, str, int, int]:
+    """(baud rate code, parity N/E/O, data bits, stop bits) a pty end is set to."""
+    attrs = termios.tcgetattr(fd)
+    cflag = attrs[2]
+    # Some kernels keep PARODD but drop PARENB on a pty (and refuse even parity): PARODD alone is odd.
+    parity = "O" if cflag & termios.PARODD else ("E" if cflag & termios.PARENB else "N")
+    size = {termios.CS5: 5, termios.CS6: 6, termios.CS7: 7, termios.CS8: 8}.get(cflag & termios.CSIZE, 8)
+    return attrs[5], parity, size, 2 if cflag & termios.CSTOPB else 1
+
+
+def _parity_bit(byte: int, parity: str) -> int:
+    ones = bin(byte).count("1") & 1
+    return ones if parity == "E" else 1 - ones
 
 
 @contextlib.contextmanager

@@ -1,0 +1,104 @@
+"""Does a map fit the device that answers? A read fingerprint, and the value checks verify shares."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..model import Register
+from ..runtime.bus import Bus
+from ..runtime.client import _run
+from ..runtime.codec import TYPE_BOUNDS
+from ..runtime.errors import DeviceException, DriveTimeout, TransportError
+from .target import Target
+
+#: Requests a fingerprint sends at most per map (the planner's first batches).
+MAX_REQUESTS = 8
+
+
+def value_problem(target: Target, reg: Register, raw: int) -> str | None:
+    """Why a raw value read cannot be right for the map (None when it can)."""
+    lo, hi = TYPE_BOUNDS[reg.type]
+    if not lo <= raw <= hi:
+        return f"raw {raw} does not fit {reg.type}"
+    if reg.enum is not None:
+        values = {v.value for v in target.model.enum(reg.enum).values}
+        if raw not in values:
+            return f"{raw} is not a value of {reg.enum} ({', '.join(map(str, sorted(values)))})"
+    if reg.bits:
+        mask = 0
+        for bit in reg.bits:
+            mask |= bit.mask
+            if bit.enum is not None:
+                part = (raw & bit.mask) >> bit.offset
+                if part not in {v.value for v in target.model.enum(bit.enum).values}:
+                    return f"bits {bit.name} = {part} is not a value of {bit.enum}"
+        if raw & ~mask & ((1 << (16 * reg.words)) - 1):
+            return f"bits outside the map's bit fields are set (raw 0x{raw & 0xFFFFFFFF:04X})"
+        return None
+    value = raw * reg.scale + reg.offset
+    tol = 1e-9 * max(1.0, abs(value))
+    if reg.min is not None and value < reg.min - tol:
+        return f"{value:g}{' ' + reg.unit if reg.unit else ''} is below the map's min {reg.min:g}"
+    if reg.max is not None and value > reg.max + tol:
+        return f"{value:g}{' ' + reg.unit if reg.unit else ''} is above the map's max {reg.max:g}"
+    return None
+
+
+@dataclass
+class Fit:
+    """How well one map explains what a unit answers."""
+
+    model: str
+    requests: int = 0
+    answered: int = 0
+    values: int = 0
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def fits(self) -> bool:
+        return self.requests > 0 and self.answered == self.requests and not self.problems
+
+    @property
+    def score(self) -> float:
+        if not self.requests:
+            return 0.0
+        return self.answered / self.requests - 0.1 * len(self.problems)
+
+    def summary(self) -> str:
+        if self.fits:
+            return f"{self.model} fits ({self.answered}/{self.requests} reads, {self.values} values in range)"
+        first = f": {self.problems[0]}" if self.problems else ""
+        return f"{self.model} does not ({self.answered}/{self.requests} reads answered{first})"
+
+    def json(self) -> dict[str, Any]:
+        return {"model": self.model, "fits": self.fits, "requests": self.requests, "answered": self.answered,
+                "values": self.values, "problems": self.problems}
+
+
+def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
+    """Read the map's first planned batches (pages left alone) from ``unit`` and judge the values."""
+    fit = Fit(target.model.name)
+    if not target.spec.valid_unit(unit):
+        fit.problems.append(f"unit {unit} is outside the map's unit ids")
+        return fit
+    client = target.client_class(bus, unit)
+    plan = [req for req in client.plan() if req.page is None][:MAX_REQUESTS]
+    for req in plan:
+        fit.requests += 1
+        keys = [key for key, _ in req.cells]
+        try:
+            raws = _run(bus, client._core.read_raw(keys, (req,), checked=True))
+        except DeviceException as exc:
+            fit.problems.append(f"exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
+            continue
+        except (DriveTimeout, TransportError):
+            fit.problems.append(f"no answer to a read of 0x{req.address:04X}+{req.count}")
+            continue
+        fit.answered += 1
+        for (name, index), raw in raws.items():
+            fit.values += 1
+            problem = value_problem(target, target.model.register(name), raw)
+            if problem:
+                fit.problems.append(f"{target.model.register(name).element_name(index)}: {problem}")
+    return fit

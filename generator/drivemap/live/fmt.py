@@ -1,0 +1,141 @@
+"""How live values are shown: one row per register element, as a rich table, JSON or CSV."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import enum
+import io
+import json
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+from ..model import Register
+from .target import Target
+from .values import to_text
+
+COLUMNS = ("name", "value", "unit", "meaning", "raw", "address", "param")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One register element as read."""
+
+    name: str
+    register: Register
+    index: int
+    raw: int | None
+    value: Any
+
+    @property
+    def address(self) -> int:
+        return self.register.element_address(self.index)
+
+    def value_text(self) -> str:
+        return "" if self.raw is None else to_text(self.value)
+
+    def meaning(self, target: Target) -> str:
+        return "" if self.raw is None else meaning(target, self.register, self.value)
+
+    def raw_text(self) -> str:
+        if self.raw is None:
+            return ""
+        digits = 8 if self.register.words == 2 else 4
+        return f"0x{self.raw & ((1 << (4 * digits)) - 1):0{digits}X}"
+
+    def cells(self, target: Target) -> dict[str, str]:
+        return {
+            "name": self.name, "value": self.value_text(), "unit": self.register.unit or "",
+            "meaning": self.meaning(target), "raw": self.raw_text(), "address": f"0x{self.address:04X}",
+            "param": self.register.element_param(self.index) or "",
+        }
+
+    def json(self, target: Target) -> dict[str, Any]:
+        return {
+            "name": self.name, "value": json_value(self.value) if self.raw is not None else None,
+            "unit": self.register.unit, "meaning": self.meaning(target) or None, "raw": self.raw,
+            "address": self.address, "param": self.register.element_param(self.index),
+        }
+
+
+def meaning(target: Target, reg: Register, value: Any) -> str:
+    """The enum label or the labels of the bits that are set."""
+    if reg.enum is not None and isinstance(value, enum.Enum):
+        labels = {v.value: v.label for v in target.model.enum(reg.enum).values}
+        return labels.get(value.value, "not a value of the map")
+    if isinstance(value, enum.IntFlag):
+        return ", ".join(b.label for b in reg.bits if int(value) & b.mask)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return "; ".join(_field_label(target, reg, f.name, getattr(value, f.name)) for f in dataclasses.fields(value))
+    return ""
+
+
+def _field_label(target: Target, reg: Register, attribute: str, value: Any) -> str:
+    bit = next((b for b in reg.bits if b.name.lower() == attribute), None)
+    if bit is not None and bit.enum is not None and isinstance(value, enum.Enum):
+        labels = {v.value: v.label for v in target.model.enum(bit.enum).values}
+        return f"{attribute} {labels.get(value.value, value.name)}"
+    return f"{attribute} {to_text(value)}"
+
+
+def json_value(value: Any) -> Any:
+    if isinstance(value, enum.IntFlag):
+        return [m.name for m in type(value) if m.name and m in value]
+    if isinstance(value, enum.Enum):
+        return value.name
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: json_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    return value
+
+
+def rows_of(target: Target, cells: Iterable[tuple[Register, int]], raws: dict[tuple[str, int], int]) -> list[Row]:
+    """Rows for the cells read (``raws``: raw value per key; a missing key is an empty row)."""
+    rows = []
+    for reg, index in cells:
+        raw = raws.get((reg.name, index))
+        value = target.codecs[reg.name].decode(raw) if raw is not None else None
+        rows.append(Row(reg.element_name(index), reg, index, raw, value))
+    return rows
+
+
+def table(target: Target, rows: Sequence[Row], title: str | None = None,
+          styles: dict[str, str] | None = None) -> Table:
+    """The rich table of ``rows`` (``styles``: a row style per element name)."""
+    out = Table(title=title, title_justify="left", header_style="bold")
+    for column in COLUMNS:
+        out.add_column(column, justify="right" if column in ("value", "raw") else "left",
+                       overflow="fold" if column == "meaning" else "ellipsis", no_wrap=column != "meaning")
+    for row in rows:
+        cells = row.cells(target)
+        out.add_row(*(cells[c] for c in COLUMNS), style=(styles or {}).get(row.name))
+    return out
+
+
+def console(width: int | None = None) -> Console:
+    """A console on stdout (no colours when stdout is not a terminal; then 200 columns unless
+    ``COLUMNS`` says otherwise, so piped tables are not squeezed)."""
+    import os
+    import sys
+
+    if width is None and not sys.stdout.isatty() and "COLUMNS" not in os.environ:
+        width = 200
+    return Console(width=width, highlight=False, soft_wrap=False)
+
+
+def to_json(target: Target, rows: Sequence[Row], extra: dict[str, Any] | None = None) -> str:
+    doc = {"model": target.model.name, **(extra or {}), "registers": [r.json(target) for r in rows]}
+    return json.dumps(doc, ensure_ascii=False, indent=2)
+
+
+def to_csv(target: Target, rows: Sequence[Row]) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for row in rows:
+        cells = row.cells(target)
+        writer.writerow([cells[c] for c in COLUMNS])
+    return buffer.getvalue()

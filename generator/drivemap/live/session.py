@@ -1,0 +1,102 @@
+"""A connected client of one model on one link, and the reads the live verbs share.
+
+The reads go through the generated client's runtime (:mod:`drivemap.runtime.client`): the same
+planner, codecs, page handling, timing and retries as a program using the client. Raw words for
+addresses the map does not name (reserved ranges, probes) go through :meth:`Bus.exchange`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInputRegistersRequest
+
+from ..model import Register
+from ..runtime.bus import Bus, Exchange
+from ..runtime.client import Core, _run
+from ..runtime.errors import DriveError
+from ..runtime.planner import Key, ReadRequest, read_function
+from .connection import Link, open_bus, resolve_link, run
+from .errors import EXIT_INPUT, LiveError
+from .target import Target
+
+
+class Session:
+    """``with Session(target, link) as s:`` -- a connected client (``s.client``) and its bus."""
+
+    def __init__(self, target: Target, link: Link, *, switch_pages: bool = False) -> None:
+        self.target = target
+        self.link = link
+        self.page_policy = "switch" if switch_pages else "raise"
+        self.bus: Bus | None = None
+        self.client: Any = None
+
+    def __enter__(self) -> Session:
+        check_unit(self.target, self.link.unit)
+        self.bus = open_bus(self.link)
+        self.client = self.target.client_class(self.bus, self.link.unit, page_policy=self.page_policy)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bus is not None:
+            self.bus.close()
+
+    @property
+    def core(self) -> Core:
+        core: Core = self.client._core
+        return core
+
+    def call(self, what: str, func: Any, *args: Any) -> Any:
+        """``func(*args)``; a failure becomes one actionable line (:func:`connection.explain`)."""
+        assert self.bus is not None
+        return run(self.bus, self.link, self.target, what, func, *args)
+
+    # -- reads
+    def read_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
+        """Raw values of ``keys`` in the fewest requests the map allows (the client's planner)."""
+        return self.client._read_raw_keys(tuple(keys))  # type: ignore[no-any-return]
+
+    def read_request(self, request: ReadRequest) -> dict[Key, int]:
+        """Raw values of one planned request, exactly as planned."""
+        keys = [key for key, _ in request.cells]
+        assert self.bus is not None
+        return _run(self.bus, self.core.read_raw(keys, (request,), checked=True))
+
+    def read_words(self, address: int, count: int) -> list[int]:
+        """``count`` words at ``address`` with the map's read function (no register needed there)."""
+        assert self.bus is not None
+        return read_words(self.bus, self.core, address, count)
+
+
+def check_unit(target: Target, unit: int) -> None:
+    """A unit id the map does not allow is a command-line error (before opening anything)."""
+    spec = target.spec
+    if not spec.valid_unit(unit):
+        fixed = f" (or fixed port units {', '.join(map(str, spec.fixed_units))})" if spec.fixed_units else ""
+        raise LiveError(EXIT_INPUT, f"--unit {unit}: outside {target.model.name}'s unit ids "
+                                    f"{spec.unit_min}..{spec.unit_max}{fixed}")
+
+
+def read_words(bus: Bus, core: Core, address: int, count: int, code: int | None = None) -> list[int]:
+    code = code if code is not None else read_function(core.spec) or 0x03
+    cls = ReadHoldingRegistersRequest if code == 0x03 else ReadInputRegistersRequest
+    reply = core.raise_for(bus.exchange(Exchange(core.unit, cls(address=address, count=count), core.spec.timing)), code)
+    return list(reply.registers)
+
+
+def session_for(args: argparse.Namespace, target: Target) -> Session:
+    return Session(target, resolve_link(args, target), switch_pages=getattr(args, "switch_pages", False))
+
+
+def keys_of(cells: Iterable[tuple[Register, int]]) -> list[Key]:
+    return [(reg.name, index) for reg, index in cells]
+
+
+def describe_keys(target: Target, keys: Sequence[Key], limit: int = 4) -> str:
+    names = [target.model.register(n).element_name(i) for n, i in keys]
+    return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
+__all__ = ["DriveError", "Session", "describe_keys", "keys_of", "read_words", "session_for"]

@@ -1,0 +1,104 @@
+"""The model a live verb talks to: its map, compiled in memory, and the generated client classes.
+
+``MODEL`` is a model id of the project (``ev``), a seed map shipped with drivemap, or a map path
+(``maps/ev.yaml``); nothing is built or written.
+"""
+
+from __future__ import annotations
+
+import shlex
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from types import ModuleType
+from typing import Any
+
+from ..compiler import compile_map, resolve_map
+from ..diagnostics import CompileError, Diagnostic, Location
+from ..load import load_file
+from ..model import Model, Register
+from ..project import Project, load_project
+from ..runtime.spec import DeviceSpec
+
+
+@dataclass
+class Target:
+    """One compiled map and its in-memory generated package."""
+
+    model: Model
+    package: ModuleType
+    _lines: dict[tuple[str | int, ...], int] = field(default_factory=dict)
+
+    @property
+    def spec(self) -> DeviceSpec:
+        spec: DeviceSpec = self.package.SPEC
+        return spec
+
+    @property
+    def client_class(self) -> Any:
+        return self.package.Client
+
+    @property
+    def codecs(self) -> Any:
+        return self.package.CODECS
+
+    def where(self, reg: Register) -> str:
+        """``maps/ev.yaml:580``: where the register is defined."""
+        return f"{self.model.path}:{reg.line}"
+
+    @cached_property
+    def _document_positions(self) -> Any:
+        return load_file(self.model.path).positions
+
+    def line_of(self, *where: str | int) -> int:
+        """Line of an item of the map (``"reserved", 2`` or ``"protocol", "exceptions", 1``)."""
+        return int(self._document_positions.at(tuple(where)).line)
+
+    def exception_line(self, code: int) -> int | None:
+        for i, item in enumerate(self.model.protocol.exceptions):
+            if item.code == code:
+                return self.line_of("protocol", "exceptions", i)
+        return None
+
+    def register_at(self, address: int) -> tuple[Register, int] | None:
+        """The register cell (register, element index) that holds ``address``, if any."""
+        for reg in self.model.registers:
+            for i in range(reg.count):
+                start = reg.element_address(i)
+                if start <= address < start + reg.words:
+                    return reg, i
+        return None
+
+
+def project_of(maps: Sequence[str] | None) -> Project:
+    return load_project(maps=maps)
+
+
+def load_target(name: str, project: Project | None = None) -> Target:
+    """Compile ``name`` (model id or map path) and load its generated package in memory."""
+    from ..inmemory import load_package
+
+    model = compile_map(resolve_map(name, project or load_project()))
+    return Target(model, load_package(model))
+
+
+def command_line_error(argv: Sequence[str], index: int, message: str,
+                       related: tuple[tuple[Location, str], ...] = ()) -> CompileError:
+    """A located error about ``argv[index]``: ``<command line>:1:COL: error: ...``.
+
+    The column counts in the command as the shell shows it (``drivemap VERB ARG ...``).
+    """
+    shown = ["drivemap", *(shlex.quote(a) for a in argv)]
+    col = 1 + sum(len(s) + 1 for s in shown[: index + 1])
+    return CompileError([Diagnostic(Location("<command line>", 1, col), message, related=related)])
+
+
+def register_note(target: Target, reg: Register) -> tuple[tuple[Location, str], ...]:
+    """A note pointing at the register's map line."""
+    bounds = []
+    if reg.min is not None:
+        bounds.append(f"min {reg.min:g}")
+    if reg.max is not None:
+        bounds.append(f"max {reg.max:g}")
+    extra = f" ({', '.join(bounds)}{' ' + reg.unit if reg.unit and bounds else ''})" if bounds else ""
+    return ((Location(target.model.path, reg.line, 5), f"{reg.name} is defined here{extra}"),)

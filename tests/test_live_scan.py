@@ -1,0 +1,60 @@
+"""`drivemap scan`: unit ids over TCP, baud rate over a virtual serial line, which maps fit, Ctrl-C."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+from helpers_client import simulator, tcp_server
+from helpers_live import ENV, ROOT, cli
+
+from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.testing.vserial import VirtualSerialLine
+
+
+def test_scan_tcp_finds_units_and_the_map_that_fits() -> None:
+    with tcp_server("vfd1000", units=(3, 7)) as (_, host, port):
+        proc = cli("scan", "--tcp", f"{host}:{port}", "--units", "1-9", "--json")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert [u["unit"] for u in doc["units"]] == [3, 7] and doc["probes"] == 9
+    for unit in doc["units"]:
+        fits = {f["model"]: f["fits"] for f in unit["fits"]}
+        assert fits == {"vfd1000": True, "ev": False, "v2": False, "edx": False}
+    assert "at most 9 probes" in proc.stderr
+
+
+def test_scan_serial_finds_the_baud_rate_and_notes_garbled_parity() -> None:
+    sim = simulator("ev", (2,))
+    with VirtualSerialLine(19200, line_settings=True) as line:
+        with ThreadedSimServer(sim, serial=line.device_port, mode="rtu", baudrate=19200, parity="none"):
+            proc = cli("scan", "--serial", line.master_port, "--units", "1-3", "--baudrates", "9600,19200,38400",
+                       "--parities", "none", "--timeout", "0.1")
+    assert proc.returncode == 0, proc.stderr
+    row = next(line for line in proc.stdout.splitlines() if line.startswith("│ 2 "))
+    assert "rtu 19200 8N1" in row and "ev fits" in row
+    assert "38400" not in proc.stdout  # stops at the first setting that answers
+    with VirtualSerialLine(19200, device_parity="O") as line:  # the drive at 8O1; this port cannot do odd
+        with ThreadedSimServer(simulator("ev", (2,)), serial=line.device_port, mode="rtu", baudrate=19200,
+                               parity="none"):
+            garbled = cli("scan", "--serial", line.master_port, "--units", "1-3", "--baudrates", "9600,19200",
+                          "--parities", "none", "--timeout", "0.1")
+    assert garbled.returncode == 3, garbled.stderr
+    assert "garbled replies on serial" in garbled.stdout and "19200 8N1" in garbled.stdout
+    assert "no unit answered" in garbled.stdout
+
+
+def test_scan_is_interruptible_and_prints_what_it_found() -> None:
+    with tcp_server("ev", units=(1,)) as (_, host, port):
+        proc = subprocess.Popen([sys.executable, "-m", "drivemap", "scan", "--tcp", f"{host}:{port}", "--units",
+                                 "1-200", "--timeout", "0.2"], cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        time.sleep(3.0)  # unit 1 answers at once; the silent ones take 0.2 s each
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "interrupted after" in out and "found so far" in out
+    assert any(line.startswith("│ 1 ") for line in out.splitlines()), out
