@@ -37,7 +37,8 @@ class _Loader(yaml.SafeLoader):
 
 
 _Loader.add_constructor("!secret", lambda loader, node: f"<secret {loader.construct_scalar(node)}>")
-_Loader.add_constructor("!literal", lambda loader, node: loader.construct_scalar(node))
+_Loader.add_constructor("!literal", lambda loader, node: loader.construct_mapping(node)
+                        if isinstance(node, yaml.MappingNode) else loader.construct_scalar(node))
 
 
 def load_yaml(text: str) -> Any:

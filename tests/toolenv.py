@@ -1,4 +1,4 @@
-"""Third-party tools (ESPHome, Home Assistant) in their own virtualenvs, cached between runs.
+"""Third-party tools (ESPHome, Home Assistant, pymodbus.simulator) in their own virtualenvs, cached between runs.
 
 Each tool gets a virtualenv of its own under ``~/.cache/drivemap-tools`` (``DRIVEMAP_TOOLS_CACHE``
 overrides it), outside the repository, so its pins never meet drivemap's and a rerun reuses it. A
@@ -29,6 +29,8 @@ from pathlib import Path
 TOOLS: dict[str, str] = {
     "esphome": "esphome==2026.6.5",
     "homeassistant": "homeassistant==2024.3.3",
+    # pymodbus's own simulator CLI (pymodbus.simulator needs the aiohttp extra; same pymodbus as ours)
+    "pymodbus-simulator": "pymodbus[simulator]==3.16.1",
 }
 
 INSTALL_TIMEOUT_S = 1800

@@ -15,7 +15,7 @@ import yaml
 
 from ..views.integrations import comment_safe
 
-__all__ = ["Hex", "Literal", "Secret", "dump", "header"]
+__all__ = ["Hex", "Literal", "LiteralMap", "Secret", "dump", "header"]
 
 
 class Hex(int):
@@ -26,6 +26,10 @@ class Hex(int):
 
 class Literal(str):
     """ESPHome text taken as is: ``!literal`` keeps its substitution pass (``$name``, ``${...}``) away."""
+
+
+class LiteralMap(dict):  # type: ignore[type-arg]
+    """A mapping ESPHome takes as is, keys included (``!literal`` on the whole mapping)."""
 
 
 class Secret(str):
@@ -52,6 +56,7 @@ def _tagged(tag: str) -> Any:
 _Dumper.add_representer(Hex, _hex)
 _Dumper.add_representer(Literal, _tagged("!literal"))
 _Dumper.add_representer(Secret, _tagged("!secret"))
+_Dumper.add_representer(LiteralMap, lambda dumper, value: dumper.represent_mapping("!literal", dict(value)))
 
 
 def dump(data: Any) -> str:

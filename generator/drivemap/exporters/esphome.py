@@ -22,7 +22,7 @@ from ..runtime.planner import plan_reads
 from ..views import integrations as iv
 from ..views.common import header as generated_header
 from ..views.esphome import Item, align
-from ._yaml import Hex, Literal, Secret, dump, header
+from ._yaml import Hex, Literal, LiteralMap, Secret, dump, header
 from .base import Exporter, OptionError, Options
 
 __all__ = ["REGISTER_TYPES", "VALUE_TYPES", "EsphomeExporter"]
@@ -75,7 +75,7 @@ class EsphomeExporter(Exporter):
         line = iv.serial_settings(model, values, modes=("rtu",))
         build = _Build(model, sel)
         doc: dict[str, Any] = {
-            "esphome": {"name": node, "friendly_name": text(model.device.title)},
+            "esphome": {"name": node},
             "esp32": {"board": str(values.get("board") or "esp32dev"), "framework": {"type": "esp-idf"}},
             "logger": {},
         }
@@ -228,9 +228,9 @@ class _Build:
 def _options(labels: tuple[tuple[int, str], ...]) -> dict[str, int]:
     out: dict[str, int] = {}
     for value, label in labels:
-        key = label if label not in out else f"{label} ({value})"
-        out[text(key)] = value
-    return out
+        out[label if label not in out else f"{label} ({value})"] = value
+    # a key is substituted too: a map with '$' in a label goes in whole as !literal
+    return LiteralMap(out) if any("$" in key for key in out) else out
 
 
 def _hex_map(reg: Any, labels: tuple[tuple[int, str], ...]) -> list[dict[str, str]]:
