@@ -5,7 +5,7 @@
 
 Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire efficiency on a paced
 virtual serial line, (4) simulator throughput vs a plain pymodbus SimDevice server, (5) compiler
-scaling. Every figure is the median of several bounded rounds; only 127.0.0.1 and ptys are used.
+scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports. Every figure is the median of several bounded rounds; only 127.0.0.1 and ptys are used.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import compiler_scaling  # noqa: E402
+import exports  # noqa: E402
 import overhead  # noqa: E402
 import planning  # noqa: E402
 import simthroughput  # noqa: E402
@@ -90,6 +91,17 @@ Efficiency = achieved requests/s ÷ physical limit. Goals apply to the generated
 `FramerRTU`, the simulator's own reply bytes, a precise delay from the request's last byte, no
 server framework). The phase table splits each transaction by the line's timestamps, so the device,
 the line relay and the client are measured apart.""",
+    "Exports (entities and reads per poll cycle)": """\
+Counted from the exported files (`bench/exports.py`), for every readable element the exports cover
+(default page, all groups; commands are switches and are not read). **drivemap plan**: the reads of
+`plan_reads` for those elements. **Home Assistant**: each modbus sensor entry polls on its own (an
+array that fits one read is one entry with `virtual_count`); switches without `verify` and
+template entities read nothing. **ESPHome**: the ranges ESPHome's own range builder (ported in
+`generator/drivemap/testing/esphome.py`) makes from the file, every update (skip_updates ignored).
+Where ESPHome needs more reads than drivemap, the contiguous run is longer than the device's
+maximum and the word where drivemap splits it holds an entity that cannot carry `register_count`
+(a `number`, or several entities): only that word can start ESPHome's new range, which costs one
+read per split (listed in the export's header).""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
@@ -227,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="smoke mode: fewer and shorter rounds")
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
-    ap.add_argument("--only", action="append", choices=["planning", "overhead", "wire", "simulator", "compiler"],
+    ap.add_argument("--only", action="append",
+                    choices=["planning", "overhead", "wire", "simulator", "compiler", "exports"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -240,6 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         ("simulator", "Simulator throughput (TCP loopback)", lambda: simthroughput.run(args.quick)),
         ("compiler", "Compiler scaling", lambda: compiler_scaling.run(
             args.quick, max(30.0, (45.0 if args.quick else FULL_BUDGET_S) - (time.perf_counter() - started)))),
+        ("exports", "Exports (entities and reads per poll cycle)", lambda: exports.run(args.quick)),
     ]
     sections: list[Section] = []
     for key, title, fn in plan:

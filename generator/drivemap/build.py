@@ -7,21 +7,22 @@ exporter into its ``docs`` folder and every committed export of ``[[tool.drivema
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from .diagnostics import CompileError, Diagnostic, Location
 from .exporters import available
-from .exporters.base import Exporter, Options
+from .exporters.base import Exporter, OptionError, Options
 from .exporters.docs import DocsExporter
 from .exporters.python import PythonExporter
 from .inmemory import load_spec
 from .model import Model
 from .project import Project, display
 
-__all__ = ["export_files", "options_for", "outputs_by_root", "simulator_factory"]
+__all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "simulator_factory"]
 
 
 def options_for(project: Project, values: Mapping[str, Any] | None = None) -> Options:
@@ -54,7 +55,11 @@ def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tup
         exporter_cls = available().get(entry.format)
         if exporter_cls is None:
             raise CompileError([Diagnostic(where, f"exports: no exporter named {entry.format!r}")])
-        rendered = exporter_cls().render(model, options_for(project, entry.options))
+        chosen = exporter_cls()
+        try:
+            rendered = chosen.render(model, options_for(project, entry_options(chosen, entry.options)))
+        except OptionError as exc:
+            raise CompileError([Diagnostic(where, f"exports: {entry.format} for {entry.model}: {exc}")]) from None
         files[entry.output.resolve()] = _single(rendered, entry.format)
     roots = [out, docs]
     grouped: dict[Path, tuple[dict[str, str], bool]] = {}
@@ -63,6 +68,35 @@ def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tup
         prune = root in roots
         grouped.setdefault(root, ({}, prune))[0][path.relative_to(root).as_posix()] = text
     return grouped
+
+
+class _OptionParser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise OptionError(message)
+
+
+def entry_options(exporter: Exporter, table: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``options`` table of an ``[[tool.drivemap.exports]]`` entry, read exactly as the same
+    options on ``drivemap export``'s command line: keys are the long option names (``ha-version``
+    or ``ha_version``), ``true`` stands for a flag, a list for a repeatable option."""
+    parser = _OptionParser(prog=exporter.name, add_help=False)
+    exporter.add_arguments(parser)
+    flags = {a.dest: a for a in parser._actions if a.option_strings}
+    argv: list[str] = []
+    for key, value in table.items():
+        action = flags.get(str(key).replace("-", "_"))
+        if action is None:
+            known = ", ".join(sorted(a.option_strings[-1].lstrip("-") for a in flags.values())) or "none"
+            raise OptionError(f"unknown option {key!r} (options: {known})")
+        flag = action.option_strings[-1]
+        if value is True:
+            argv.append(flag)
+        elif value is False:
+            continue
+        else:
+            for item in value if isinstance(value, list) else [value]:
+                argv += [flag, str(item)]
+    return vars(parser.parse_args(argv))
 
 
 def _single(files: Mapping[str, str], name: str) -> str:

@@ -164,7 +164,7 @@ def cmd_examples(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     from .build import export_files
     from .compiler import compile_map, resolve_map
-    from .exporters import available
+    from .exporters import OptionError, available
 
     exporters = available()
     if args.list:
@@ -182,7 +182,10 @@ def cmd_export(args: argparse.Namespace) -> int:
     values = vars(own.parse_args(args.rest))
     project = _project(args)
     model = compile_map(resolve_map(args.model, project))
-    files = export_files(exporter, model, project, values, args.output)
+    try:
+        files = export_files(exporter, model, project, values, args.output)
+    except OptionError as exc:
+        raise UsageError(f"drivemap export --format {args.format}: {exc}") from None
     if args.output is None:
         for _, text in sorted(files.items()):
             sys.stdout.write(text)

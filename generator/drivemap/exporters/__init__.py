@@ -5,15 +5,19 @@ from __future__ import annotations
 import importlib.metadata
 import sys
 
-from .base import Exporter, Options
+from .base import Exporter, OptionError, Options
 
-__all__ = ["BUILTIN", "Exporter", "Options", "available", "get"]
+__all__ = ["BUILTIN", "Exporter", "OptionError", "Options", "available", "get"]
 
 #: The built-in exporters (also registered as entry points of the drivemap distribution).
 BUILTIN: dict[str, str] = {
     "python": "drivemap.exporters.python:PythonExporter",
     "docs": "drivemap.exporters.docs:DocsExporter",
     "json": "drivemap.exporters.json:JsonExporter",
+    "homeassistant": "drivemap.exporters.homeassistant:HomeAssistantExporter",
+    "esphome": "drivemap.exporters.esphome:EsphomeExporter",
+    "pymodbus-sim": "drivemap.exporters.pymodbus_sim:PymodbusSimExporter",
+    "csv": "drivemap.exporters.csv:CsvExporter",
 }
 
 

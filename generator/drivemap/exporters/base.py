@@ -21,7 +21,12 @@ from typing import Any, ClassVar
 
 from ..model import Model
 
-__all__ = ["Exporter", "Options"]
+__all__ = ["Exporter", "OptionError", "Options"]
+
+
+class OptionError(ValueError):
+    """An exporter option that cannot be used (``drivemap export`` reports it as a usage error,
+    ``drivemap build`` at the ``[[tool.drivemap.exports]]`` entry that gave it)."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,129 @@
+"""ESPHome's ``modbus_controller`` range builder, ported line by line for tests and benchmarks.
+
+Port of ``ModbusController::create_register_ranges_()`` and ``SensorItemsComparator`` of ESPHome
+2026.6 (esphome/components/modbus_controller/modbus_controller.{h,cpp}) and of the register counts
+the platforms' ``to_code`` compute. Given a device YAML (as loaded), it returns the read ranges the
+controller sends every update, and where each entity finds its value. The one liberty: items that
+ESPHome orders by pointer are taken in file order here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Range", "SensorItem", "items_of", "ranges"]
+
+TYPE_REGISTERS = {"RAW": 1, "U_WORD": 1, "S_WORD": 1, "U_DWORD": 2, "U_DWORD_R": 2, "S_DWORD": 2,
+                  "S_DWORD_R": 2, "U_QWORD": 4, "U_QWORD_R": 4, "S_QWORD": 4, "S_QWORD_R": 4, "FP32": 2,
+                  "FP32_R": 2}
+_TYPE_ORDER = {"custom": 0, "coil": 1, "discrete_input": 2, "holding": 3, "read": 4}  # ModbusRegisterType
+
+
+@dataclass
+class SensorItem:
+    name: str
+    platform: str
+    register_type: str
+    start_address: int
+    offset: int
+    register_count: int
+    response_bytes: int
+    force_new_range: bool
+    skip_updates: int
+    seq: int
+    word: int = 0          # the word the entity decodes from, as written
+
+    def register_size(self) -> int:
+        if self.register_type in ("coil", "discrete_input"):
+            return 1
+        return self.response_bytes if self.response_bytes > 0 else self.register_count * 2
+
+
+@dataclass
+class Range:
+    start_address: int
+    register_type: str
+    register_count: int
+    skip_updates: int
+    sensors: list[SensorItem] = field(default_factory=list)
+
+
+def _count(platform: str, cfg: dict[str, Any]) -> tuple[int, int]:
+    """(register_count, response_bytes) as each platform's to_code sets them."""
+    value_type = cfg.get("value_type", "U_WORD")
+    if platform == "text_sensor":
+        size = int(cfg.get("response_size", 2))
+        return int(cfg.get("register_count", 0)) or size // 2, size
+    if platform in ("sensor", "select"):
+        return int(cfg.get("register_count", 0)) or TYPE_REGISTERS[value_type], 0
+    if platform == "number":
+        return TYPE_REGISTERS[value_type], 0
+    return 1, 0  # binary_sensor, switch on registers
+
+
+def items_of(doc: dict[str, Any]) -> list[SensorItem]:
+    """The polled modbus_controller items of a device YAML, in file order."""
+    out: list[SensorItem] = []
+    for platform in ("sensor", "binary_sensor", "text_sensor", "number", "select", "switch"):
+        for cfg in doc.get(platform) or ():
+            if cfg.get("platform") != "modbus_controller":
+                continue
+            if platform == "switch" and cfg.get("assumed_state"):
+                continue
+            count, size = _count(platform, cfg)
+            offset = int(cfg.get("offset", 0))
+            address = int(cfg["address"])
+            out.append(SensorItem(str(cfg.get("name") or cfg.get("id")), platform,
+                                  cfg.get("register_type", "holding"), address, offset, count, size,
+                                  bool(cfg.get("force_new_range", False)), int(cfg.get("skip_updates", 0)),
+                                  len(out), address + offset // 2))
+    return out
+
+
+def _key(item: SensorItem) -> tuple[int, int, int, int, int]:
+    return (_TYPE_ORDER[item.register_type], 0 if item.force_new_range else 1, item.start_address, item.offset,
+            item.seq)
+
+
+def ranges(items: list[SensorItem]) -> list[Range]:
+    """``create_register_ranges_()``: the ranges, in the order the controller polls them."""
+    sensors = sorted(items, key=_key)
+    out: list[Range] = []
+    r: Range | None = None
+    buffer_offset = 0
+    prev: SensorItem | None = None
+    i = 0
+    while i < len(sensors):
+        curr = sensors[i]
+        if r is None:
+            r = Range(curr.start_address, curr.register_type, curr.register_count, curr.skip_updates, [curr])
+            buffer_offset = curr.register_size()
+        elif not curr.force_new_range and r.register_type == curr.register_type and curr.register_type != "custom":
+            assert prev is not None
+            if (curr.start_address == r.start_address + r.register_count - prev.register_count
+                    and curr.register_count == prev.register_count and curr.register_size() == prev.register_size()):
+                curr.start_address = r.start_address
+                curr.offset += prev.offset
+            elif curr.start_address == r.start_address + r.register_count:
+                curr.start_address = r.start_address
+                curr.offset += buffer_offset
+                buffer_offset += curr.register_size()
+                r.register_count += curr.register_count
+            sensors.sort(key=_key)  # the C++ erases and reinserts the item whose key changed
+            i = sensors.index(curr)
+        if curr.start_address == r.start_address and curr.register_type == r.register_type:
+            if curr.skip_updates != 0:
+                r.skip_updates = min(r.skip_updates, curr.skip_updates) if r.skip_updates else curr.skip_updates
+            if curr not in r.sensors:
+                r.sensors.append(curr)
+            i += 1
+        else:
+            out.append(r)
+            r = None
+            buffer_offset = 0
+            continue  # the current item is evaluated again, as the first of a new range
+        prev = curr
+    if r is not None and r.register_count > 0:
+        out.append(r)
+    return out
