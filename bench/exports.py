@@ -9,7 +9,7 @@ Per map (default page, every group), counted from the exported files themselves:
   on its own (one read; a ``virtual_count`` array is one read), switches without ``verify`` and
   templates read nothing;
 * **ESPHome** — entities (internal fillers not counted) and reads per full update: the ranges
-  ESPHome's own range builder makes from the file (ported in ``drivemap.testing.esphome``);
+  ESPHome's own range builder makes from the file (ported in ``tests/esphome_ranges.py``);
 * **naive** — one read per element.
 """
 
@@ -25,7 +25,7 @@ from drivemap.exporters.esphome import EsphomeExporter
 from drivemap.exporters.homeassistant import HomeAssistantExporter
 from drivemap.inmemory import load_spec
 from drivemap.runtime.planner import plan_reads
-from drivemap.testing import esphome as esp
+from tests import esphome_ranges as esp
 
 SERIAL: dict[str, dict[str, Any]] = {
     "ev": {"baudrate": 9600, "method": "rtu"},

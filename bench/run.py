@@ -97,7 +97,7 @@ Counted from the exported files (`bench/exports.py`), for every readable element
 `plan_reads` for those elements. **Home Assistant**: each modbus sensor entry polls on its own (an
 array that fits one read is one entry with `virtual_count`); switches without `verify` and
 template entities read nothing. **ESPHome**: the ranges ESPHome's own range builder (ported in
-`generator/drivemap/testing/esphome.py`) makes from the file, every update (skip_updates ignored).
+`tests/esphome_ranges.py`) makes from the file, every update (skip_updates ignored).
 Where ESPHome needs more reads than drivemap, the contiguous run is longer than the device's
 maximum and the word where drivemap splits it holds an entity that cannot carry `register_count`
 (a `number`, or several entities): only that word can start ESPHome's new range, which costs one

@@ -21,8 +21,8 @@ from drivemap.compiler import load_model
 from drivemap.exporters.homeassistant import jinja_literal
 from drivemap.inmemory import load_spec
 from drivemap.runtime.planner import plan_reads
-from drivemap.testing import esphome as esp
 from drivemap.views.integrations import comment_safe
+from tests import esphome_ranges as esp
 from tests.exporter_helpers import (
     HOSTILE,
     INTEGRATIONS,

@@ -185,7 +185,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     try:
         files = export_files(exporter, model, project, values, args.output)
     except OptionError as exc:
-        raise UsageError(f"drivemap export --format {args.format}: {exc}") from None
+        raise UsageError(f"drivemap export --format {args.format}", str(exc)) from None
     if args.output is None:
         for _, text in sorted(files.items()):
             sys.stdout.write(text)
