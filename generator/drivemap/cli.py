@@ -1,4 +1,4 @@
-"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema.
+"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema | gateway.
 
 Every verb acts on the project of the working directory (:mod:`drivemap.project`); explicit paths
 and flags win over its ``[tool.drivemap]`` settings. Every bad input ends in ``path:line:col:
@@ -242,6 +242,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return code
 
 
+def cmd_gateway(args: argparse.Namespace) -> int:
+    from .gateway.cli import run_cli
+
+    return run_cli(args, _project(args))
+
+
 # ---------------------------------------------------------------- the parser
 
 
@@ -299,6 +305,12 @@ def parser() -> argparse.ArgumentParser:
     add_arguments(s, with_model=True)
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_simulate)
+    s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
+    from .gateway.cli import add_arguments as gateway_arguments
+
+    gateway_arguments(s)
+    _project_flags(s, out=False)
+    s.set_defaults(func=cmd_gateway)
     return p
 
 
