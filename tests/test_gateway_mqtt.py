@@ -78,7 +78,9 @@ async def test_discovery_payloads(tmp_path: Path, broker: Broker) -> None:
             assert press["payload_press"] == "PRESS"
             async with Subscriber(broker.port, ("homeassistant/#",)) as late:  # retained: a late subscriber gets all
                 await until(lambda: len(late.latest) == len(sub.latest), what="retained discovery")
-                assert all(late.retained.values()) and late.latest == sub.latest
+                assert late.latest == sub.latest
+                if broker.kind == "mosquitto":  # amqtt 0.12 clears the flag on some stored messages it delivers
+                    assert all(late.retained.values())
             ids = [json.loads(p)["unique_id"] for p in sub.latest.values()]
             assert len(ids) == len(set(ids))
             assert not [t for t in sub.latest if "/switch/" in t]  # maps have no coils
@@ -195,3 +197,31 @@ buses:
             await until(lambda: sub.text("drivemap/vfd3/torque_setting_value") == "55.5", what="command over RTU")
             assert sim.get("torque_setting_value") == pytest.approx(55.5)
             assert any(f[1] == 0x06 for f in line.frames("to_device"))
+
+
+async def test_broker_restart_republishes_and_keeps_accepted_commands(tmp_path: Path, broker: Broker) -> None:
+    with tcp_server("vfd1000", (1,)) as (vsim, _, vport), tcp_server("ev", (2,)) as (_, _, eport):
+        text = two_buses(broker.port, vport, eport).replace("reconnect: {min: 0.3, max: 1}", "reconnect: {min: 1, max: 4}")
+        cfg = write_config(tmp_path, text)
+        async with Subscriber(broker.port, ("drivemap/#",)) as sub, running(cfg) as gw:
+            await until(lambda: sub.text("drivemap/pump1/availability") == "online", what="online")
+            async with gw.lines[0].bus.lock:  # the line waits here: the command is accepted, not yet sent
+                await publish(broker.port, "drivemap/pump1/communication_setting/set", "-3.5")
+                await until(lambda: gw.lines[0].commands_accepted == 1, what="command accepted")
+                await asyncio.to_thread(broker.stop)
+                vsim.set("pid_setting", 66.6)
+            await until(lambda: vsim.get("communication_setting") == -3.5, what="command written during the outage")
+            failures = gw.mqtt.failures
+            await until(lambda: gw.mqtt.failures > failures, what="a failed reconnection attempt")
+            await asyncio.to_thread(broker.start)
+            await until(lambda: sub.ready.is_set(), what="subscriber back")  # before the gateway's next try (2 s)
+            await until(lambda: gw.mqtt.connections == 2, timeout=15, what="gateway reconnected")
+            await until(lambda: sub.messages("drivemap/pump1/error"), what="outcome after the outage")
+            outcome = json.loads(sub.messages("drivemap/pump1/error")[-1])
+            assert outcome["ok"] is True and outcome["register"] == "communication_setting"
+        async with Subscriber(broker.port, ("#",)) as late:  # the restarted broker kept nothing: all republished
+            await until(lambda: late.text("drivemap/pump1/communication_setting") == "-3.5", what="retained value")
+            assert late.text("drivemap/pump1/pid_setting") == "66.6"
+            assert late.text("homeassistant/number/drivemap_plant_pump1/communication_setting/config")
+            assert late.text("drivemap/gateway/plant/availability") == "offline"  # the gateway has stopped since
+            assert late.text("drivemap/pump1/availability") == "online"

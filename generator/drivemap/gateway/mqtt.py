@@ -79,6 +79,7 @@ class MqttBridge:
         self._wake = asyncio.Event()
         self.connected = asyncio.Event()
         self.connections = 0
+        self.failures = 0
         self.published = 0
         if cfg.discovery:
             for dev in devices.values():
@@ -116,14 +117,23 @@ class MqttBridge:
         delay = self.cfg.reconnect_min
         while True:
             try:
-                async with self._client() as client:
-                    delay = self.cfg.reconnect_min
-                    await self._session(client)
+                await self._connection()
+                delay = self.cfg.reconnect_min
             except aiomqtt.MqttError as exc:
+                self.failures += 1
                 log.warning("MQTT broker %s:%d: %s; reconnecting in %.1f s", self.cfg.host, self.cfg.port, exc, delay)
             self.connected.clear()
             await asyncio.sleep(delay)
             delay = min(delay * 2, self.cfg.reconnect_max)
+
+    async def _connection(self) -> None:
+        client = self._client()
+        await client.__aenter__()
+        try:
+            await self._session(client)
+        finally:  # a broker that never acknowledges the disconnection does not hold the gateway up
+            with contextlib.suppress(Exception, TimeoutError):
+                await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
 
     async def _session(self, client: aiomqtt.Client) -> None:
         try:
