@@ -158,6 +158,10 @@ async def running(cfg: GatewayConfig) -> AsyncIterator[Gateway]:
     stop = asyncio.Event()
     task = asyncio.create_task(gateway.run(stop))
     try:
+        started = asyncio.create_task(gateway.started.wait())
+        await asyncio.wait([started, task], timeout=30, return_when=asyncio.FIRST_COMPLETED)
+        if task.done():
+            task.result()  # raises what stopped the gateway
         yield gateway
     finally:
         stop.set()

@@ -221,7 +221,9 @@ async def test_broker_restart_republishes_and_keeps_accepted_commands(tmp_path: 
             assert outcome["ok"] is True and outcome["register"] == "communication_setting"
         async with Subscriber(broker.port, ("#",)) as late:  # the restarted broker kept nothing: all republished
             await until(lambda: late.text("drivemap/pump1/communication_setting") == "-3.5", what="retained value")
-            assert late.text("drivemap/pump1/pid_setting") == "66.6"
-            assert late.text("homeassistant/number/drivemap_plant_pump1/communication_setting/config")
-            assert late.text("drivemap/gateway/plant/availability") == "offline"  # the gateway has stopped since
-            assert late.text("drivemap/pump1/availability") == "online"
+            await until(lambda: late.text("drivemap/pump1/pid_setting") == "66.6", what="value changed in the outage")
+            await until(lambda: late.text("homeassistant/number/drivemap_plant_pump1/communication_setting/config"),
+                        what="discovery republished")
+            await until(lambda: late.text("drivemap/pump1/availability") == "online", what="device availability")
+            # the gateway has stopped since: its clean stop says offline
+            await until(lambda: late.text("drivemap/gateway/plant/availability") == "offline", what="gateway offline")

@@ -27,9 +27,10 @@ import json
 import logging
 from typing import Any
 
-from asyncua import Server, ua
-from asyncua.crypto.permission_rules import User, UserRole
+from asyncua import ua as _ua
+from asyncua.crypto.permission_rules import SimpleRoleRuleset, User, UserRole
 from asyncua.server.address_space import AttributeService
+from asyncua.server.server import Server
 
 from ..model import Register
 from ..runtime.errors import (
@@ -46,6 +47,8 @@ from .config import OpcuaConfig, OpcuaUser
 from .device import Device
 
 log = logging.getLogger("drivemap.gateway.opcua")
+#: asyncua's ``ua`` namespace, used untyped (its stubs do not export the generated names).
+ua: Any = _ua
 
 _POLICIES = {
     "none": ua.SecurityPolicyType.NoSecurity,
@@ -56,11 +59,11 @@ _POLICIES = {
 WRITE_TIMEOUT_S = 30.0
 
 
-def _status(code: int) -> ua.StatusCode:
+def _status(code: int) -> Any:
     return ua.StatusCode(code)
 
 
-def status_for(error: BaseException) -> int:
+def status_for(error: BaseException) -> Any:
     """The OPC UA status code of a drivemap error."""
     if isinstance(error, AccessError):
         return ua.StatusCodes.BadNotWritable
@@ -86,16 +89,27 @@ class _Users:
 
     def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
                  certificate: Any = None) -> User | None:
-        if certificate is not None:
-            found = self.certificates.get(bytes(certificate))
-            return User(role=UserRole.User, name=found.name) if found else None
         if username is not None:
             for u in self.cfg.users:
                 if u.name == username and u.password is not None and hmac.compare_digest(
                         u.password.encode(), (password or "").encode()):
                     return User(role=UserRole.User, name=u.name)
             return None
+        # a trusted client certificate (identity token, or the secure channel's own) logs in as its user
+        found = self.certificates.get(bytes(certificate)) if certificate else None
+        if found is not None:
+            return User(role=UserRole.User, name=found.name)
         return User(role=UserRole.Anonymous) if self.cfg.anonymous else None
+
+
+class _Ruleset(SimpleRoleRuleset):
+    """asyncua's roles, except that anonymous sessions may use the services users may (reading, browsing,
+    subscribing); whether anyone may *write* a register is decided by :meth:`OpcuaBridge.write`."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        table: Any = self._permission_dict
+        table[UserRole.Anonymous] = set(table[UserRole.User])
 
 
 class _CheckedWrites(AttributeService):
@@ -105,7 +119,8 @@ class _CheckedWrites(AttributeService):
         super().__init__(aspace)
         self.bridge = bridge
 
-    async def write(self, params: ua.WriteParameters, user: User = User(role=UserRole.Admin)) -> list[ua.StatusCode]:
+    async def write(self, params: Any, user: User | None = None) -> list[Any]:
+        user = user if user is not None else User(role=UserRole.Admin)
         results: list[ua.StatusCode] = []
         for item in params.NodesToWrite:
             target = self.bridge.targets.get(item.NodeId)
@@ -176,7 +191,7 @@ class OpcuaBridge:
         for u in self.cfg.users:
             if u.certificate is not None:
                 cert = await uacrypto.load_certificate(u.certificate)
-                out[uacrypto.der_from_x509(cert)] = u
+                out[uacrypto.der_from_x509(cert)] = u  # type: ignore[no-untyped-call]
         return out
 
     async def start(self) -> None:
@@ -186,7 +201,7 @@ class OpcuaBridge:
         server.set_endpoint(cfg.endpoint)
         server.set_server_name(f"drivemap gateway {self.gateway}")
         await server.set_application_uri(f"urn:drivemap:gateway:{self.gateway}")
-        server.set_security_policy([_POLICIES[p] for p in cfg.security])
+        server.set_security_policy([_POLICIES[p] for p in cfg.security], permission_ruleset=_Ruleset())
         tokens: list[type] = [ua.UserNameIdentityToken] if any(u.password for u in cfg.users) else []
         if cfg.anonymous:
             tokens.append(ua.AnonymousIdentityToken)
@@ -197,7 +212,7 @@ class OpcuaBridge:
             await server.load_certificate(str(cfg.certificate))
             await server.load_private_key(str(cfg.private_key))
         self.idx = await server.register_namespace(cfg.namespace)
-        folder = await server.nodes.objects.add_folder(ua.NodeId(self.gateway, self.idx), self.gateway)
+        folder = await server.nodes.objects.add_folder(ua.NodeId(self.gateway, self.idx), f"{self.idx}:{self.gateway}")
         for device in self.devices.values():
             await self._add_device(folder, device)
         server.iserver.attribute_service = _CheckedWrites(server.iserver.aspace, self)
@@ -215,8 +230,8 @@ class OpcuaBridge:
             self.server = None
 
     async def _add_device(self, folder: Any, device: Device) -> None:
-        obj = await folder.add_object(ua.NodeId(f"{device.name}", self.idx), device.name)
-        online = await obj.add_variable(ua.NodeId(f"{device.name}.Online", self.idx), "Online", False,
+        obj = await folder.add_object(ua.NodeId(f"{device.name}", self.idx), f"{self.idx}:{device.name}")
+        online = await obj.add_variable(ua.NodeId(f"{device.name}.Online", self.idx), f"{self.idx}:Online", False,
                                         ua.VariantType.Boolean)
         self.online_nodes[device.name] = online.nodeid
         published = set(device.cfg.publish)
@@ -229,7 +244,7 @@ class OpcuaBridge:
         initial: Any = [0] * reg.count if reg.is_array else 0
         if vtype == ua.VariantType.Double:
             initial = [0.0] * reg.count if reg.is_array else 0.0
-        node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), reg.name, initial, vtype)
+        node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), f"{self.idx}:{reg.name}", initial, vtype)
         level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (
             ua.AccessLevel.CurrentWrite.mask if reg.writable and device.cfg.writable and not reg.is_array else 0)
         for attr in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel):
@@ -245,20 +260,20 @@ class OpcuaBridge:
         name = device.name + "." + reg.name
         eu = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=-1,
                               DisplayName=ua.LocalizedText(reg.unit or ""), Description=ua.LocalizedText(reg.unit or ""))
-        await node.add_property(ua.NodeId(f"{name}.EngineeringUnits", self.idx), "EngineeringUnits", eu,
+        await node.add_property(ua.NodeId(f"{name}.EngineeringUnits", self.idx), "0:EngineeringUnits", eu,
                                 datatype=ua.ObjectIds.EUInformation)
         if reg.min is not None and reg.max is not None:
-            await node.add_property(ua.NodeId(f"{name}.EURange", self.idx), "EURange",
+            await node.add_property(ua.NodeId(f"{name}.EURange", self.idx), "0:EURange",
                                     ua.Range(Low=float(reg.min), High=float(reg.max)), datatype=ua.ObjectIds.Range)
         if reg.enum is None:
             return
         values = device.model.enum(reg.enum).values
         items = [ua.EnumValueType(Value=v.value, DisplayName=ua.LocalizedText(v.name),
                                   Description=ua.LocalizedText(v.label)) for v in values]
-        await node.add_property(ua.NodeId(f"{name}.EnumValues", self.idx), "EnumValues", items,
+        await node.add_property(ua.NodeId(f"{name}.EnumValues", self.idx), "0:EnumValues", items,
                                 datatype=ua.ObjectIds.EnumValueType)
         if [v.value for v in values] == list(range(len(values))):
-            await node.add_property(ua.NodeId(f"{name}.EnumStrings", self.idx), "EnumStrings",
+            await node.add_property(ua.NodeId(f"{name}.EnumStrings", self.idx), "0:EnumStrings",
                                     [ua.LocalizedText(v.name) for v in values], ua.VariantType.LocalizedText)
 
     # ------------------------------------------------------------------ Sink
@@ -286,7 +301,7 @@ class OpcuaBridge:
                 await self.server.write_attribute_value(nodeid, value)
 
     # ------------------------------------------------------------------ writes
-    async def write(self, device: Device, reg: Register, value: ua.DataValue, user: User) -> ua.StatusCode:
+    async def write(self, device: Device, reg: Register, value: ua.DataValue, user: User) -> Any:
         if user.role == UserRole.Anonymous and not self.cfg.anonymous_writes:
             return _status(ua.StatusCodes.BadUserAccessDenied)
         if user.role == UserRole.User and user.name not in self.writers:

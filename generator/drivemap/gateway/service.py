@@ -58,6 +58,7 @@ class Gateway:
                 self._line_of[dev.name] = line
         self.mqtt: Any = None
         self.opcua: Any = None
+        self.started = asyncio.Event()
         if cfg.mqtt is not None:
             from .mqtt import MqttBridge
 
@@ -89,6 +90,7 @@ class Gateway:
         if self.mqtt is not None:
             tasks.append(asyncio.create_task(self.mqtt.run(), name="mqtt"))
         stopper = asyncio.create_task(stop.wait(), name="stop")
+        self.started.set()
         try:
             done, _ = await asyncio.wait([*tasks, stopper], return_when=asyncio.FIRST_COMPLETED)
             for task in done:
