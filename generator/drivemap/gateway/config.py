@@ -122,6 +122,14 @@ class _Checker:
         self.project = project
         self.errors: list[Diagnostic] = []
         self.base = Path(doc.path).parent
+        self.models: dict[Path, Model] = {}
+
+    def compile(self, name: str) -> Model:
+        """The model of a map (compiled once per file, however many devices use it)."""
+        path = resolve_map(name, self.project).resolve()
+        if path not in self.models:
+            self.models[path] = compile_map(resolve_map(name, self.project))
+        return self.models[path]
 
     def error(self, where: PathT, message: str, *, key: bool = False) -> None:
         self.errors.append(Diagnostic(self.doc.positions.at(where, key=key), message))
@@ -220,7 +228,7 @@ def _model(check: _Checker, dev: dict[str, Any], where: PathT) -> Model | None:
         check.error(where + (key,), f"no such map file: {display(name)}")
         return None
     try:
-        return compile_map(resolve_map(name, check.project))
+        return check.compile(name)
     except CompileError as exc:
         if key == "model" and len(exc.diagnostics) == 1 and "no map for model" in exc.diagnostics[0].message:
             check.error(where + (key,), exc.diagnostics[0].message)
