@@ -81,6 +81,7 @@ class Line:
         self.backoff_min, self.backoff_max = backoff
         self._commands: deque[Command] = deque()
         self._wake = asyncio.Event()
+        self.stopping = False
         self.polls_done = 0
         self.commands_accepted = 0
         self.commands_done = 0
@@ -102,7 +103,7 @@ class Line:
             for poll in dev.polls:
                 poll.due = now
         try:
-            while True:
+            while not self.stopping:  # a cancellation swallowed below the bus still ends the loop
                 await self._step()
         finally:
             self.bus.close()

@@ -97,8 +97,10 @@ class Gateway:
                 if task is not stopper and not task.cancelled() and task.exception() is not None:
                     raise task.exception()  # type: ignore[misc]
         finally:
+            for line in self.lines:
+                line.stopping = True
             for task in [*tasks, stopper]:
                 task.cancel()
-            await asyncio.gather(*tasks, stopper, return_exceptions=True)
+            await asyncio.wait([*tasks, stopper], timeout=10.0)
             if self.opcua is not None:
                 await self.opcua.stop()
