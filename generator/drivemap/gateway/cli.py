@@ -55,6 +55,8 @@ def run_cli(args: argparse.Namespace, project: Project) -> int:
     """``drivemap gateway``: run until Ctrl-C / SIGTERM (exit 0); configuration errors exit 1."""
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
+    if args.log_level != "debug":  # asyncua narrates its address space at INFO
+        logging.getLogger("asyncua").setLevel(logging.WARNING)
     from .config import load_config
 
     cfg = load_config(args.config, project)
