@@ -107,7 +107,7 @@ class _Ruleset(SimpleRoleRuleset):
     subscribing); whether anyone may *write* a register is decided by :meth:`OpcuaBridge.write`."""
 
     def __init__(self) -> None:
-        super().__init__()
+        super().__init__()  # type: ignore[no-untyped-call]
         table: Any = self._permission_dict
         table[UserRole.Anonymous] = set(table[UserRole.User])
 
