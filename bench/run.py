@@ -5,7 +5,9 @@
 
 Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire efficiency on a paced
 virtual serial line, (4) simulator throughput vs a plain pymodbus SimDevice server, (5) compiler
-scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports. Every figure is the median of several bounded rounds; only 127.0.0.1 and ptys are used.
+scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports, (7)
+gateway scale (20 lines x 10 drives to MQTT). Every figure is the median of several bounded rounds; only
+127.0.0.1 and ptys are used.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ sys.path.insert(0, str(HERE))
 
 import compiler_scaling  # noqa: E402
 import exports  # noqa: E402
+import gateway as gateway_bench  # noqa: E402
 import overhead  # noqa: E402
 import planning  # noqa: E402
 import simthroughput  # noqa: E402
@@ -102,6 +105,12 @@ Where ESPHome needs more reads than drivemap, the contiguous run is longer than 
 maximum and the word where drivemap splits it holds an entity that cannot carry `register_count`
 (a `number`, or several entities): only that word can start ESPHome's new range, which costs one
 read per split (listed in the export's header).""",
+    "Gateway scale (20 lines x 10 drives, MQTT)": """\
+One `drivemap gateway` process (`bench/gateway.py`): 20 Modbus TCP lines, 10 ev drives on each (the
+generated simulator with realistic timing), a real MQTT broker, an independent subscriber. Polls/s per
+line are counted from the per-poll `state` snapshots that reach the subscriber; latency runs from the
+moment a simulator's value changes to the moment its MQTT message arrives (one monotonic clock for
+all processes). The capacity plan built on these figures is in `docs/gateway.md`.""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
@@ -240,7 +249,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="smoke mode: fewer and shorter rounds")
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
-                    choices=["planning", "overhead", "wire", "simulator", "compiler", "exports"],
+                    choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -254,6 +263,7 @@ def main(argv: list[str] | None = None) -> int:
         ("compiler", "Compiler scaling", lambda: compiler_scaling.run(
             args.quick, max(30.0, (45.0 if args.quick else FULL_BUDGET_S) - (time.perf_counter() - started)))),
         ("exports", "Exports (entities and reads per poll cycle)", lambda: exports.run(args.quick)),
+        ("gateway", "Gateway scale (20 lines x 10 drives, MQTT)", lambda: gateway_bench.run(args.quick)),
     ]
     sections: list[Section] = []
     for key, title, fn in plan:

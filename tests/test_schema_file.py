@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
+import pytest
 
 from drivemap.schema import SCHEMA_PATH
 
@@ -48,14 +49,19 @@ def stray_keys(node: Any, path: str = "#") -> list[str]:
     return found
 
 
-def test_schema_is_valid_against_the_2020_12_meta_schema() -> None:
-    schema = json.loads(TOP_LEVEL.read_text(encoding="utf-8"))
+SCHEMAS = sorted((ROOT / "schemas").glob("*.schema.json"))
+
+
+@pytest.mark.parametrize("path", SCHEMAS, ids=lambda p: p.name)
+def test_schema_is_valid_against_the_2020_12_meta_schema(path: Path) -> None:
+    schema = json.loads(path.read_text(encoding="utf-8"))
     assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
     jsonschema.Draft202012Validator.check_schema(schema)
 
 
-def test_schema_has_no_key_outside_the_vocabulary() -> None:
-    assert stray_keys(json.loads(TOP_LEVEL.read_text(encoding="utf-8"))) == []
+@pytest.mark.parametrize("path", SCHEMAS, ids=lambda p: p.name)
+def test_schema_has_no_key_outside_the_vocabulary(path: Path) -> None:
+    assert stray_keys(json.loads(path.read_text(encoding="utf-8"))) == []
 
 
 def test_the_vocabulary_check_finds_a_stray_key() -> None:
@@ -82,7 +88,9 @@ def test_every_property_has_a_description() -> None:
     assert missing == []
 
 
-def test_the_packaged_schema_is_the_top_level_file() -> None:
-    """The package reads the schema through a link to schemas/ (the wheel test checks the copy)."""
-    assert SCHEMA_PATH.read_bytes() == TOP_LEVEL.read_bytes()
-    assert SCHEMA_PATH.resolve() == TOP_LEVEL.resolve()
+@pytest.mark.parametrize("path", SCHEMAS, ids=lambda p: p.name)
+def test_the_packaged_schemas_are_the_top_level_files(path: Path) -> None:
+    """The package reads each schema through a link to schemas/ (the wheel test checks the copies)."""
+    packaged = SCHEMA_PATH.parent / path.name
+    assert packaged.read_bytes() == path.read_bytes()
+    assert packaged.resolve() == path.resolve()

@@ -90,7 +90,8 @@ def test_the_wheel_carries_the_package_schema_and_seed_maps_only(wheel: Path) ->
     tops = {n.split("/", 1)[0] for n in names if not n.split("/", 1)[0].endswith((".dist-info", ".data"))}
     assert tops == {"drivemap", "drivemap_models"}
     with zipfile.ZipFile(wheel) as z:
-        assert z.read("drivemap/data/drivemap.schema.json") == (ROOT / "schemas" / "drivemap.schema.json").read_bytes()
+        for schema in sorted((ROOT / "schemas").glob("*.schema.json")):
+            assert z.read(f"drivemap/data/{schema.name}") == schema.read_bytes()
         for seed in SEED_MAPS:
             assert z.read(f"drivemap/data/maps/{seed.name}") == seed.read_bytes()
         assert "drivemap/templates/client.py.jinja" in names

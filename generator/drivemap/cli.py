@@ -1,5 +1,5 @@
-"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema,
-and at the drive (:mod:`drivemap.live`): read | write | watch | scan | verify.
+"""The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema |
+gateway, and at the drive (:mod:`drivemap.live`): read | write | watch | scan | verify.
 
 Every verb acts on the project of the working directory (:mod:`drivemap.project`); explicit paths
 and flags win over its ``[tool.drivemap]`` settings. Every bad input ends in ``path:line:col:
@@ -249,6 +249,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return code
 
 
+def cmd_gateway(args: argparse.Namespace) -> int:
+    from .gateway.cli import run_cli
+
+    return run_cli(args, _project(args))
+
+
 # ---------------------------------------------------------------- the parser
 
 
@@ -309,6 +315,12 @@ def parser() -> argparse.ArgumentParser:
     from .live import add_parsers
 
     add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
+    s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
+    from .gateway.cli import add_arguments as gateway_arguments
+
+    gateway_arguments(s)
+    _project_flags(s, out=False)
+    s.set_defaults(func=cmd_gateway)
     return p
 
 

@@ -1,4 +1,8 @@
-"""JSON Schema validation with errors mapped back to line/column."""
+"""JSON Schema validation with errors mapped back to line/column.
+
+:func:`validate` checks a loaded document against a schema file: the map schema by default, or any
+other schema drivemap ships (the gateway's configuration, ``data/gateway.schema.json``).
+"""
 
 from __future__ import annotations
 
@@ -19,16 +23,23 @@ from .load import Document, PathT
 SCHEMA_PATH = Path(__file__).resolve().parent / "data" / "drivemap.schema.json"
 
 
-@lru_cache(maxsize=1)
-def schema() -> dict[str, Any]:
-    with open(SCHEMA_PATH, encoding="utf-8") as handle:
+@lru_cache(maxsize=8)
+def load_schema(path: Path = SCHEMA_PATH) -> dict[str, Any]:
+    """The JSON Schema in ``path`` (cached)."""
+    with open(path, encoding="utf-8") as handle:
         loaded: dict[str, Any] = json.load(handle)
     return loaded
 
 
-@lru_cache(maxsize=1)
-def validator() -> jsonschema.Draft202012Validator:
-    made: jsonschema.Draft202012Validator = _StrictIntegers(schema())
+def schema() -> dict[str, Any]:
+    """The map schema."""
+    return load_schema(SCHEMA_PATH)
+
+
+@lru_cache(maxsize=8)
+def validator(path: Path = SCHEMA_PATH) -> jsonschema.Draft202012Validator:
+    """A validator for the schema in ``path`` (default: the map schema), cached."""
+    made: jsonschema.Draft202012Validator = _StrictIntegers(load_schema(path))
     return made
 
 
@@ -115,11 +126,11 @@ def _message(error: ValidationError) -> tuple[PathT, str, bool]:
     return path, f"{where}: {error.message[:200]}", False
 
 
-def validate(doc: Document) -> list[Diagnostic]:
-    """Every schema error of a document, located."""
+def validate(doc: Document, schema_path: Path = SCHEMA_PATH) -> list[Diagnostic]:
+    """Every error of a document against the schema in ``schema_path`` (default: the map schema), located."""
     diagnostics: list[Diagnostic] = []
     seen: set[tuple[PathT, str]] = set()
-    for raw in validator().iter_errors(doc.data):
+    for raw in validator(schema_path).iter_errors(doc.data):
         error = _leaf(raw)
         path, message, at_key = _message(error)
         if error.validator == "propertyNames":

@@ -1,0 +1,219 @@
+"""One drive behind the gateway: its generated async client, what it publishes and the commands it takes.
+
+Values leave in engineering units as JSON values: numbers as the codec decodes them, enum registers
+as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``), bit-field
+registers as an object of their fields (single bits true/false, enumerated fields by name, wider
+fields as integers), arrays as lists of those.
+
+Commands are parsed and checked here, before they are queued: the register must exist and be
+writable, the payload must have the register's type, and the codec's checks (range, enum
+membership, representability) must pass. Everything that fails raises a typed
+:class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import enum
+import json
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..model import Model, Register
+from ..runtime.codec import EnumCodec, FieldsCodec, FlagCodec, check_raw
+from ..runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
+from .config import DeviceConfig, PollGroup
+
+#: Payload that presses a command register (a Home Assistant button sends it).
+PRESS = "PRESS"
+
+
+@dataclass
+class Command:
+    """A checked write waiting for its bus: ``raw`` is what goes on the wire."""
+
+    device: Device
+    target: str
+    """``register`` or ``register[i]``."""
+    accessor: Any
+    raw: int
+    given: Any
+    """The value as the sender gave it (echoed in the outcome)."""
+    source: str = "mqtt"
+    done: asyncio.Future[None] | None = None
+    accepted_at: float = field(default_factory=time.monotonic)
+
+
+@dataclass
+class PollState:
+    group: PollGroup
+    accessors: tuple[Any, ...]
+    due: float = 0.0
+
+
+def _enum_name(value: Any) -> Any:
+    return value.name if isinstance(value, enum.Enum) else value
+
+
+class Device:
+    """A configured device: its client on a bus, its poll schedule, its last values and availability."""
+
+    def __init__(self, cfg: DeviceConfig, package: Any, bus: Any, prefix: str = "drivemap") -> None:
+        self.cfg = cfg
+        self.name = cfg.name
+        self.model: Model = cfg.model
+        self.package = package
+        self.client = package.AsyncClient(bus, cfg.unit, page_policy=cfg.page_policy)
+        self.topic = f"{prefix}/{cfg.name}"
+        self.polls = [PollState(g, tuple(self.client.accessor(n) for n in g.registers)) for g in cfg.polls]
+        self.values: dict[str, Any] = {}
+        self.online: bool | None = None
+        self.failures = 0
+        self.retry_at = 0.0
+        self.last_error: str | None = None
+        self.polls_done = 0
+
+    # ------------------------------------------------------------------ values
+    def register(self, name: str) -> Register:
+        return self.model.register(name)
+
+    def to_json(self, name: str, value: Any) -> Any:
+        """The published (JSON) form of a decoded value of register ``name``."""
+        reg = self.register(name)
+        if isinstance(value, tuple):
+            return [self._element_json(reg, v) for v in value]
+        return self._element_json(reg, value)
+
+    def _element_json(self, reg: Register, value: Any) -> Any:
+        if reg.bits:
+            return self.bits_json(reg, value)
+        if isinstance(value, enum.Enum):
+            return value.name
+        return value
+
+    def bits_json(self, reg: Register, value: Any) -> dict[str, Any]:
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            codec = self.client.CODECS[reg.name]
+            assert isinstance(codec, FieldsCodec)
+            return {bit.name: (bool(v) if bit.width == 1 and not isinstance(v, enum.Enum) else _enum_name(v))
+                    for f, bit in codec.fields for v in (getattr(value, f.attribute),)}
+        raw = int(value)
+        return {b.name: bool((raw >> b.offset) & 1) for b in reg.bits}
+
+    def snapshot_json(self, snap: Any, accessors: tuple[Any, ...]) -> dict[str, Any]:
+        return {acc.name: self.to_json(acc.name, snap[acc]) for acc in accessors}
+
+    # ------------------------------------------------------------------ commands
+    def element(self, target: str) -> tuple[Register, Any]:
+        """The register and accessor of ``register`` or ``register[i]`` / ``register/i``."""
+        name = target.replace("/", "[", 1) + "]" if "/" in target else target
+        base = name.partition("[")[0]
+        try:
+            reg = self.register(base)
+        except KeyError:
+            raise UnknownRegister(f"{self.model.name} has no register {base!r}") from None
+        acc = self.client.accessor(name)
+        if reg.is_array and "[" not in name:
+            raise InvalidValue(f"{base} is an array: address one element, {base}/INDEX/set")
+        return reg, acc
+
+    def command(self, target: str, payload: bytes | str, source: str = "mqtt") -> Command:
+        """Parse and check a command; raise a typed DriveError before anything is queued."""
+        text = payload.decode("utf-8", "replace") if isinstance(payload, bytes) else payload
+        reg, acc = self.element(target)
+        if not reg.writable:
+            raise ReadOnlyRegister(f"{reg.name} is read-only")
+        if not self.cfg.writable:
+            raise ReadOnlyRegister(f"{self.name}: the gateway configuration does not accept commands for this device")
+        if reg.command_value is not None and text.strip().upper() in (PRESS, ""):
+            raw = check_raw(acc.spec, reg.command_value)
+            return Command(self, acc.name, acc, raw, text, source)
+        value = self.parse_value(reg, acc, text)
+        return Command(self, acc.name, acc, acc.codec.encode(value), text, source)
+
+    def parse_value(self, reg: Register, acc: Any, text: str) -> Any:
+        """The Python value for ``acc`` from a payload text (JSON or plain)."""
+        codec = acc.codec
+        if isinstance(codec, EnumCodec):
+            return _parse_enum(reg, codec, self.model, text)
+        if isinstance(codec, (FlagCodec, FieldsCodec)):
+            return _parse_bits(reg, codec, self.model, _json(reg, text))
+        value = _json(reg, text)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InvalidValue(f"{reg.name}: expected a number, got {text!r}")
+        return value
+
+    def command_value(self, reg: Register, value: Any) -> Any:
+        """The Python value for a typed OPC UA write (numbers; enum registers take the raw value)."""
+        acc = self.client.accessor(reg.name)
+        return self.parse_value(reg, acc, json.dumps(value))
+
+
+def _json(reg: Register, text: str) -> Any:
+    try:
+        return json.loads(text)
+    except ValueError:
+        raise InvalidValue(f"{reg.name}: payload {text[:40]!r} is not a value (JSON number, name or object)") from None
+
+
+def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -> Any:
+    word = text.strip().strip('"')
+    assert reg.enum is not None
+    values = model.enum(reg.enum).values
+    for v in values:
+        if word.upper() == v.name.upper():
+            return codec.enum_type(v.value)
+    labels = [v for v in values if v.label == word]
+    if len(labels) == 1:
+        return codec.enum_type(labels[0].value)
+    try:
+        number = int(word, 0)
+    except ValueError:
+        names = ", ".join(v.name for v in values)
+        raise InvalidValue(f"{reg.name}: {word!r} is not a value of {reg.enum} ({names})") from None
+    if number not in {v.value for v in values}:
+        raise ValueOutOfRange(f"{reg.name}: {number} is not a value of {reg.enum}")
+    return codec.enum_type(number)
+
+
+def _field_value(reg: Register, bit: Any, enum_type: Any, model: Model, value: Any) -> Any:
+    if enum_type is not None:
+        if isinstance(value, str):
+            for v in model.enum(bit.enum).values:
+                if v.name.upper() == value.upper():
+                    return enum_type(v.value)
+            raise InvalidValue(f"{reg.name}.{bit.name}: {value!r} is not a value of {bit.enum}")
+        if isinstance(value, int) and not isinstance(value, bool):
+            return enum_type(value)
+        raise InvalidValue(f"{reg.name}.{bit.name}: expected a name of {bit.enum}")
+    if bit.width == 1 and isinstance(value, bool):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        return bool(value) if bit.width == 1 and value in (0, 1) else value
+    raise InvalidValue(f"{reg.name}.{bit.name}: expected " + ("true/false" if bit.width == 1 else "an integer"))
+
+
+def _parse_bits(reg: Register, codec: Any, model: Model, value: Any) -> Any:
+    """Bit fields from a JSON object ``{field: value}`` (fields left out are 0/false) or a raw integer."""
+    if isinstance(value, int) and not isinstance(value, bool) and isinstance(codec, FlagCodec):
+        return codec.flag_type(value)
+    if not isinstance(value, Mapping):
+        raise InvalidValue(f"{reg.name}: expected an object of bit fields ({', '.join(b.name for b in reg.bits)})")
+    bits = {b.name: b for b in reg.bits}
+    unknown = [k for k in value if k not in bits]
+    if unknown:
+        raise InvalidValue(f"{reg.name}: no bit field {unknown[0]!r} (fields: {', '.join(bits)})")
+    if isinstance(codec, FlagCodec):
+        raw = 0
+        for name, v in value.items():
+            if _field_value(reg, bits[name], None, model, v):
+                raw |= 1 << bits[name].offset
+        return codec.flag_type(raw)
+    kwargs: dict[str, Any] = {}
+    for f, bit in codec.fields:
+        given = value.get(bit.name, False if bit.width == 1 and f.enum_type is None else 0)
+        kwargs[f.attribute] = _field_value(reg, bit, f.enum_type, model, given)
+    return codec.data_type(**kwargs)

@@ -1,0 +1,162 @@
+"""Home Assistant MQTT discovery, generated from the map.
+
+One Home Assistant device per drive (manufacturer, model, manual revision from the map) and, per
+register: a ``sensor`` for readable values (unit, ``device_class`` where the unit names one,
+``state_class`` for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single
+bit of a bit-field register (wider fields are sensors), a ``select`` per writable enumerated
+register, a ``number`` per writable register with a range in the map (min/max, step = the map's
+scale), and a ``button`` per command register. drivemap maps describe holding/input registers
+only (no coils, function codes 01h/05h), so no ``switch`` is generated.
+
+Every entity is available only while both the gateway and its device are online
+(``availability_mode: all``). Topics: ``<discovery_prefix>/<component>/<node_id>/<object_id>/config``,
+retained, with ``node_id = drivemap_<gateway>_<device>``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .. import __version__
+from ..model import Model, Register
+from .device import PRESS, Device
+
+#: Units the map may print -> (Home Assistant unit, device_class, state_class).
+_UNITS: dict[str, tuple[str, str | None, str]] = {
+    "V": ("V", "voltage", "measurement"),
+    "mV": ("mV", "voltage", "measurement"),
+    "A": ("A", "current", "measurement"),
+    "mA": ("mA", "current", "measurement"),
+    "Hz": ("Hz", "frequency", "measurement"),
+    "W": ("W", "power", "measurement"),
+    "kW": ("kW", "power", "measurement"),
+    "Wh": ("Wh", "energy", "total_increasing"),
+    "kWh": ("kWh", "energy", "total_increasing"),
+    "°C": ("°C", "temperature", "measurement"),
+    "℃": ("°C", "temperature", "measurement"),
+    "degC": ("°C", "temperature", "measurement"),
+    "s": ("s", "duration", "measurement"),
+    "ms": ("ms", "duration", "measurement"),
+    "min": ("min", "duration", "measurement"),
+    "h": ("h", "duration", "measurement"),
+    "%": ("%", None, "measurement"),
+    "r/min": ("rpm", None, "measurement"),
+    "rpm": ("rpm", None, "measurement"),
+}
+
+
+def unit_info(reg: Register) -> dict[str, Any]:
+    """unit_of_measurement / device_class / state_class of a numeric register."""
+    if reg.unit is None:
+        return {"state_class": "measurement"}
+    unit, device_class, state_class = _UNITS.get(reg.unit, (reg.unit, None, "measurement"))
+    out: dict[str, Any] = {"unit_of_measurement": unit, "state_class": state_class}
+    if device_class:
+        out["device_class"] = device_class
+    return out
+
+
+def ha_device(gateway: str, device: Device) -> dict[str, Any]:
+    m: Model = device.model
+    manual = m.device.manual
+    revision = " ".join(x for x in (manual.document or manual.file, f"rev {manual.revision}" if manual.revision else "")
+                        if x)
+    return {
+        "identifiers": [f"drivemap_{gateway}_{device.name}"],
+        "name": device.cfg.title,
+        "manufacturer": m.device.vendor or "unknown (the manual does not name it)",
+        "model": m.device.title,
+        "model_id": m.name,
+        "hw_version": f"manual {revision}",
+        "sw_version": f"drivemap {__version__}",
+    }
+
+
+class _Builder:
+    def __init__(self, gateway: str, device: Device, discovery_prefix: str, availability: str) -> None:
+        self.gateway = gateway
+        self.device = device
+        self.prefix = discovery_prefix
+        self.node = f"drivemap_{gateway}_{device.name}"
+        self.common = {
+            "device": ha_device(gateway, device),
+            "availability": [{"topic": availability}, {"topic": f"{device.topic}/availability"}],
+            "availability_mode": "all",
+            "origin": {"name": "drivemap", "sw_version": __version__},
+        }
+        self.out: list[tuple[str, dict[str, Any]]] = []
+
+    def add(self, component: str, object_id: str, name: str, fields: dict[str, Any]) -> None:
+        payload = {"name": name, "unique_id": f"{self.node}_{object_id}", "object_id": f"{self.node}_{object_id}",
+                   **fields, **self.common}
+        self.out.append((f"{self.prefix}/{component}/{self.node}/{object_id}/config", payload))
+
+
+def _title(name: str) -> str:
+    return name.replace("_", " ").capitalize()
+
+
+def _enum_names(model: Model, enum: str) -> list[str]:
+    return [v.name for v in model.enum(enum).values]
+
+
+def _element(reg: Register, index: int | None) -> tuple[str, str, str | None]:
+    """(object id, name, value template) of a register or one array element."""
+    if index is None:
+        return reg.name, _title(reg.name), None
+    return f"{reg.name}_{index}", f"{_title(reg.name)} {index}", f"{{{{ value_json[{index}] }}}}"
+
+
+def _register(b: _Builder, reg: Register, published: bool) -> None:
+    indices: list[int | None] = list(range(reg.count)) if reg.is_array else [None]
+    for index in indices:
+        object_id, name, template = _element(reg, index)
+        state = f"{b.device.topic}/{reg.name}"
+        command = f"{state}/{index}/set" if index is not None else f"{state}/set"
+        st: dict[str, Any] = {"state_topic": state} if published else {}
+        if template and published:
+            st["value_template"] = template
+        if reg.bits:
+            if published:
+                _bits(b, reg, object_id, name, state, index)
+        elif reg.command_value is not None and reg.writable:
+            b.add("button", object_id, name, {"command_topic": command, "payload_press": PRESS})
+        elif reg.enum and reg.writable:
+            b.add("select", object_id, name, {**st, "command_topic": command,
+                                              "options": _enum_names(b.device.model, reg.enum)})
+        elif reg.writable and reg.min is not None and reg.max is not None:
+            step = reg.scale if not float(reg.scale).is_integer() else int(reg.scale)
+            info = {k: v for k, v in unit_info(reg).items() if k != "state_class"}
+            b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": reg.min,
+                                              "max": reg.max, "step": step, "mode": "box"})
+        elif published and reg.enum:
+            b.add("sensor", object_id, name, {**st, "device_class": "enum",
+                                              "options": _enum_names(b.device.model, reg.enum)})
+        elif published:
+            b.add("sensor", object_id, name, {**st, **unit_info(reg)})
+
+
+def _bits(b: _Builder, reg: Register, object_id: str, name: str, state: str, index: int | None) -> None:
+    base = "value_json" if index is None else f"value_json[{index}]"
+    for bit in reg.bits:
+        field = f"{base}['{bit.name}']"
+        oid, label = f"{object_id}_{bit.name.lower()}", f"{name} {bit.label or bit.name}"
+        fields = {"state_topic": state}
+        if bit.width == 1 and bit.enum is None:
+            b.add("binary_sensor", oid, label, {**fields, "value_template": f"{{{{ 'ON' if {field} else 'OFF' }}}}"})
+        elif bit.enum is not None:
+            b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}", "device_class": "enum",
+                                         "options": _enum_names(b.device.model, bit.enum)})
+        else:
+            b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}"})
+
+
+def discovery_messages(gateway: str, device: Device, discovery_prefix: str,
+                       availability: str) -> list[tuple[str, dict[str, Any]]]:
+    """(topic, payload) of every discovery message of one device."""
+    b = _Builder(gateway, device, discovery_prefix, availability)
+    published = set(device.cfg.publish)
+    for reg in device.model.registers:
+        if reg.name in published or (reg.writable and device.cfg.writable):
+            _register(b, reg, reg.name in published)
+    return b.out

@@ -1,0 +1,324 @@
+"""The OPC UA side of the gateway (asyncua, the optional extra ``drivemap[opcua]``).
+
+Address space, in the configured namespace: ``Objects/<gateway>/<device>`` (one object per device)
+with an ``Online`` boolean and one variable per register, named as in the map. Each variable has
+the map's access level (read, write or both; arrays are read-only here), the ``EngineeringUnits``
+property (``EUInformation`` with the map's unit), ``EURange`` where the map gives min and max, and,
+for enumerated registers, ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values
+run 0..n-1. Numbers are ``Double`` where the scale is fractional, else ``Int64``; enumerated and
+bit-field registers carry their raw integer.
+
+Writes go through the same checks as MQTT commands (:meth:`drivemap.gateway.device.Device.command`)
+before anything is queued, then wait for the device's reply; the status says what happened:
+``BadUserAccessDenied`` (anonymous writes are off unless ``anonymous_writes: true``, or a user
+without ``write``), ``BadNotWritable``, ``BadTypeMismatch``, ``BadOutOfRange``, ``BadTimeout`` /
+``BadCommunicationError`` (no answer), ``BadDeviceFailure`` (exception reply).
+
+Security: the policies listed in ``security`` (``none``, ``Basic256Sha256_Sign``,
+``Basic256Sha256_SignAndEncrypt``; signing ones need ``certificate`` and ``private_key``), users
+with passwords, client certificates mapped to users, anonymous sessions on or off.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import json
+import logging
+from typing import Any
+
+from asyncua import ua as _ua
+from asyncua.crypto.permission_rules import SimpleRoleRuleset, User, UserRole
+from asyncua.server.address_space import AttributeService
+from asyncua.server.server import Server
+
+from ..model import Register
+from ..runtime.errors import (
+    AccessError,
+    DeviceException,
+    DriveError,
+    DriveTimeout,
+    InvalidValue,
+    TransportError,
+    UnknownRegister,
+    ValueOutOfRange,
+)
+from .config import OpcuaConfig, OpcuaUser
+from .device import Device
+
+log = logging.getLogger("drivemap.gateway.opcua")
+#: asyncua's ``ua`` namespace, used untyped (its stubs do not export the generated names).
+ua: Any = _ua
+
+_POLICIES = {
+    "none": ua.SecurityPolicyType.NoSecurity,
+    "Basic256Sha256_Sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
+    "Basic256Sha256_SignAndEncrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
+}
+#: Seconds a write waits for its bus (commands queue behind the poll in progress).
+WRITE_TIMEOUT_S = 30.0
+
+
+def _status(code: int) -> Any:
+    return ua.StatusCode(code)
+
+
+def status_for(error: BaseException) -> Any:
+    """The OPC UA status code of a drivemap error."""
+    if isinstance(error, AccessError):
+        return ua.StatusCodes.BadNotWritable
+    if isinstance(error, ValueOutOfRange):
+        return ua.StatusCodes.BadOutOfRange
+    if isinstance(error, (InvalidValue, UnknownRegister)):
+        return ua.StatusCodes.BadTypeMismatch
+    if isinstance(error, DriveTimeout):
+        return ua.StatusCodes.BadTimeout
+    if isinstance(error, TransportError):
+        return ua.StatusCodes.BadCommunicationError
+    if isinstance(error, DeviceException):
+        return ua.StatusCodes.BadDeviceFailure
+    return ua.StatusCodes.BadInternalError
+
+
+class _Users:
+    """asyncua user manager: configured passwords and client certificates; anonymous when allowed."""
+
+    def __init__(self, cfg: OpcuaConfig, certificates: dict[bytes, OpcuaUser]) -> None:
+        self.cfg = cfg
+        self.certificates = certificates
+
+    def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
+                 certificate: Any = None) -> User | None:
+        if username is not None:
+            for u in self.cfg.users:
+                if u.name == username and u.password is not None and hmac.compare_digest(
+                        u.password.encode(), (password or "").encode()):
+                    return User(role=UserRole.User, name=u.name)
+            return None
+        # a trusted client certificate (identity token, or the secure channel's own) logs in as its user
+        found = self.certificates.get(bytes(certificate)) if certificate else None
+        if found is not None:
+            return User(role=UserRole.User, name=found.name)
+        return User(role=UserRole.Anonymous) if self.cfg.anonymous else None
+
+
+class _Ruleset(SimpleRoleRuleset):
+    """asyncua's roles, except that anonymous sessions may use the services users may (reading, browsing,
+    subscribing); whether anyone may *write* a register is decided by :meth:`OpcuaBridge.write`."""
+
+    def __init__(self) -> None:
+        super().__init__()  # type: ignore[no-untyped-call]
+        table: Any = self._permission_dict
+        table[UserRole.Anonymous] = set(table[UserRole.User])
+
+
+class _CheckedWrites(AttributeService):
+    """Writes to register variables go to the device through the bridge; others as asyncua does them."""
+
+    def __init__(self, aspace: Any, bridge: OpcuaBridge) -> None:
+        super().__init__(aspace)
+        self.bridge = bridge
+
+    async def write(self, params: Any, user: User | None = None) -> list[Any]:
+        user = user if user is not None else User(role=UserRole.Admin)
+        results: list[ua.StatusCode] = []
+        for item in params.NodesToWrite:
+            target = self.bridge.targets.get(item.NodeId)
+            if target is None or item.AttributeId != ua.AttributeIds.Value:
+                results.extend(await super().write(ua.WriteParameters(NodesToWrite=[item]), user))
+            else:
+                results.append(await self.bridge.write(target[0], target[1], item.Value, user))
+        return results
+
+
+def _variant_type(reg: Register) -> ua.VariantType:
+    if reg.enum or reg.bits or reg.is_integer:
+        return ua.VariantType.Int64
+    return ua.VariantType.Double
+
+
+def _raw_of(device: Device, reg: Register, value: Any) -> Any:
+    """The OPC UA value of one published element (enum names and bit fields back to integers)."""
+    if reg.enum is not None and isinstance(value, str):
+        if value.startswith("UNKNOWN_"):
+            return int(value[8:])
+        return next(v.value for v in device.model.enum(reg.enum).values if v.name == value)
+    if reg.bits and isinstance(value, dict):
+        raw = 0
+        for bit in reg.bits:
+            v = value.get(bit.name, 0)
+            if isinstance(v, str) and bit.enum is not None:
+                v = next((e.value for e in device.model.enum(bit.enum).values if e.name == v), 0)
+            raw |= (int(v) & ((1 << bit.width) - 1)) << bit.offset
+        return raw
+    return value
+
+
+def _bits_json(device: Device, reg: Register, raw: int) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for bit in reg.bits:
+        v = (raw >> bit.offset) & ((1 << bit.width) - 1)
+        if bit.enum is not None:
+            names = {e.value: e.name for e in device.model.enum(bit.enum).values}
+            out[bit.name] = names.get(v, v)
+        else:
+            out[bit.name] = bool(v) if bit.width == 1 else v
+    return out
+
+
+class OpcuaBridge:
+    """An asyncua server mirroring the devices; a :class:`~drivemap.gateway.lines.Sink`."""
+
+    def __init__(self, cfg: OpcuaConfig, gateway: str, devices: dict[str, Device], submit: Any) -> None:
+        self.cfg = cfg
+        self.gateway = gateway
+        self.devices = devices
+        self.submit = submit
+        self.server: Server | None = None
+        self.nodes: dict[tuple[str, str], ua.NodeId] = {}
+        self.online_nodes: dict[str, ua.NodeId] = {}
+        self.targets: dict[ua.NodeId, tuple[Device, Register]] = {}
+        self.idx = 0
+        self._updates: asyncio.Queue[tuple[ua.NodeId, ua.DataValue]] = asyncio.Queue()
+        self._task: asyncio.Task[None] | None = None
+        self.writers = {u.name for u in cfg.users if u.write}
+
+    # ------------------------------------------------------------------ server
+    async def _certificates(self) -> dict[bytes, OpcuaUser]:
+        from asyncua.crypto import uacrypto
+
+        out: dict[bytes, OpcuaUser] = {}
+        for u in self.cfg.users:
+            if u.certificate is not None:
+                cert = await uacrypto.load_certificate(u.certificate)
+                out[uacrypto.der_from_x509(cert)] = u  # type: ignore[no-untyped-call]
+        return out
+
+    async def start(self) -> None:
+        cfg = self.cfg
+        server = Server(user_manager=_Users(cfg, await self._certificates()))  # type: ignore[arg-type]
+        await server.init()
+        server.set_endpoint(cfg.endpoint)
+        server.set_server_name(f"drivemap gateway {self.gateway}")
+        await server.set_application_uri(f"urn:drivemap:gateway:{self.gateway}")
+        server.set_security_policy([_POLICIES[p] for p in cfg.security], permission_ruleset=_Ruleset())
+        tokens: list[type] = [ua.UserNameIdentityToken] if any(u.password for u in cfg.users) else []
+        if cfg.anonymous:
+            tokens.append(ua.AnonymousIdentityToken)
+        if any(u.certificate for u in cfg.users):
+            tokens.append(ua.X509IdentityToken)
+        server.set_identity_tokens(tokens)
+        if cfg.certificate is not None and cfg.private_key is not None:
+            await server.load_certificate(str(cfg.certificate))
+            await server.load_private_key(str(cfg.private_key))
+        self.idx = await server.register_namespace(cfg.namespace)
+        folder = await server.nodes.objects.add_folder(ua.NodeId(self.gateway, self.idx), f"{self.idx}:{self.gateway}")
+        for device in self.devices.values():
+            await self._add_device(folder, device)
+        server.iserver.attribute_service = _CheckedWrites(server.iserver.aspace, self)
+        await server.start()
+        self.server = server
+        self._task = asyncio.create_task(self._apply_updates(), name="opcua updates")
+        log.info("OPC UA server on %s (namespace %s)", cfg.endpoint, cfg.namespace)
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            await asyncio.gather(self._task, return_exceptions=True)
+        if self.server is not None:
+            await self.server.stop()
+            self.server = None
+
+    async def _add_device(self, folder: Any, device: Device) -> None:
+        obj = await folder.add_object(ua.NodeId(f"{device.name}", self.idx), f"{self.idx}:{device.name}")
+        online = await obj.add_variable(ua.NodeId(f"{device.name}.Online", self.idx), f"{self.idx}:Online", False,
+                                        ua.VariantType.Boolean)
+        self.online_nodes[device.name] = online.nodeid
+        published = set(device.cfg.publish)
+        for reg in device.model.registers:
+            if reg.name in published or (reg.writable and device.cfg.writable and not reg.is_array):
+                await self._add_register(obj, device, reg, reg.name in published)
+
+    async def _add_register(self, obj: Any, device: Device, reg: Register, readable: bool) -> None:
+        vtype = _variant_type(reg)
+        initial: Any = [0] * reg.count if reg.is_array else 0
+        if vtype == ua.VariantType.Double:
+            initial = [0.0] * reg.count if reg.is_array else 0.0
+        node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), f"{self.idx}:{reg.name}", initial, vtype)
+        level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (
+            ua.AccessLevel.CurrentWrite.mask if reg.writable and device.cfg.writable and not reg.is_array else 0)
+        for attr in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel):
+            await node.write_attribute(attr, ua.DataValue(ua.Variant(level, ua.VariantType.Byte)))
+        description = reg.description or reg.label or reg.name
+        await node.write_attribute(ua.AttributeIds.Description,
+                                   ua.DataValue(ua.Variant(ua.LocalizedText(description), ua.VariantType.LocalizedText)))
+        await self._properties(node, device, reg)
+        self.nodes[(device.name, reg.name)] = node.nodeid
+        self.targets[node.nodeid] = (device, reg)
+
+    async def _properties(self, node: Any, device: Device, reg: Register) -> None:
+        name = device.name + "." + reg.name
+        eu = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=-1,
+                              DisplayName=ua.LocalizedText(reg.unit or ""), Description=ua.LocalizedText(reg.unit or ""))
+        await node.add_property(ua.NodeId(f"{name}.EngineeringUnits", self.idx), "0:EngineeringUnits", eu,
+                                datatype=ua.ObjectIds.EUInformation)
+        if reg.min is not None and reg.max is not None:
+            await node.add_property(ua.NodeId(f"{name}.EURange", self.idx), "0:EURange",
+                                    ua.Range(Low=float(reg.min), High=float(reg.max)), datatype=ua.ObjectIds.Range)
+        if reg.enum is None:
+            return
+        values = device.model.enum(reg.enum).values
+        items = [ua.EnumValueType(Value=v.value, DisplayName=ua.LocalizedText(v.name),
+                                  Description=ua.LocalizedText(v.label)) for v in values]
+        await node.add_property(ua.NodeId(f"{name}.EnumValues", self.idx), "0:EnumValues", items,
+                                datatype=ua.ObjectIds.EnumValueType)
+        if [v.value for v in values] == list(range(len(values))):
+            await node.add_property(ua.NodeId(f"{name}.EnumStrings", self.idx), "0:EnumStrings",
+                                    [ua.LocalizedText(v.name) for v in values], ua.VariantType.LocalizedText)
+
+    # ------------------------------------------------------------------ Sink
+    def publish_values(self, device: Device, values: dict[str, Any], changed: dict[str, Any]) -> None:
+        for name, value in changed.items():
+            nodeid = self.nodes.get((device.name, name))
+            if nodeid is None:
+                continue
+            reg = device.model.register(name)
+            raw = [_raw_of(device, reg, v) for v in value] if isinstance(value, list) else _raw_of(device, reg, value)
+            self._updates.put_nowait((nodeid, ua.DataValue(ua.Variant(raw, _variant_type(reg)))))
+
+    def publish_availability(self, device: Device, online: bool) -> None:
+        nodeid = self.online_nodes.get(device.name)
+        if nodeid is not None:
+            self._updates.put_nowait((nodeid, ua.DataValue(ua.Variant(online, ua.VariantType.Boolean))))
+
+    def publish_outcome(self, device: Device, outcome: dict[str, Any]) -> None:
+        return None
+
+    async def _apply_updates(self) -> None:
+        while True:
+            nodeid, value = await self._updates.get()
+            if self.server is not None:
+                await self.server.write_attribute_value(nodeid, value)
+
+    # ------------------------------------------------------------------ writes
+    async def write(self, device: Device, reg: Register, value: ua.DataValue, user: User) -> Any:
+        if user.role == UserRole.Anonymous and not self.cfg.anonymous_writes:
+            return _status(ua.StatusCodes.BadUserAccessDenied)
+        if user.role == UserRole.User and user.name not in self.writers:
+            return _status(ua.StatusCodes.BadUserAccessDenied)
+        given = value.Value.Value if value.Value is not None else None
+        if reg.bits and isinstance(given, int) and not isinstance(given, bool):
+            given = _bits_json(device, reg, given)
+        try:
+            cmd = device.command(reg.name, json.dumps(given), "opcua")
+        except (DriveError, TypeError, ValueError) as exc:
+            return _status(status_for(exc) if isinstance(exc, DriveError) else ua.StatusCodes.BadTypeMismatch)
+        cmd.done = asyncio.get_running_loop().create_future()
+        self.submit(cmd)
+        try:
+            await asyncio.wait_for(asyncio.shield(cmd.done), WRITE_TIMEOUT_S)
+        except DriveError as exc:
+            return _status(status_for(exc))
+        except TimeoutError:
+            return _status(ua.StatusCodes.BadTimeout)
+        return _status(ua.StatusCodes.Good)
