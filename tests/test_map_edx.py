@@ -172,6 +172,14 @@ def test_protocol(exported: dict) -> None:
     assert proto["timing"]["inter_frame_gap_ms"] == 10
     # 004 §1.4 function codes
     assert {fc["code"] for fc in proto["function_codes"]} == {0x03, 0x06, 0x08, 0x10}
+    # 004 §1.3 only names 00H as the broadcast address: writes unknown (null, with the reason), reads and
+    # loopback false (map choice: they need a reply); the same rule as v2 003 §2 and vfd1000 002.
+    fcs = {fc["code"]: fc for fc in proto["function_codes"]}
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None, 8: False, 16: None}
+    assert "00H : Broadcast to all the drivers" in fcs[6]["broadcast_reason"]
+    assert fcs[16]["broadcast_reason"] == fcs[6]["broadcast_reason"]
+    assert fcs[3]["broadcast_reason"].startswith("map choice") and fcs[8]["broadcast_reason"].startswith("map choice")
+    assert not any(r["broadcast"] for r in exported["registers"])
     # 004 §3 error codes (hexadecimal bytes, see the examples) and §5.2's 20H
     assert {e["code"] for e in proto["exceptions"]} == {0x51, 0x52, 0x53, 0x54, 0x55, 0x20}
 

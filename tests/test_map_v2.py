@@ -133,7 +133,11 @@ def test_protocol_facts(exported: dict) -> None:
     assert fcs[0x03]["max_quantity"] == 16
     assert fcs[0x06]["max_quantity"] == 1
     assert fcs[0x10]["max_quantity"] == 11  # 31-byte request = 9 + 2N
-    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: None, 6: None, 8: None, 16: None}
+    # 003 §2 通信格式: "0 表一齐发送指令" names the broadcast address only: writes unknown (null, with the
+    # reason), reads and loopback false (map choice: they need a reply); the same rule as edx and vfd1000.
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None, 8: False, 16: None}
+    assert all(fc["broadcast_reason"] for fc in fcs.values())
+    assert "0 表一齐发送指令" in fcs[6]["broadcast_reason"] and fcs[3]["broadcast_reason"].startswith("map choice")
     policy = {entry["case"]: entry["code"] for entry in proto["exception_policy"]}
     assert policy["illegal_function"] == 0x51
     assert policy["illegal_address"] == 0x52

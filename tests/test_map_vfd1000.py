@@ -128,6 +128,11 @@ def test_protocol_unit_ids_and_serial(exported: dict) -> None:
     units = p.get("unit_ids") or {"min": p.get("unit_min"), "max": p.get("unit_max")}
     assert units["min"] == 1 and units["max"] == 247
     assert p["broadcast_address"] == 0
+    # 002 §RTU frame format only names 0 as the broadcast address: 06H unknown (null, with the reason),
+    # 03H false (map choice: a read needs a reply); the same rule as edx 004 §1.3 and v2 003 §2.
+    fcs = {fc["code"]: fc for fc in p["function_codes"]}
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None}
+    assert "broadcast address" in fcs[6]["broadcast_reason"] and fcs[3]["broadcast_reason"].startswith("map choice")
     port = p["ports"][0]
     assert port["baudrates"] == [1200, 2400, 4800, 9600, 19200, 38400]
     assert set(port["parity"]) == {"none", "even", "odd"}

@@ -98,6 +98,7 @@ class FunctionCode:
     response_bytes: LengthRange | None
     source: str
     notes: str | None
+    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -547,6 +548,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
             FunctionCode(
                 f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
                 lr(f.get("request_bytes")), lr(f.get("response_bytes")), f["source"], f.get("notes"),
+                broadcast_reason=f.get("broadcast_reason"),
             )
             for f in p["function_codes"]
         ),

@@ -12,7 +12,7 @@ Dialect (exception code per error case, from the map's exception_policy):
 - read_only (write to a read-only register): 55h [map choice]
 - busy (write refused while running): 55h [map choice]
 
-Broadcast (unit 0): 06h, 10h writes are applied on every simulated unit, without a reply; other broadcast requests are ignored.
+Broadcast requests are ignored (the map allows no broadcast write).
 Frames with a bad CRC/LRC get no reply. Realistic timing: no reply sooner than 10 ms.
 No register is EEPROM-class: nothing persists across restarts.
 

@@ -25,8 +25,8 @@ SPEC = DeviceSpec(
     broadcast_address=0,
     serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
     function_codes=(
-        FunctionSpec(code=0x03, max_quantity=None, broadcast=False),
-        FunctionSpec(code=0x06, max_quantity=1, broadcast=None),
+        FunctionSpec(code=0x03, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply, and 002 §RTU frame format does not say what the inverters do with a broadcast read (every inverter answering at once would collide on the line)'),
+        FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='002 §RTU frame format only names the address ("0" stands for the broadcast address); it does not say which function codes an inverter executes when addressed by 0, nor that it then stays silent (same wording as edx 004 §1.3 and v2 003 §2, read the same way)'),
     ),
     exceptions=(
         ExceptionSpec(code=0x01, name='illegal_function', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal function.'),

@@ -800,8 +800,10 @@ class ClientBase(_Common[S]):
 
     @classmethod
     def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> ClientBase[Any]:
-        """A client that writes to every unit at once (generated when the map has a broadcast address)."""
-        raise UnsupportedFunction(f"{cls.SPEC.model}: the map gives no broadcast address")
+        """A client that writes to every unit at once (generated when the map allows a broadcast write).
+
+        Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
+        raise broadcast_refusal(cls.SPEC)
 
     @property
     def stats(self) -> Stats:
@@ -925,8 +927,8 @@ class AsyncClientBase(_Common[S]):
 
     @classmethod
     def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncClientBase[Any]:
-        """A client that writes to every unit at once (generated when the map has a broadcast address)."""
-        raise UnsupportedFunction(f"{cls.SPEC.model}: the map gives no broadcast address")
+        """A client that writes to every unit at once (see :meth:`ClientBase.broadcast`)."""
+        raise broadcast_refusal(cls.SPEC)
 
     @property
     def stats(self) -> Stats:
@@ -1008,6 +1010,23 @@ class AsyncClientBase(_Common[S]):
             return await _arun(self.bus, op)
 
 
+def broadcast_refusal(spec: DeviceSpec) -> DriveError:
+    """The error ``Client.broadcast`` raises when the map allows no broadcast write, naming why.
+
+    :class:`UnsupportedFunction` without a broadcast address; else :class:`NotBroadcastable` with
+    each write function's state (not stated in the manual / not allowed) and the map's reason.
+    """
+    if spec.broadcast_address is None:
+        return UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
+    reasons = []
+    for fc in spec.function_codes:
+        if fc.code in (0x06, 0x10) and fc.broadcast is not True:
+            state = "not stated in the manual" if fc.broadcast is None else "not allowed by the map"
+            reasons.append(f"{fc.code:02X}h by broadcast: {state}" + (f" ({fc.broadcast_reason})" if fc.broadcast_reason else ""))
+    why = "; ".join(reasons) if reasons else "no register can be written by a function the map allows by broadcast"
+    return NotBroadcastable(f"{spec.model}: no broadcast client (unit {spec.broadcast_address}): {why}")
+
+
 def broadcast_unit(spec: DeviceSpec) -> int:
     if spec.broadcast_address is None:
         raise UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
@@ -1037,5 +1056,6 @@ __all__ = [
     "Stats",
     "WriteOnly",
     "WriteOnlyArray",
+    "broadcast_refusal",
     "broadcast_unit",
 ]

@@ -101,6 +101,8 @@ class FunctionSpec:
     code: int
     max_quantity: int | None
     broadcast: bool | None
+    #: why broadcast is null (unclear in the manual) or false by the map's choice
+    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)

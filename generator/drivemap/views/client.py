@@ -201,7 +201,9 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     if any(r["fields"] and any(f["type"] not in ("bool", "int") for f in r["fields"]) or r["fields"] for r in records):
         codec_classes.add("Field")
 
-    has_broadcast = model.protocol.broadcast_address is not None
+    # a broadcast client only where some register may be written by broadcast; else the runtime's
+    # ClientBase.broadcast refuses with the map's reason (broadcast_refusal)
+    has_broadcast = model.protocol.broadcast_address is not None and any(a.broadcast for a in accessors)
     bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
     broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
     broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]

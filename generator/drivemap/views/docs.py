@@ -18,7 +18,7 @@ from typing import Any
 
 from .. import frames
 from ..exporters.base import Options
-from ..model import Cell, Example, Model, Register
+from ..model import Cell, Example, FunctionCode, Model, Register
 from .common import header
 
 #: The TCP port the page's snippet uses (tests substitute a free one).
@@ -150,13 +150,19 @@ def _function_codes(model: Model) -> list[dict[str, str | None]]:
             "code": hex2(fc.code),
             "name": fc.name,
             "max_quantity": num(fc.max_quantity) if fc.max_quantity is not None else "not stated",
-            "broadcast": {True: "yes", False: "no", None: "not stated"}[fc.broadcast],
+            "broadcast": _broadcast_text(fc),
             "request_bytes": f"{fc.request_bytes.min}-{fc.request_bytes.max}" if fc.request_bytes else "not stated",
             "response_bytes": f"{fc.response_bytes.min}-{fc.response_bytes.max}" if fc.response_bytes else "not stated",
             "source": fc.source,
             "notes": fc.notes,
         })
     return out
+
+
+def _broadcast_text(fc: FunctionCode) -> str:
+    """yes / no / not stated, with the map's reason where broadcast is null or a map choice."""
+    text = {True: "yes", False: "no", None: "not stated"}[fc.broadcast]
+    return f"{text} — {fc.broadcast_reason}" if fc.broadcast_reason else text
 
 
 def _policies(model: Model) -> list[dict[str, str | None]]:
