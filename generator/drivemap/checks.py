@@ -58,6 +58,7 @@ class Checker:
         self.check_reserved()
         self.check_known_issues()
         self.check_examples()
+        self.check_running()
         return self.diagnostics
 
     def check_device(self) -> None:
@@ -310,6 +311,25 @@ class Checker:
         proc = timing.get("processing_ms")
         if proc and proc["min"] > proc["max"]:
             self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
+
+    def check_running(self) -> None:
+        """protocol.running_state names a readable register; running_advice.instead a writable one."""
+        regs = self.data["registers"]
+        state = self.data["protocol"].get("running_state")
+        if state:
+            name = state["register"]
+            if name not in self.register_names:
+                self.error(("protocol", "running_state", "register"), f"unknown register {name!r}")
+            elif "r" not in regs[self.register_names[name]]["access"]:
+                self.error(("protocol", "running_state", "register"), f"running_state register {name!r} is not readable")
+        for i, reg in enumerate(regs):
+            instead = (reg.get("running_advice") or {}).get("instead")
+            if instead is None:
+                continue
+            if instead not in self.register_names:
+                self.error(("registers", i, "running_advice", "instead"), f"unknown register {instead!r}")
+            elif "w" not in regs[self.register_names[instead]]["access"]:
+                self.error(("registers", i, "running_advice", "instead"), f"register {instead!r} is not writable")
 
     def check_reserved(self) -> None:
         cells: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}

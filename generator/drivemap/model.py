@@ -166,6 +166,28 @@ class CommandRef:
 
 
 @dataclass(frozen=True)
+class RunningState:
+    """How the drive reports that it runs: ``register`` shows one of ``values`` (raw)."""
+
+    register: str
+    values: tuple[int, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class RunningAdvice:
+    """Advice (not a refusal) the manual gives for writes while the drive runs."""
+
+    advice: str
+    instead: str | None
+    source: str
+
+    def text(self) -> str:
+        return self.advice + (f" (write {self.instead} instead)" if self.instead else "") + f" [{self.source}]"
+
+
+@dataclass(frozen=True)
 class Protocol:
     modes: tuple[str, ...]
     unit_min: int
@@ -185,6 +207,7 @@ class Protocol:
     checksum: Checksum | None
     source: str
     notes: str | None
+    running_state: RunningState | None = None
 
     def function(self, code: int) -> FunctionCode | None:
         for fc in self.function_codes:
@@ -285,6 +308,7 @@ class Register:
     source: str
     notes: str | None
     line: int = 0
+    running_advice: RunningAdvice | None = None
 
     @property
     def words(self) -> int:
@@ -572,6 +596,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         checksum=checksum,
         source=p["source"],
         notes=p.get("notes"),
+        running_state=_running_state(p.get("running_state")),
     )
     enums = tuple(
         Enum(
@@ -608,6 +633,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
                 broadcast=r.get("broadcast", writable and _broadcast_writable(p, r)),
                 refuse_while_running=r.get("refuse_while_running", False),
                 source=r["source"], notes=r.get("notes"), line=lines.get(r["name"], 0),
+                running_advice=_running_advice(r.get("running_advice")),
             )
         )
     reserved = tuple(
@@ -660,3 +686,15 @@ def _broadcast_writable(protocol: dict[str, Any], reg: dict[str, Any]) -> bool:
     if words == 1 and codes.get(6) is True:
         return True
     return codes.get(16) is True
+
+
+def _running_state(item: dict[str, Any] | None) -> RunningState | None:
+    if not item:
+        return None
+    return RunningState(item["register"], tuple(item["values"]), item["source"], item.get("notes"))
+
+
+def _running_advice(item: dict[str, Any] | None) -> RunningAdvice | None:
+    if not item:
+        return None
+    return RunningAdvice(item["advice"], item.get("instead"), item["source"])

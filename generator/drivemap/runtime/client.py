@@ -28,6 +28,7 @@ from pymodbus.pdu.register_message import (
     WriteSingleRegisterRequest,
 )
 
+from .advice import warn_if_running
 from .bus import AsyncBus, Bus, Exchange, Stats
 from .codec import Codec, EnumCodec, FieldsCodec, FlagCodec, RawCodec, raw_to_words, words_to_raw
 from .errors import (
@@ -288,6 +289,8 @@ class Core:
             words = raw_to_words(reg, raw)
             if len(words) > 1 and limit == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
+            if reg.running_advice is not None:
+                yield from self._advise_if_running([(reg, key)])
             if reg.page is not None:
                 yield from self._page_ops(reg.page)
             pdu, code = self._write_request(reg.element_address(key[1]), words)  # _write_words, inlined
@@ -313,6 +316,9 @@ class Core:
             for reg, _key, words in group:
                 if len(words) > 1 and limit == 0:
                     raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
+        advised = [(reg, key) for reg, key, _ in regs if reg.running_advice is not None]
+        if advised:
+            yield from self._advise_if_running(advised)
         written: list[str] = []
         for number, group in enumerate(groups):
             reg0, key0, _ = group[0]
@@ -335,6 +341,17 @@ class Core:
             for reg, key, ws in group:
                 self._after_write(reg, key, words_to_raw(reg, ws))
                 written.append(reg.element_name(key[1]))
+
+    def _advise_if_running(self, items: Sequence[tuple[RegisterSpec, Key]]) -> Op[None]:
+        """The map's running_advice: read its running_state register and warn if the drive runs
+        (:mod:`drivemap.runtime.advice`); never refuses. A broadcast client cannot read: no check."""
+        state = self.spec.running_state
+        if state is None or self.broadcast:
+            return
+        sel = self.spec.register(state[0])
+        yield from self._page_ops(sel.page)
+        words = yield from self._read_words(sel.address, sel.words)
+        warn_if_running(self.spec, [(reg, reg.element_name(key[1])) for reg, key in items], words_to_raw(sel, words))
 
     def _after_write(self, reg: RegisterSpec, key: Key, raw: int) -> None:
         if reg.name in self.tables.selectors:

@@ -57,6 +57,8 @@ class RegisterSpec:
     refuse_while_running: bool = False
     param: str | None = None
     source: str = ""
+    #: the manual's advice for writes while the drive runs (the client warns; nothing is refused)
+    running_advice: str | None = None
 
     @property
     def words(self) -> int:
@@ -172,6 +174,8 @@ class DeviceSpec:
     max_frame_bytes: int | None = None
     #: unit ids a port fixes outside the settable range (e.g. EV's RS-232 port answers as 17)
     fixed_units: tuple[int, ...] = ()
+    #: (register, raw values) by which the drive reports that it is running, or None
+    running_state: tuple[str, tuple[int, ...]] | None = None
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

@@ -91,6 +91,9 @@ def _doc(model: Model, reg: Register) -> list[str]:
         lines.append(f"Command: writing {reg.command_value} executes it.")
     if reg.broadcast:
         lines.append("May be written by broadcast.")
+    if reg.running_advice is not None:
+        lines.append(f"While the drive runs the manual advises: {reg.running_advice.text()}; "
+                     "writing it then gives a RunningWriteWarning.")
     lines.append(f"Manual: {reg.source}.")
     return lines
 

@@ -259,6 +259,8 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         extras.append("may be written by broadcast")
     if reg.refuse_while_running:
         extras.append("writes refused while running")
+    if reg.running_advice is not None:
+        extras.append(_advice_text(reg))
     if reg.word_order:
         extras.append(f"word order: {reg.word_order.replace('_', ' ')}")
     storage = reg.storage
@@ -289,6 +291,23 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         "param_rule": reg.param_rule,
         "source": reg.source,
     }
+
+
+def _advice_text(reg: Register) -> str:
+    """The manual's advice for writes while running (the device is not known to refuse them)."""
+    advice = reg.running_advice
+    assert advice is not None
+    instead = f"; write {advice.instead} instead" if advice.instead else ""
+    return (f"while the drive runs the manual advises: {advice.advice}{instead} ({advice.source}; advice only: "
+            "the client warns with RunningWriteWarning, nothing is refused)")
+
+
+def _running_state(model: Model) -> dict[str, str] | None:
+    state = model.protocol.running_state
+    if state is None:
+        return None
+    return {"register": state.register, "address": hex4(model.register(state.register).address),
+            "shows": ", ".join(str(v) for v in state.values), "source": state.source, "notes": state.notes or ""}
 
 
 def _groups(model: Model) -> list[dict[str, Any]]:
@@ -981,6 +1000,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
              "address": hex4(model.register(p.configuration.register).address)}
             if p.configuration else None
         ),
+        "running_state": _running_state(model),
         "protocol_source": p.source,
         "protocol_notes": p.notes,
         "register_count": len(model.registers),
