@@ -8,6 +8,7 @@ option does), and the client warns (RunningWriteWarning) when the drive reports 
 from __future__ import annotations
 
 import argparse
+import importlib
 import warnings
 
 import pytest
@@ -82,7 +83,7 @@ async def test_async_client_warns() -> None:
 
 
 def test_opt_in_simulator_refuses_like_a_busy_drive() -> None:
-    sim = ev.simulator.Simulator(refuse_advised_while_running=True)
+    sim = importlib.import_module("drivemap_models.ev.simulator").Simulator(refuse_advised_while_running=True)
     with tcp_server("ev", sim=sim) as (_, host, port):
         with ev.Client.tcp(host, port, timeout=TIMEOUT) as drive:
             _running(drive)

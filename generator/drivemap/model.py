@@ -188,6 +188,15 @@ class RunningAdvice:
 
 
 @dataclass(frozen=True)
+class ReplyQuirk:
+    """A non-standard reply form the device may send (``protocol.reply_quirks``)."""
+
+    quirk: str
+    source: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class Protocol:
     modes: tuple[str, ...]
     unit_min: int
@@ -208,6 +217,7 @@ class Protocol:
     source: str
     notes: str | None
     running_state: RunningState | None = None
+    reply_quirks: tuple[ReplyQuirk, ...] = ()
 
     def function(self, code: int) -> FunctionCode | None:
         for fc in self.function_codes:
@@ -597,6 +607,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         source=p["source"],
         notes=p.get("notes"),
         running_state=_running_state(p.get("running_state")),
+        reply_quirks=tuple(ReplyQuirk(q["quirk"], q["source"], q["reason"]) for q in p.get("reply_quirks", ())),
     )
     enums = tuple(
         Enum(

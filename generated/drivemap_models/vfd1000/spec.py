@@ -265,4 +265,5 @@ SPEC = DeviceSpec(
     configuration=None,
     max_frame_bytes=None,
     fixed_units=(),
+    reply_quirks=('two_byte_byte_count',),
 )

@@ -46,6 +46,7 @@ from .errors import (
     WrongPage,
 )
 from .planner import Key, ReadRequest, max_write_words, plan_reads, read_function, units
+from .quirks import accept as accept_reply_quirks
 from .spec import DeviceSpec, FunctionSpec, PageSpec, RegisterSpec
 
 log = logging.getLogger("drivemap")
@@ -791,6 +792,8 @@ class ClientBase(_Common[S]):
             raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
                                + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)
 
@@ -921,6 +924,8 @@ class AsyncClientBase(_Common[S]):
             raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
                                + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)
 

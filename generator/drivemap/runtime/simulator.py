@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .quirks import encode_read_reply
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
 if TYPE_CHECKING:
@@ -242,10 +243,13 @@ class Simulator:
         state_file: str | os.PathLike[str] | None = None,
         realistic_timing: bool = False,
         refuse_advised_while_running: bool = False,
+        reply_quirks: Sequence[str] = (),
     ) -> None:
         """``refuse_advised_while_running``: also answer ``busy`` to writes the manual only advises
         against while running (``running_advice``); off by default, since the manual does not say
-        the device refuses them (the client warns instead)."""
+        the device refuses them (the client warns instead). ``reply_quirks``: answer in these
+        non-standard forms of the map's ``reply_quirks`` (e.g. ``two_byte_byte_count``, as a
+        manual prints a reply) instead of the standard one; none by default."""
         if behaviour is None:
             from ..behaviours import Behaviour
 
@@ -254,6 +258,11 @@ class Simulator:
         self.behaviour = behaviour
         self.realistic_timing = realistic_timing
         self.refuse_advised_while_running = refuse_advised_while_running
+        self.reply_quirks = tuple(dict.fromkeys(reply_quirks))
+        for quirk in self.reply_quirks:
+            if quirk not in spec.reply_quirks:
+                raise SimulatorError(f"{spec.model}: the map lists no reply quirk {quirk!r} "
+                                     f"(it lists: {', '.join(spec.reply_quirks) or 'none'})")
         self.state_file = Path(state_file) if state_file is not None else None
         self._lock = threading.RLock()
         self._dirty = False
@@ -488,6 +497,8 @@ class Simulator:
         values = unit.values
         body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
                                        for cell, shift in words])
+        if self.reply_quirks:
+            return encode_read_reply(code, body, self.reply_quirks)
         return bytes((code, 2 * quantity)) + body
 
     def _read_plan(self, unit: Unit, address: int, quantity: int) -> _ReadPlan | str:

@@ -176,6 +176,8 @@ class DeviceSpec:
     fixed_units: tuple[int, ...] = ()
     #: (register, raw values) by which the drive reports that it is running, or None
     running_state: tuple[str, tuple[int, ...]] | None = None
+    #: non-standard reply forms the client accepts besides the standard ones (runtime.quirks)
+    reply_quirks: tuple[str, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

@@ -302,6 +302,11 @@ def _advice_text(reg: Register) -> str:
             "the client warns with RunningWriteWarning, nothing is refused)")
 
 
+_QUIRK_TEXT = {
+    "two_byte_byte_count": "03h/04h replies may carry a two-byte (high, low) byte count instead of one byte",
+}
+
+
 def _running_state(model: Model) -> dict[str, str] | None:
     state = model.protocol.running_state
     if state is None:
@@ -1001,6 +1006,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
             if p.configuration else None
         ),
         "running_state": _running_state(model),
+        "reply_quirks": [{"quirk": q.quirk, "text": _QUIRK_TEXT.get(q.quirk, q.quirk), "source": q.source,
+                          "reason": q.reason} for q in p.reply_quirks],
         "protocol_source": p.source,
         "protocol_notes": p.notes,
         "register_count": len(model.registers),

@@ -87,6 +87,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
                                      and not p.unit_min <= x.fixed_unit <= p.unit_max})),
         "imports": _imports(model),
         "running_state": ((p.running_state.register, p.running_state.values) if p.running_state else None),
+        "reply_quirks": tuple(q.quirk for q in p.reply_quirks),
     }
 
 
