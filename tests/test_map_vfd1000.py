@@ -7,6 +7,8 @@ The manual's sections have no numbers; case ids name the table or example instea
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from drivemap.export import export_model
@@ -164,3 +166,28 @@ def test_examples_present(exported: dict) -> None:
     assert ex["read_0004_two_registers"]["erratum"]
     assert ex["write_0008_5000"]["request"] == ex["write_0008_5000"]["response"]
     assert not ex["write_0008_5000"]["erratum"]
+
+
+def test_exception_codes_are_marked_assumed(exported: dict) -> None:
+    """002 §Response action: the exception table is missing; 01/02/03/06 are the map's assumption."""
+    excs = {e["code"]: e for e in exported["protocol"]["exceptions"]}
+    assert sorted(excs) == [0x01, 0x02, 0x03, 0x06]
+    for exc in excs.values():
+        assert exc["documented"] is False and exc["source"] == "map choice"
+    for case in exported["protocol"]["exception_policy"]:
+        assert case["source"] == "map choice"
+
+
+def test_only_pc00_to_pc02_are_described(exported: dict) -> None:
+    """002 §PC.00-§PC.02: the text names no PC.03-PC.05 (they came from a reading aid, not the manual)."""
+    text = json.dumps([exported["title"], exported["protocol"], exported["registers"]], ensure_ascii=False)
+    for name in ("PC.03", "PC.04", "PC.05"):
+        assert name not in text
+    whats = [s["what"] for s in exported["protocol"]["ports"][0]["settings"]]
+    assert whats == ["unit id (local communication address)", "baud rate", "data format (parity and stop bits)"]
+
+
+@pytest.mark.parametrize("model", ["edx", "ev", "v2"])
+def test_other_maps_list_documented_codes_only(model: str) -> None:
+    for exc in export_model(model)["protocol"]["exceptions"]:
+        assert exc["documented"] is True and exc["source"] != "map choice", (model, exc["code"])

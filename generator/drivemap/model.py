@@ -109,6 +109,8 @@ class ExceptionCode:
     comm_errors: tuple[int, ...]
     source: str
     notes: str | None
+    #: False: assumed by the map (source "map choice"), not printed in the manual
+    documented: bool = True
 
 
 @dataclass(frozen=True)
@@ -587,7 +589,8 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
             for f in p["function_codes"]
         ),
         exceptions=tuple(
-            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"))
+            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"),
+                          documented=e.get("documented", True))
             for e in p["exceptions"]
         ),
         comm_errors=tuple(

@@ -987,7 +987,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "function_codes": _function_codes(model),
         "exceptions": [
             {"code": hex2(e.code), "name": e.name, "meaning": e.meaning,
-             "comm_errors": ", ".join(hex2(c) for c in e.comm_errors) or None, "source": e.source, "notes": e.notes}
+             "comm_errors": ", ".join(hex2(c) for c in e.comm_errors) or None, "source": e.source, "notes": e.notes,
+             "documented": "yes" if e.documented else "no: assumed by the map"}
             for e in p.exceptions
         ],
         "comm_errors": [
