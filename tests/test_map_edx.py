@@ -200,3 +200,31 @@ def test_exception_policy(exported: dict, case: str, code: int) -> None:
 def test_examples_count(exported: dict) -> None:
     """004 §3 (2 replies) + §5.1-§5.4 x (ASCII, RTU) x (normal, fault) = 18 examples."""
     assert len(exported["examples"]) == 18
+
+
+def _crc(frame: bytes) -> bytes:
+    crc = 0xFFFF
+    for byte in frame:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc.to_bytes(2, "little")
+
+
+def _issue(exported: dict, affected: str) -> dict:
+    found = [k for k in exported["known_issues"] if affected in k["affects"]]
+    assert len(found) == 1, [k["title"] for k in found]
+    return found[0]
+
+
+def test_error_code_rtu_both_corrections_recorded(exported: dict) -> None:
+    """004 §3 (l.147-151): 02 83 52 C0 CD; unit 01 (A) or CRC 30 CD (B) both fit; (A) is chosen."""
+    issue = _issue(exported, "error_code_rtu")
+    for frame in ("01 83 52 C0 CD", "02 83 52 30 CD"):  # both readings are valid frames
+        raw = bytes.fromhex(frame)
+        assert _crc(raw[:-2]) == raw[-2:]
+        assert frame in issue["printed"]
+    assert issue["corrected"] == "01 83 52 C0 CD" and issue["chosen"].startswith("(A)")
+    assert "004 §5.1 RTU" in issue["reason"]
+    example = {e["name"]: e for e in exported["examples"]}["error_code_rtu"]
+    assert example["response"] == "028352C0CD" and example["status"] == "erratum"
