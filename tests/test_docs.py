@@ -221,7 +221,9 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
                 for i in range(reg.count):
                     assert f"No.{i} 0x{reg.element_address(i):04X}" in row[-1]
         if reg.param:
-            assert row[2] == reg.param
+            assert row[2].split(" … ")[0] == reg.param
+        if reg.element_param_format:  # ids by rule: first … last (v2 P_0 … P_255)
+            assert row[2] == f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
         if reg.page is not None:
             assert f"{reg.page.selector}" in row[-1] and f"= {reg.page.value}" in row[-1]
 

@@ -168,3 +168,12 @@ def test_examples_transcribed(exported: dict) -> None:
     assert _hex(examples["write_run_forward_60hz"]["request"]) == "01100101000204000117706027"
     verified = {name for name, ex in examples.items() if ex["status"] == "verified"}
     assert verified == set(examples) - {"read_frequency_command", "read_frequency_command_fault"}
+
+
+def test_every_parameter_element_exports_its_id(registers: dict) -> None:
+    """003 §参数与暂存器编号对照表: P_n is at register n, so parameters[n] is P_n for n = 0..255."""
+    for n in range(256):
+        reg = registers[f"parameters[{n}]"]
+        assert (reg["address"], reg["param"]) == (n, f"P_{n}")
+    # P_256.. are the command/monitor registers at the same addresses
+    assert registers["run_command"]["param"] == "P_257" and registers["status"]["param"] == "P_288"

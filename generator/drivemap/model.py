@@ -321,6 +321,8 @@ class Register:
     notes: str | None
     line: int = 0
     running_advice: RunningAdvice | None = None
+    #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
+    element_param_format: str | None = None
 
     @property
     def words(self) -> int:
@@ -366,6 +368,8 @@ class Register:
     def element_param(self, index: int) -> str | None:
         if self.element_params:
             return self.element_params[index]
+        if self.element_param_format is not None:
+            return self.element_param_format.format(index=index, address=self.element_address(index))
         return self.param if index == 0 else None
 
     def default_at(self, index: int) -> float | None:
@@ -648,6 +652,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
                 refuse_while_running=r.get("refuse_while_running", False),
                 source=r["source"], notes=r.get("notes"), line=lines.get(r["name"], 0),
                 running_advice=_running_advice(r.get("running_advice")),
+                element_param_format=r.get("element_param_format"),
             )
         )
     reserved = tuple(

@@ -321,7 +321,7 @@ class Client(ClientBase[Snapshot]):
         self.parameters: ReadWriteArray[int] = ReadWriteArray(self, _codec_parameters)
         """参数 P_0..P_255
 
-        Address 0x0000, 256 elements, stride 1; parameter P_0; u16, access rw.
+        Address 0x0000, 256 elements, stride 1; parameter P_0 (element i: P_0 … P_255); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §参数与暂存器编号对照表.

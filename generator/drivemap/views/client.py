@@ -77,6 +77,8 @@ def _doc(model: Model, reg: Register) -> list[str]:
         where += f"; parameter {reg.param}"
     if reg.element_params and reg.is_array:
         where += f" ({', '.join(reg.element_params)})"
+    elif reg.element_param_format and reg.is_array:
+        where += f" (element i: {reg.element_param(0)} … {reg.element_param(reg.count - 1)})"
     lines.append(where + f"; {reg.type}, access {reg.access}.")
     unit = f" {reg.unit}" if reg.unit else ""
     scale = f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else "")

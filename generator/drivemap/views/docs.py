@@ -236,13 +236,26 @@ def _elements(reg: Register) -> str | None:
         return None
     if reg.count > 16:
         last = reg.element_address(reg.count - 1)
+        fmt = reg.element_param_format
+        ids = ""
+        if fmt:
+            ids = f"; No.i is parameter {fmt.replace('{index}', 'i').replace('{address}', 'n')}"
+            ids += ", n = its address in decimal" if "{address}" in fmt else ""
         return (f"No.0-No.{reg.count - 1}: No.i at {hex4(reg.address)} + {reg.stride}·i "
-                f"({hex4(reg.address)} … {hex4(last)})")
+                f"({hex4(reg.address)} … {hex4(last)}){ids}")
     parts = []
     for i in range(reg.count):
         param = reg.element_param(i)
-        parts.append(f"No.{i} {hex4(reg.element_address(i))}" + (f" ({param})" if param and reg.element_params else ""))
+        parts.append(f"No.{i} {hex4(reg.element_address(i))}"
+                     + (f" ({param})" if param and (reg.element_params or reg.element_param_format) else ""))
     return ", ".join(parts)
+
+
+def _param_text(reg: Register) -> str | None:
+    """The parameter id; for an array whose ids follow a rule, the first … last id."""
+    if reg.is_array and reg.element_param_format:
+        return f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
+    return reg.param
 
 
 def _register_row(model: Model, reg: Register) -> dict[str, Any]:
@@ -271,7 +284,7 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         "register": reg.name,
         "address": address,
         "decimal": decimal,
-        "param": reg.param,
+        "param": _param_text(reg),
         "label": reg.label,
         "type": reg.type,
         "scale": _scale(reg),
