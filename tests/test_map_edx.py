@@ -211,15 +211,15 @@ def _crc(frame: bytes) -> bytes:
     return crc.to_bytes(2, "little")
 
 
-def _issue(exported: dict, affected: str) -> dict:
-    found = [k for k in exported["known_issues"] if affected in k["affects"]]
+def _issue(exported: dict, affected: str, title: str) -> dict:
+    found = [k for k in exported["known_issues"] if affected in k["affects"] and title in k["title"]]
     assert len(found) == 1, [k["title"] for k in found]
     return found[0]
 
 
 def test_error_code_rtu_both_corrections_recorded(exported: dict) -> None:
     """004 §3 (l.147-151): 02 83 52 C0 CD; unit 01 (A) or CRC 30 CD (B) both fit; (A) is chosen."""
-    issue = _issue(exported, "error_code_rtu")
+    issue = _issue(exported, "error_code_rtu", "two corrections fit")
     for frame in ("01 83 52 C0 CD", "02 83 52 30 CD"):  # both readings are valid frames
         raw = bytes.fromhex(frame)
         assert _crc(raw[:-2]) == raw[-2:]
@@ -228,3 +228,15 @@ def test_error_code_rtu_both_corrections_recorded(exported: dict) -> None:
     assert "004 §5.1 RTU" in issue["reason"]
     example = {e["name"]: e for e in exported["examples"]}["error_code_rtu"]
     assert example["response"] == "028352C0CD" and example["status"] == "erratum"
+
+
+def test_function_code_and_80h_recorded(exported: dict) -> None:
+    """004 §3 l.153 prints 'Function Code AND 80H'; every printed fault reply sets bit 7 (OR 80H)."""
+    issue = next(k for k in exported["known_issues"] if "AND 80H" in k["title"])
+    assert issue["corrected"] == "Function Code OR 80H"
+    faults = [e for e in exported["examples"] if e["name"].endswith("_fault") or e["name"].startswith("error_code")]
+    assert len(faults) == 10 and set(issue["affects"]) == {e["name"] for e in faults}
+    for ex in faults:
+        frame = ex["response"]
+        fc = int(frame[3:5], 16) if ex["mode"] == "ascii" else int(frame[2:4], 16)
+        assert fc & 0x80 and fc & 0x7F in (0x03, 0x06, 0x08, 0x10), ex["name"]
