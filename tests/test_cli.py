@@ -104,7 +104,8 @@ def test_export_contract(model: str) -> None:
         assert reg["storage"] in ("eeprom", "ram", "volatile", None)
         assert isinstance(reg["broadcast"], bool)
     for item in data["reserved"]:
-        assert set(item) == {"start", "end", "readable", "writable", "page", "source"}
+        assert set(item) == {"start", "end", "readable", "writable", "page", "kind", "source"}
+        assert item["kind"] in ("reserved", "unlabeled", "not_listed")
         assert item["start"] <= item["end"] and item["readable"] in (True, False, None)
     for issue in data["known_issues"]:
         assert set(issue) == {"title", "source", "printed", "corrected", "chosen", "reason", "affects"}

@@ -229,6 +229,17 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
 
 
 @pytest.mark.parametrize("model_id", MODEL_IDS)
+def test_unlisted_addresses_are_not_called_reserved(model_id: str, pages: dict[str, Page], models: list[Model]) -> None:
+    """Issue 19.8: a range the manual never lists reads "not listed in the manual", not "reserved"."""
+    m = by_name(models, model_id)
+    section = pages[f"docs/{model_id}.md"].section("Reserved and unlisted addresses")
+    header, *rows = section.tables[0]
+    assert header[:3] == ["Addresses", "Dec", "In the manual"]
+    want = {"reserved": "marked reserved", "unlabeled": "listed without a name", "not_listed": "not listed in the manual"}
+    assert [r[2] for r in rows] == [want[r.kind] for r in m.reserved]
+
+
+@pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_every_enum_has_a_table(model_id: str, pages: dict[str, Page], models: list[Model]) -> None:
     m = by_name(models, model_id)
     page = pages[f"docs/{model_id}.md"]

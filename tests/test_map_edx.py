@@ -240,3 +240,12 @@ def test_function_code_and_80h_recorded(exported: dict) -> None:
         frame = ex["response"]
         fc = int(frame[3:5], 16) if ex["mode"] == "ascii" else int(frame[2:4], 16)
         assert fc & 0x80 and fc & 0x7F in (0x03, 0x06, 0x08, 0x10), ex["name"]
+
+
+def test_unlisted_addresses_are_not_called_reserved(exported: dict) -> None:
+    """004 §6/§4: 35 addresses are never listed; 0039H-0063H and 00A1H-00C7H are listed without a name;
+    only 00E9H-00EEH and 00FDH-00FFH are printed (Reserved)."""
+    kinds: dict[str, int] = {}
+    for item in exported["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds == {"not_listed": 35, "unlabeled": 43 + 39, "reserved": 6 + 3}

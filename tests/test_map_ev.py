@@ -243,3 +243,14 @@ def test_appendix_ii_ascii_address_17_recorded(ev: dict) -> None:
     ports = {p["name"]: p for p in proto["ports"]}
     assert ports["rs232"]["fixed_unit"] == 17 and ports["rs485"]["fixed_unit"] is None
     assert "ascii" in ports["rs485"]["modes"] and (proto["unit_min"], proto["unit_max"]) == (1, 15)
+
+
+def test_unlisted_addresses_are_not_called_reserved(ev: dict) -> None:
+    """001 §4.3 prints 保留 for monitor rows; 21 addresses (02-02, 02-04..02-13, 08-02..08-10, 09-09) are
+    not listed in this document at all."""
+    kinds: dict[str, int] = {}
+    for item in ev["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds["not_listed"] == 21
+    assert {(r["start"], r["end"]) for r in ev["reserved"] if r["kind"] == "reserved"} == {
+        (0x0001, 0x0001), (0x0006, 0x0007), (0x000A, 0x000A), (0x000D, 0x000F)}

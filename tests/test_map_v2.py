@@ -177,3 +177,12 @@ def test_every_parameter_element_exports_its_id(registers: dict) -> None:
         assert (reg["address"], reg["param"]) == (n, f"P_{n}")
     # P_256.. are the command/monitor registers at the same addresses
     assert registers["run_command"]["param"] == "P_257" and registers["status"]["param"] == "P_288"
+
+
+def test_unlisted_addresses_are_not_called_reserved(exported: dict) -> None:
+    """003 §DATA 一览表 (监视数据): 0121H-0122H and 0124H-0126H are not listed (5 addresses), unlike the
+    预备 (reserved) rows 0100H, 0104H-011FH, 012EH-012FH."""
+    kinds: dict[str, int] = {}
+    for item in exported["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds == {"reserved": 1 + 28 + 2, "not_listed": 5}

@@ -191,3 +191,9 @@ def test_only_pc00_to_pc02_are_described(exported: dict) -> None:
 def test_other_maps_list_documented_codes_only(model: str) -> None:
     for exc in export_model(model)["protocol"]["exceptions"]:
         assert exc["documented"] is True and exc["source"] != "map choice", (model, exc["code"])
+
+
+def test_reserved_rows_are_printed_reserved(exported: dict) -> None:
+    """002 §Communication control command table: 300EH-300FH, 3011H, 3013H are printed "Reserved"."""
+    assert {(r["start"], r["end"], r["kind"]) for r in exported["reserved"]} == {
+        (0x300E, 0x300F, "reserved"), (0x3011, 0x3011, "reserved"), (0x3013, 0x3013, "reserved")}

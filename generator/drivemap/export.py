@@ -71,6 +71,7 @@ def export(model: Model) -> dict[str, Any]:
                 "readable": r.readable,
                 "writable": r.writable,
                 "page": {"selector": r.page.selector, "value": r.page.value} if r.page else None,
+                "kind": r.kind,
                 "source": r.source,
             }
             for r in model.reserved

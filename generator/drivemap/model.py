@@ -414,6 +414,8 @@ class Reserved:
     page: Page | None
     source: str
     notes: str | None
+    #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed
+    kind: str = "reserved"
 
 
 @dataclass(frozen=True)
@@ -659,7 +661,7 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         Reserved(
             x["start"], x["end"], x.get("readable"), x.get("writable", False),
             Page(x["page"]["selector"], x["page"]["value"]) if x.get("page") else None,
-            x["source"], x.get("notes"),
+            x["source"], x.get("notes"), kind=x.get("kind", "reserved"),
         )
         for x in data.get("reserved", ())
     )

@@ -371,11 +371,20 @@ def _groups(model: Model) -> list[dict[str, Any]]:
     return out
 
 
+#: What the manual shows at a reserved range (Reserved.kind), as the docs say it.
+RESERVED_KIND = {
+    "reserved": "marked reserved",
+    "unlabeled": "listed without a name",
+    "not_listed": "not listed in the manual",
+}
+
+
 def _reserved(model: Model) -> list[dict[str, str | None]]:
     out = []
     for r in model.reserved:
         readable = {True: "yes", False: "no", None: "not stated"}[r.readable]
         out.append({
+            "kind": RESERVED_KIND[r.kind],
             "range": hex4(r.start) if r.start == r.end else f"{hex4(r.start)}-{hex4(r.end)}",
             "decimal": str(r.start) if r.start == r.end else f"{r.start}-{r.end}",
             "readable": readable,
@@ -529,7 +538,7 @@ def _word_meaning(model: Model, at: dict[int, list[tuple[Cell, int]]], address: 
     if not hits:
         for r in model.reserved:
             if r.start <= address <= r.end:
-                return f"{where} (reserved): {shown}"
+                return f"{where} ({RESERVED_KIND[r.kind]}): {shown}"
         return f"{where} (not in the map): {shown}"
     descs = []
     for cell, word in hits:
