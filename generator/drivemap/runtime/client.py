@@ -149,6 +149,8 @@ class Core:
         self.broadcast = broadcast
         self.tables = _tables(spec)
         self.pages: dict[str, int] = {}  # selector -> value it is known to show
+        #: while read_all visits pages under page_policy "raise": selector -> the value it showed before
+        self._visiting: dict[str, int] | None = None
         self.pending_configuration: list[str] = []
         self.pending_power_cycle: list[str] = []
 
@@ -183,7 +185,13 @@ class Core:
             current = self.pages[page.selector] = words_to_raw(sel, words)
             if current == page.value:
                 return
-        raise WrongPage(f"{page.selector} shows page {current}, not {page.value} (use page_policy='switch')")
+        if self._visiting is not None and current is not None and sel.writable:  # read_all: visit, restore later
+            self._visiting.setdefault(page.selector, current)
+            yield from self._write_words(sel.address, raw_to_words(sel, page.value), hold_ms=sel.write_delay_ms or 0)
+            self.pages[page.selector] = page.value
+            return
+        raise WrongPage(f"{page.selector} shows page {current}, not {page.value} (use page_policy='switch', or "
+                        "read_all(), which visits each page and puts the selector back)")
 
     def _read_words(self, address: int, count: int) -> Op[list[int]]:
         code = self.tables.read_code
@@ -264,6 +272,33 @@ class Core:
                 if selector:
                     pages[key[0]] = raw
         return out
+
+    def read_visiting_pages(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
+        """:meth:`read_raw` for ``read_all``: under page_policy "raise", switch to each page the plan
+        needs and afterwards (also after a failure) write every selector back to the page it showed."""
+        if self.page_policy == "switch" or self.broadcast or all(req.page is None for req in plan):
+            return (yield from self.read_raw(keys, plan, checked=True))
+        original: dict[str, int] = {}
+        self._visiting = original
+        try:
+            out = yield from self.read_raw(keys, plan, checked=True)
+        except DriveError:
+            self._visiting = None
+            yield from self._restore_pages(original)  # its own failure is raised with this one as context
+            raise
+        finally:
+            self._visiting = None
+        yield from self._restore_pages(original)
+        return out
+
+    def _restore_pages(self, original: Mapping[str, int]) -> Op[None]:
+        for selector, value in original.items():
+            if self.pages.get(selector) == value:
+                continue
+            sel = self.spec.register(selector)
+            self.pages.pop(selector, None)  # unknown until the write is confirmed
+            yield from self._write_words(sel.address, raw_to_words(sel, value), hold_ms=sel.write_delay_ms or 0)
+            self.pages[selector] = value
 
     # -- writes
     def check_write(self, key: Key) -> RegisterSpec:
@@ -863,13 +898,17 @@ class ClientBase(_Common[S]):
         return self._snapshot(self._read_raw_keys(self._keys(accessors)))
 
     def read_all(self) -> S:
-        """Read every readable register (plan computed once per client class)."""
+        """Read every readable register (plan computed once per client class).
+
+        Paged registers: with ``page_policy="raise"`` (the default) it switches the page selector to
+        each page it needs and then puts it back to the page it found (also when a read fails);
+        with ``"switch"`` it leaves the last page selected."""
         core = self._core
         keys = core.tables.all_keys
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
         plan = self.plan()
         with self.bus.lock:
-            return self._snapshot(_run(self.bus, core.read_raw(keys, plan, checked=True)))
+            return self._snapshot(_run(self.bus, core.read_visiting_pages(keys, plan)))
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
         """Write several registers; contiguous ones go out in one 10h request where the map allows it.
@@ -986,12 +1025,13 @@ class AsyncClientBase(_Common[S]):
         return self._snapshot(await self._read_raw_keys(self._keys(accessors)))
 
     async def read_all(self) -> S:
+        """See :meth:`ClientBase.read_all` (pages visited and restored under ``page_policy="raise"``)."""
         core = self._core
         keys = core.tables.all_keys
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
         plan = self.plan()
         async with self.bus.lock:
-            return self._snapshot(await _arun(self.bus, core.read_raw(keys, plan, checked=True)))
+            return self._snapshot(await _arun(self.bus, core.read_visiting_pages(keys, plan)))
 
     async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
         await self._write_raw_items([(acc.key, acc.codec.encode(value)) for acc, value in items])
