@@ -419,11 +419,14 @@ class Simulator:
         with self._lock:
             try:
                 if self.spec.broadcast_address is not None and unit_id == self.spec.broadcast_address:
+                    for each in self.units.values():
+                        self.behaviour.on_request(each)
                     self._broadcast(pdu)
                     return None
                 unit = self.units.get(unit_id)
                 if unit is None:
                     return None
+                self.behaviour.on_request(unit)
                 injected = unit.injected
                 if injected is not None:
                     for other in self.units.values():
