@@ -93,7 +93,7 @@ def test_export_contract(model: str) -> None:
     code, out, _ = run("export", model, "--format", "json")
     assert code == 0
     data = json.loads(out)
-    assert set(data) == {"model", "title", "protocol", "registers", "examples"}
+    assert set(data) == {"model", "title", "protocol", "registers", "reserved", "known_issues", "examples"}
     assert data["model"] == model
     keys = {"name", "address", "param", "access", "type", "scale", "offset", "unit", "min", "max", "default",
             "reflect", "storage", "broadcast", "enum", "bits", "page"}
@@ -103,6 +103,12 @@ def test_export_contract(model: str) -> None:
         assert reg["reflect"] in ("immediate", "configuration", "power_cycle", None)
         assert reg["storage"] in ("eeprom", "ram", "volatile", None)
         assert isinstance(reg["broadcast"], bool)
+    for item in data["reserved"]:
+        assert set(item) == {"start", "end", "readable", "writable", "page", "kind", "source"}
+        assert item["kind"] in ("reserved", "unlabeled", "not_listed")
+        assert item["start"] <= item["end"] and item["readable"] in (True, False, None)
+    for issue in data["known_issues"]:
+        assert set(issue) == {"title", "source", "printed", "corrected", "chosen", "reason", "affects"}
     for ex in data["examples"]:
         assert set(ex) == {"name", "source", "mode", "request", "response", "status", "erratum"}
         for frame in (ex["request"], ex["response"]):

@@ -138,10 +138,8 @@ def test_broadcast_two_units_one_line(monkeypatch: pytest.MonkeyPatch, mode: str
 def test_not_broadcastable_is_refused_before_connecting() -> None:
     vfd = package("vfd1000")  # 06h broadcast support is not stated (null): nothing may be broadcast
     bus = vfd.Bus.tcp("127.0.0.1", 9, timeout=TIMEOUT)  # never connected: the check comes first
-    bc = vfd.Client.broadcast(bus)
-    assert not bc.registers
-    with pytest.raises(NotBroadcastable):
-        bc._write_raw_items([(("parameter_0008", 0), 1)])
+    with pytest.raises(NotBroadcastable, match="06h by broadcast: not stated in the manual"):
+        vfd.Client.broadcast(bus)
     assert bus.stats.transactions == 0
 
 

@@ -221,9 +221,22 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
                 for i in range(reg.count):
                     assert f"No.{i} 0x{reg.element_address(i):04X}" in row[-1]
         if reg.param:
-            assert row[2] == reg.param
+            assert row[2].split(" … ")[0] == reg.param
+        if reg.element_param_format:  # ids by rule: first … last (v2 P_0 … P_255)
+            assert row[2] == f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
         if reg.page is not None:
             assert f"{reg.page.selector}" in row[-1] and f"= {reg.page.value}" in row[-1]
+
+
+@pytest.mark.parametrize("model_id", MODEL_IDS)
+def test_unlisted_addresses_are_not_called_reserved(model_id: str, pages: dict[str, Page], models: list[Model]) -> None:
+    """Issue 19.8: a range the manual never lists reads "not listed in the manual", not "reserved"."""
+    m = by_name(models, model_id)
+    section = pages[f"docs/{model_id}.md"].section("Reserved and unlisted addresses")
+    header, *rows = section.tables[0]
+    assert header[:3] == ["Addresses", "Dec", "In the manual"]
+    want = {"reserved": "marked reserved", "unlabeled": "listed without a name", "not_listed": "not listed in the manual"}
+    assert [r[2] for r in rows] == [want[r.kind] for r in m.reserved]
 
 
 @pytest.mark.parametrize("model_id", MODEL_IDS)

@@ -172,6 +172,14 @@ def test_protocol(exported: dict) -> None:
     assert proto["timing"]["inter_frame_gap_ms"] == 10
     # 004 §1.4 function codes
     assert {fc["code"] for fc in proto["function_codes"]} == {0x03, 0x06, 0x08, 0x10}
+    # 004 §1.3 only names 00H as the broadcast address: writes unknown (null, with the reason), reads and
+    # loopback false (map choice: they need a reply); the same rule as v2 003 §2 and vfd1000 002.
+    fcs = {fc["code"]: fc for fc in proto["function_codes"]}
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None, 8: False, 16: None}
+    assert "00H : Broadcast to all the drivers" in fcs[6]["broadcast_reason"]
+    assert fcs[16]["broadcast_reason"] == fcs[6]["broadcast_reason"]
+    assert fcs[3]["broadcast_reason"].startswith("map choice") and fcs[8]["broadcast_reason"].startswith("map choice")
+    assert not any(r["broadcast"] for r in exported["registers"])
     # 004 §3 error codes (hexadecimal bytes, see the examples) and §5.2's 20H
     assert {e["code"] for e in proto["exceptions"]} == {0x51, 0x52, 0x53, 0x54, 0x55, 0x20}
 
@@ -192,3 +200,52 @@ def test_exception_policy(exported: dict, case: str, code: int) -> None:
 def test_examples_count(exported: dict) -> None:
     """004 §3 (2 replies) + §5.1-§5.4 x (ASCII, RTU) x (normal, fault) = 18 examples."""
     assert len(exported["examples"]) == 18
+
+
+def _crc(frame: bytes) -> bytes:
+    crc = 0xFFFF
+    for byte in frame:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc.to_bytes(2, "little")
+
+
+def _issue(exported: dict, affected: str, title: str) -> dict:
+    found = [k for k in exported["known_issues"] if affected in k["affects"] and title in k["title"]]
+    assert len(found) == 1, [k["title"] for k in found]
+    return found[0]
+
+
+def test_error_code_rtu_both_corrections_recorded(exported: dict) -> None:
+    """004 §3 (l.147-151): 02 83 52 C0 CD; unit 01 (A) or CRC 30 CD (B) both fit; (A) is chosen."""
+    issue = _issue(exported, "error_code_rtu", "two corrections fit")
+    for frame in ("01 83 52 C0 CD", "02 83 52 30 CD"):  # both readings are valid frames
+        raw = bytes.fromhex(frame)
+        assert _crc(raw[:-2]) == raw[-2:]
+        assert frame in issue["printed"]
+    assert issue["corrected"] == "01 83 52 C0 CD" and issue["chosen"].startswith("(A)")
+    assert "004 §5.1 RTU" in issue["reason"]
+    example = {e["name"]: e for e in exported["examples"]}["error_code_rtu"]
+    assert example["response"] == "028352C0CD" and example["status"] == "erratum"
+
+
+def test_function_code_and_80h_recorded(exported: dict) -> None:
+    """004 §3 l.153 prints 'Function Code AND 80H'; every printed fault reply sets bit 7 (OR 80H)."""
+    issue = next(k for k in exported["known_issues"] if "AND 80H" in k["title"])
+    assert issue["corrected"] == "Function Code OR 80H"
+    faults = [e for e in exported["examples"] if e["name"].endswith("_fault") or e["name"].startswith("error_code")]
+    assert len(faults) == 10 and set(issue["affects"]) == {e["name"] for e in faults}
+    for ex in faults:
+        frame = ex["response"]
+        fc = int(frame[3:5], 16) if ex["mode"] == "ascii" else int(frame[2:4], 16)
+        assert fc & 0x80 and fc & 0x7F in (0x03, 0x06, 0x08, 0x10), ex["name"]
+
+
+def test_unlisted_addresses_are_not_called_reserved(exported: dict) -> None:
+    """004 §6/§4: 35 addresses are never listed; 0039H-0063H and 00A1H-00C7H are listed without a name;
+    only 00E9H-00EEH and 00FDH-00FFH are printed (Reserved)."""
+    kinds: dict[str, int] = {}
+    for item in exported["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds == {"not_listed": 35, "unlabeled": 43 + 39, "reserved": 6 + 3}

@@ -233,3 +233,24 @@ def test_examples_verified(ev: dict) -> None:
     assert all(ex["status"] == "verified" for ex in names.values())
     assert names["broadcast_net_in_directions"]["response"] is None
     assert names["broadcast_write_speeds_ram"]["response"] is None
+
+
+def test_appendix_ii_ascii_address_17_recorded(ev: dict) -> None:
+    """001 Appendix II l.1828 'address fixed at 17' vs §1 RS-485 ASCII with SW1 ids 1-15: both accepted."""
+    issue = next(k for k in ev["known_issues"] if "fixed at 17" in k["title"])
+    assert issue["source"] == "001 Appendix II" and "單台通訊從站位址固定為 17" in issue["printed"]
+    proto = ev["protocol"]
+    ports = {p["name"]: p for p in proto["ports"]}
+    assert ports["rs232"]["fixed_unit"] == 17 and ports["rs485"]["fixed_unit"] is None
+    assert "ascii" in ports["rs485"]["modes"] and (proto["unit_min"], proto["unit_max"]) == (1, 15)
+
+
+def test_unlisted_addresses_are_not_called_reserved(ev: dict) -> None:
+    """001 §4.3 prints 保留 for monitor rows; 21 addresses (02-02, 02-04..02-13, 08-02..08-10, 09-09) are
+    not listed in this document at all."""
+    kinds: dict[str, int] = {}
+    for item in ev["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds["not_listed"] == 21
+    assert {(r["start"], r["end"]) for r in ev["reserved"] if r["kind"] == "reserved"} == {
+        (0x0001, 0x0001), (0x0006, 0x0007), (0x000A, 0x000A), (0x000D, 0x000F)}

@@ -133,7 +133,11 @@ def test_protocol_facts(exported: dict) -> None:
     assert fcs[0x03]["max_quantity"] == 16
     assert fcs[0x06]["max_quantity"] == 1
     assert fcs[0x10]["max_quantity"] == 11  # 31-byte request = 9 + 2N
-    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: None, 6: None, 8: None, 16: None}
+    # 003 §2 通信格式: "0 表一齐发送指令" names the broadcast address only: writes unknown (null, with the
+    # reason), reads and loopback false (map choice: they need a reply); the same rule as edx and vfd1000.
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None, 8: False, 16: None}
+    assert all(fc["broadcast_reason"] for fc in fcs.values())
+    assert "0 表一齐发送指令" in fcs[6]["broadcast_reason"] and fcs[3]["broadcast_reason"].startswith("map choice")
     policy = {entry["case"]: entry["code"] for entry in proto["exception_policy"]}
     assert policy["illegal_function"] == 0x51
     assert policy["illegal_address"] == 0x52
@@ -164,3 +168,21 @@ def test_examples_transcribed(exported: dict) -> None:
     assert _hex(examples["write_run_forward_60hz"]["request"]) == "01100101000204000117706027"
     verified = {name for name, ex in examples.items() if ex["status"] == "verified"}
     assert verified == set(examples) - {"read_frequency_command", "read_frequency_command_fault"}
+
+
+def test_every_parameter_element_exports_its_id(registers: dict) -> None:
+    """003 §参数与暂存器编号对照表: P_n is at register n, so parameters[n] is P_n for n = 0..255."""
+    for n in range(256):
+        reg = registers[f"parameters[{n}]"]
+        assert (reg["address"], reg["param"]) == (n, f"P_{n}")
+    # P_256.. are the command/monitor registers at the same addresses
+    assert registers["run_command"]["param"] == "P_257" and registers["status"]["param"] == "P_288"
+
+
+def test_unlisted_addresses_are_not_called_reserved(exported: dict) -> None:
+    """003 §DATA 一览表 (监视数据): 0121H-0122H and 0124H-0126H are not listed (5 addresses), unlike the
+    预备 (reserved) rows 0100H, 0104H-011FH, 012EH-012FH."""
+    kinds: dict[str, int] = {}
+    for item in exported["reserved"]:
+        kinds[item["kind"]] = kinds.get(item["kind"], 0) + item["end"] - item["start"] + 1
+    assert kinds == {"reserved": 1 + 28 + 2, "not_listed": 5}

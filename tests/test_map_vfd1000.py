@@ -7,6 +7,8 @@ The manual's sections have no numbers; case ids name the table or example instea
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from drivemap.export import export_model
@@ -128,6 +130,11 @@ def test_protocol_unit_ids_and_serial(exported: dict) -> None:
     units = p.get("unit_ids") or {"min": p.get("unit_min"), "max": p.get("unit_max")}
     assert units["min"] == 1 and units["max"] == 247
     assert p["broadcast_address"] == 0
+    # 002 §RTU frame format only names 0 as the broadcast address: 06H unknown (null, with the reason),
+    # 03H false (map choice: a read needs a reply); the same rule as edx 004 §1.3 and v2 003 §2.
+    fcs = {fc["code"]: fc for fc in p["function_codes"]}
+    assert {code: fc["broadcast"] for code, fc in fcs.items()} == {3: False, 6: None}
+    assert "broadcast address" in fcs[6]["broadcast_reason"] and fcs[3]["broadcast_reason"].startswith("map choice")
     port = p["ports"][0]
     assert port["baudrates"] == [1200, 2400, 4800, 9600, 19200, 38400]
     assert set(port["parity"]) == {"none", "even", "odd"}
@@ -159,3 +166,34 @@ def test_examples_present(exported: dict) -> None:
     assert ex["read_0004_two_registers"]["erratum"]
     assert ex["write_0008_5000"]["request"] == ex["write_0008_5000"]["response"]
     assert not ex["write_0008_5000"]["erratum"]
+
+
+def test_exception_codes_are_marked_assumed(exported: dict) -> None:
+    """002 §Response action: the exception table is missing; 01/02/03/06 are the map's assumption."""
+    excs = {e["code"]: e for e in exported["protocol"]["exceptions"]}
+    assert sorted(excs) == [0x01, 0x02, 0x03, 0x06]
+    for exc in excs.values():
+        assert exc["documented"] is False and exc["source"] == "map choice"
+    for case in exported["protocol"]["exception_policy"]:
+        assert case["source"] == "map choice"
+
+
+def test_only_pc00_to_pc02_are_described(exported: dict) -> None:
+    """002 §PC.00-§PC.02: the text names no PC.03-PC.05 (they came from a reading aid, not the manual)."""
+    text = json.dumps([exported["title"], exported["protocol"], exported["registers"]], ensure_ascii=False)
+    for name in ("PC.03", "PC.04", "PC.05"):
+        assert name not in text
+    whats = [s["what"] for s in exported["protocol"]["ports"][0]["settings"]]
+    assert whats == ["unit id (local communication address)", "baud rate", "data format (parity and stop bits)"]
+
+
+@pytest.mark.parametrize("model", ["edx", "ev", "v2"])
+def test_other_maps_list_documented_codes_only(model: str) -> None:
+    for exc in export_model(model)["protocol"]["exceptions"]:
+        assert exc["documented"] is True and exc["source"] != "map choice", (model, exc["code"])
+
+
+def test_reserved_rows_are_printed_reserved(exported: dict) -> None:
+    """002 §Communication control command table: 300EH-300FH, 3011H, 3013H are printed "Reserved"."""
+    assert {(r["start"], r["end"], r["kind"]) for r in exported["reserved"]} == {
+        (0x300E, 0x300F, "reserved"), (0x3011, 0x3011, "reserved"), (0x3013, 0x3013, "reserved")}

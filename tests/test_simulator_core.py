@@ -187,7 +187,11 @@ def test_busy_v2_parameters_while_running() -> None:
 
 
 def test_busy_ev_eeprom_while_running_records_8d() -> None:
+    """001 §4.6 NOTE only advises the RAM twins while running: refused only with the opt-in option."""
     sim = sim_class("ev")()
+    assert sim.handle(1, write(0x1400, 1)) == write(0x1400, 1)
+    assert sim.handle(1, write(0x0308, 1000)) == write(0x0308, 1000)  # advice, not a refusal
+    sim = sim_class("ev")(refuse_advised_while_running=True)
     assert sim.handle(1, write(0x1400, 1)) == write(0x1400, 1)
     assert sim.handle(1, write(0x0308, 1000)) == exc(0x06, 0x04)
     assert sim.get("comm_error_history[0]") == 0x8D

@@ -65,7 +65,7 @@ def tcp_server(sim: Any) -> Iterator[ModbusTcpClient]:
 
 # ==== TCP =========================================================================================
 def test_tcp_reads_writes_and_exceptions_ev() -> None:
-    sim = sim_class("ev")([1, 2])
+    sim = sim_class("ev")([1, 2], refuse_advised_while_running=True)  # the opt-in busy refusal, below
     with tcp_server(sim) as client:
         rr = client.read_holding_registers(0x0308, count=2, device_id=1)
         assert not rr.isError() and rr.registers == [3000, 3000]

@@ -6,6 +6,7 @@ Each check reports a located :class:`Diagnostic`; all of a file's errors are col
 from __future__ import annotations
 
 import math
+import string
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +59,7 @@ class Checker:
         self.check_reserved()
         self.check_known_issues()
         self.check_examples()
+        self.check_running()
         return self.diagnostics
 
     def check_device(self) -> None:
@@ -158,6 +160,8 @@ class Checker:
             self.error(where + ("stride",), "stride without count")
         if "element_params" in reg and len(reg["element_params"]) != count:
             self.error(where + ("element_params",), f"element_params has {len(reg['element_params'])} entries, count is {count}")
+        if "element_param_format" in reg:
+            self.check_element_param_format(reg, where)
         if reg.get("enum") and reg.get("bits"):
             self.error(where + ("enum",), "a register has either an enum or bits, not both")
         if reg.get("enum") and (scale != 1 or offset != 0):
@@ -206,6 +210,26 @@ class Checker:
             elif enum_values is not None and round(raw_of(value)) not in enum_values:
                 self.error(dwhere, f"default {value} is not a value of enum {reg['enum']}")
         self.check_bits(reg, where, bits_total)
+
+    def check_element_param_format(self, reg: dict[str, Any], where: PathT) -> None:
+        """Only {index} and {address}, an array, not with element_params; element 0 gives param."""
+        fmt = reg["element_param_format"]
+        fwhere = where + ("element_param_format",)
+        try:
+            fields = {name for _, name, spec, conv in string.Formatter().parse(fmt) if name is not None}
+            bad = fields - {"index", "address"}
+            first = fmt.format(index=0, address=reg["address"]) if not bad else None
+        except (ValueError, KeyError, IndexError) as exc:
+            self.error(fwhere, f"element_param_format {fmt!r} is not a valid format: {exc}")
+            return
+        if bad:
+            self.error(fwhere, f"element_param_format may use only {{index}} and {{address}}, not {sorted(bad)}")
+        elif reg.get("count", 1) < 2:
+            self.error(fwhere, "element_param_format is for arrays (count > 1)")
+        elif "element_params" in reg:
+            self.error(fwhere, "give element_params or element_param_format, not both")
+        elif reg.get("param") is not None and first != reg["param"]:
+            self.error(fwhere, f"element_param_format gives {first!r} for element 0, but param is {reg['param']!r}")
 
     def check_bits(self, reg: dict[str, Any], where: PathT, bits_total: int) -> None:
         used: dict[int, int] = {}
@@ -310,6 +334,25 @@ class Checker:
         proc = timing.get("processing_ms")
         if proc and proc["min"] > proc["max"]:
             self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
+
+    def check_running(self) -> None:
+        """protocol.running_state names a readable register; running_advice.instead a writable one."""
+        regs = self.data["registers"]
+        state = self.data["protocol"].get("running_state")
+        if state:
+            name = state["register"]
+            if name not in self.register_names:
+                self.error(("protocol", "running_state", "register"), f"unknown register {name!r}")
+            elif "r" not in regs[self.register_names[name]]["access"]:
+                self.error(("protocol", "running_state", "register"), f"running_state register {name!r} is not readable")
+        for i, reg in enumerate(regs):
+            instead = (reg.get("running_advice") or {}).get("instead")
+            if instead is None:
+                continue
+            if instead not in self.register_names:
+                self.error(("registers", i, "running_advice", "instead"), f"unknown register {instead!r}")
+            elif "w" not in regs[self.register_names[instead]]["access"]:
+                self.error(("registers", i, "running_advice", "instead"), f"register {instead!r} is not writable")
 
     def check_reserved(self) -> None:
         cells: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}

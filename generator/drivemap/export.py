@@ -64,6 +64,19 @@ def export(model: Model) -> dict[str, Any]:
         "title": model.device.title,
         "protocol": _plain(model.protocol),
         "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
+        "reserved": [
+            {
+                "start": r.start,
+                "end": r.end,
+                "readable": r.readable,
+                "writable": r.writable,
+                "page": {"selector": r.page.selector, "value": r.page.value} if r.page else None,
+                "kind": r.kind,
+                "source": r.source,
+            }
+            for r in model.reserved
+        ],
+        "known_issues": [_plain(issue) for issue in model.known_issues],
         "examples": [
             {
                 "name": ex.name,

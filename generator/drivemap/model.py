@@ -98,6 +98,7 @@ class FunctionCode:
     response_bytes: LengthRange | None
     source: str
     notes: str | None
+    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,8 @@ class ExceptionCode:
     comm_errors: tuple[int, ...]
     source: str
     notes: str | None
+    #: False: assumed by the map (source "map choice"), not printed in the manual
+    documented: bool = True
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,37 @@ class CommandRef:
 
 
 @dataclass(frozen=True)
+class RunningState:
+    """How the drive reports that it runs: ``register`` shows one of ``values`` (raw)."""
+
+    register: str
+    values: tuple[int, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class RunningAdvice:
+    """Advice (not a refusal) the manual gives for writes while the drive runs."""
+
+    advice: str
+    instead: str | None
+    source: str
+
+    def text(self) -> str:
+        return self.advice + (f" (write {self.instead} instead)" if self.instead else "") + f" [{self.source}]"
+
+
+@dataclass(frozen=True)
+class ReplyQuirk:
+    """A non-standard reply form the device may send (``protocol.reply_quirks``)."""
+
+    quirk: str
+    source: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class Protocol:
     modes: tuple[str, ...]
     unit_min: int
@@ -184,6 +218,8 @@ class Protocol:
     checksum: Checksum | None
     source: str
     notes: str | None
+    running_state: RunningState | None = None
+    reply_quirks: tuple[ReplyQuirk, ...] = ()
 
     def function(self, code: int) -> FunctionCode | None:
         for fc in self.function_codes:
@@ -284,6 +320,9 @@ class Register:
     source: str
     notes: str | None
     line: int = 0
+    running_advice: RunningAdvice | None = None
+    #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
+    element_param_format: str | None = None
 
     @property
     def words(self) -> int:
@@ -329,6 +368,8 @@ class Register:
     def element_param(self, index: int) -> str | None:
         if self.element_params:
             return self.element_params[index]
+        if self.element_param_format is not None:
+            return self.element_param_format.format(index=index, address=self.element_address(index))
         return self.param if index == 0 else None
 
     def default_at(self, index: int) -> float | None:
@@ -373,6 +414,8 @@ class Reserved:
     page: Page | None
     source: str
     notes: str | None
+    #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed
+    kind: str = "reserved"
 
 
 @dataclass(frozen=True)
@@ -547,11 +590,13 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
             FunctionCode(
                 f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
                 lr(f.get("request_bytes")), lr(f.get("response_bytes")), f["source"], f.get("notes"),
+                broadcast_reason=f.get("broadcast_reason"),
             )
             for f in p["function_codes"]
         ),
         exceptions=tuple(
-            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"))
+            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"),
+                          documented=e.get("documented", True))
             for e in p["exceptions"]
         ),
         comm_errors=tuple(
@@ -570,6 +615,8 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         checksum=checksum,
         source=p["source"],
         notes=p.get("notes"),
+        running_state=_running_state(p.get("running_state")),
+        reply_quirks=tuple(ReplyQuirk(q["quirk"], q["source"], q["reason"]) for q in p.get("reply_quirks", ())),
     )
     enums = tuple(
         Enum(
@@ -606,13 +653,15 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
                 broadcast=r.get("broadcast", writable and _broadcast_writable(p, r)),
                 refuse_while_running=r.get("refuse_while_running", False),
                 source=r["source"], notes=r.get("notes"), line=lines.get(r["name"], 0),
+                running_advice=_running_advice(r.get("running_advice")),
+                element_param_format=r.get("element_param_format"),
             )
         )
     reserved = tuple(
         Reserved(
             x["start"], x["end"], x.get("readable"), x.get("writable", False),
             Page(x["page"]["selector"], x["page"]["value"]) if x.get("page") else None,
-            x["source"], x.get("notes"),
+            x["source"], x.get("notes"), kind=x.get("kind", "reserved"),
         )
         for x in data.get("reserved", ())
     )
@@ -658,3 +707,15 @@ def _broadcast_writable(protocol: dict[str, Any], reg: dict[str, Any]) -> bool:
     if words == 1 and codes.get(6) is True:
         return True
     return codes.get(16) is True
+
+
+def _running_state(item: dict[str, Any] | None) -> RunningState | None:
+    if not item:
+        return None
+    return RunningState(item["register"], tuple(item["values"]), item["source"], item.get("notes"))
+
+
+def _running_advice(item: dict[str, Any] | None) -> RunningAdvice | None:
+    if not item:
+        return None
+    return RunningAdvice(item["advice"], item.get("instead"), item["source"])

@@ -27,9 +27,7 @@ from .client import (
     CODECS,
     EXCEPTIONS,
     AddressError,
-    AsyncBroadcastClient,
     AsyncClient,
-    BroadcastClient,
     Client,
     DataAmountError,
     DataOverRangeError,
@@ -46,10 +44,8 @@ from .spec import SPEC
 
 __all__ = [
     'AddressError',
-    'AsyncBroadcastClient',
     'AsyncBus',
     'AsyncClient',
-    'BroadcastClient',
     'BroadcastRead',
     'Bus',
     'Client',

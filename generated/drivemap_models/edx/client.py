@@ -16,8 +16,6 @@ from drivemap.runtime.client import (
     AsyncReadOnly,
     AsyncReadWrite,
     AsyncReadWriteArray,
-    AsyncWriteOnly,
-    AsyncWriteOnlyArray,
     Bus,
     ClientBase,
     PagePolicy,
@@ -25,8 +23,6 @@ from drivemap.runtime.client import (
     ReadWrite,
     ReadWriteArray,
     SnapshotBase,
-    WriteOnly,
-    WriteOnlyArray,
 )
 from drivemap.runtime.codec import (
     Codec,
@@ -42,9 +38,7 @@ from .spec import SPEC
 
 __all__ = [
     'AddressError',
-    'AsyncBroadcastClient',
     'AsyncClient',
-    'BroadcastClient',
     'Client',
     'CODECS',
     'DataAmountError',
@@ -673,7 +667,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00E6; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §4.1.
         """
         self.frequency_command: ReadWrite[float] = ReadWrite(self, _codec_frequency_command)
@@ -682,7 +675,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00E7; u16, access rw.
         Unit: Hz; scale 0.01; range — .. — Hz.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §4.1.
         """
         self.remote_keypad_used: ReadWrite[int] = ReadWrite(self, _codec_remote_keypad_used)
@@ -691,7 +683,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00E8; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §4.1.
         """
         self.status: ReadOnly[Status] = ReadOnly(self, _codec_status)
@@ -812,7 +803,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0000; parameter F00; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f01: ReadWrite[int] = ReadWrite(self, _codec_f01)
@@ -821,7 +811,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0001; parameter F01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f02: ReadWrite[int] = ReadWrite(self, _codec_f02)
@@ -830,7 +819,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0002; parameter F02; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f03: ReadWrite[int] = ReadWrite(self, _codec_f03)
@@ -839,7 +827,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0003; parameter F03; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f04: ReadWrite[int] = ReadWrite(self, _codec_f04)
@@ -848,7 +835,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0004; parameter F04; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f05: ReadWrite[int] = ReadWrite(self, _codec_f05)
@@ -857,7 +843,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0005; parameter F05; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f06: ReadWrite[int] = ReadWrite(self, _codec_f06)
@@ -866,7 +851,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0006; parameter F06; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f07: ReadWrite[int] = ReadWrite(self, _codec_f07)
@@ -875,7 +859,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0008; parameter F07; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f08: ReadWrite[int] = ReadWrite(self, _codec_f08)
@@ -884,7 +867,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0009; parameter F08; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f09: ReadWrite[int] = ReadWrite(self, _codec_f09)
@@ -893,7 +875,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000A; parameter F09; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f10: ReadWrite[int] = ReadWrite(self, _codec_f10)
@@ -902,7 +883,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000B; parameter F10; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f11: ReadWrite[int] = ReadWrite(self, _codec_f11)
@@ -911,7 +891,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000E; parameter F11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f12: ReadWrite[int] = ReadWrite(self, _codec_f12)
@@ -920,7 +899,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000F; parameter F12; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f13: ReadWrite[int] = ReadWrite(self, _codec_f13)
@@ -929,7 +907,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0010; parameter F13; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f14: ReadWrite[int] = ReadWrite(self, _codec_f14)
@@ -938,7 +915,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0011; parameter F14; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f15: ReadWrite[int] = ReadWrite(self, _codec_f15)
@@ -947,7 +923,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0012; parameter F15; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f16: ReadWrite[int] = ReadWrite(self, _codec_f16)
@@ -956,7 +931,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0092; parameter F16; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f17: ReadWrite[int] = ReadWrite(self, _codec_f17)
@@ -965,7 +939,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0013; parameter F17; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f18: ReadWrite[int] = ReadWrite(self, _codec_f18)
@@ -974,7 +947,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0014; parameter F18; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f19: ReadWrite[int] = ReadWrite(self, _codec_f19)
@@ -983,7 +955,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0076; parameter F19; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f20: ReadWrite[int] = ReadWrite(self, _codec_f20)
@@ -992,7 +963,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0077; parameter F20; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f21: ReadWrite[int] = ReadWrite(self, _codec_f21)
@@ -1001,7 +971,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0015; parameter F21; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f22: ReadWrite[int] = ReadWrite(self, _codec_f22)
@@ -1010,7 +979,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0016; parameter F22; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f23: ReadWrite[int] = ReadWrite(self, _codec_f23)
@@ -1019,7 +987,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0017; parameter F23; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f24: ReadWrite[int] = ReadWrite(self, _codec_f24)
@@ -1028,7 +995,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x009F; parameter F24; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f25: ReadWrite[int] = ReadWrite(self, _codec_f25)
@@ -1037,7 +1003,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00A0; parameter F25; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f26: ReadWrite[int] = ReadWrite(self, _codec_f26)
@@ -1046,7 +1011,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0018; parameter F26; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f27: ReadWrite[int] = ReadWrite(self, _codec_f27)
@@ -1055,7 +1019,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0019; parameter F27; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f28: ReadWrite[int] = ReadWrite(self, _codec_f28)
@@ -1064,7 +1027,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001A; parameter F28; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f29: ReadWrite[int] = ReadWrite(self, _codec_f29)
@@ -1073,7 +1035,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001B; parameter F29; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f30: ReadWrite[int] = ReadWrite(self, _codec_f30)
@@ -1082,7 +1043,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001C; parameter F30; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f31: ReadWrite[int] = ReadWrite(self, _codec_f31)
@@ -1091,7 +1051,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001D; parameter F31; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f32: ReadWrite[int] = ReadWrite(self, _codec_f32)
@@ -1100,7 +1059,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001E; parameter F32; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f33: ReadWrite[int] = ReadWrite(self, _codec_f33)
@@ -1109,7 +1067,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x001F; parameter F33; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f34: ReadWrite[int] = ReadWrite(self, _codec_f34)
@@ -1118,7 +1075,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0020; parameter F34; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f35: ReadWrite[int] = ReadWrite(self, _codec_f35)
@@ -1127,7 +1083,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0021; parameter F35; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f36: ReadWrite[int] = ReadWrite(self, _codec_f36)
@@ -1136,7 +1091,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0022; parameter F36; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f37: ReadWrite[int] = ReadWrite(self, _codec_f37)
@@ -1145,7 +1099,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0023; parameter F37; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f38: ReadWrite[int] = ReadWrite(self, _codec_f38)
@@ -1154,7 +1107,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0024; parameter F38; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f39: ReadWrite[int] = ReadWrite(self, _codec_f39)
@@ -1163,7 +1115,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0025; parameter F39; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f40: ReadWrite[int] = ReadWrite(self, _codec_f40)
@@ -1172,7 +1123,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0026; parameter F40; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f41: ReadWrite[int] = ReadWrite(self, _codec_f41)
@@ -1181,7 +1131,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0027; parameter F41; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f42: ReadWrite[int] = ReadWrite(self, _codec_f42)
@@ -1190,7 +1139,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0028; parameter F42; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f43: ReadWrite[int] = ReadWrite(self, _codec_f43)
@@ -1199,7 +1147,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0095; parameter F43; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f44: ReadWrite[int] = ReadWrite(self, _codec_f44)
@@ -1208,7 +1155,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0096; parameter F44; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f45: ReadWrite[int] = ReadWrite(self, _codec_f45)
@@ -1217,7 +1163,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0099; parameter F45; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f46: ReadWrite[int] = ReadWrite(self, _codec_f46)
@@ -1226,7 +1171,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0097; parameter F46; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f47: ReadWrite[int] = ReadWrite(self, _codec_f47)
@@ -1235,7 +1179,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0098; parameter F47; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f48: ReadWrite[int] = ReadWrite(self, _codec_f48)
@@ -1244,7 +1187,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00DC; parameter F48; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f49: ReadWrite[int] = ReadWrite(self, _codec_f49)
@@ -1253,7 +1195,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00DD; parameter F49; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f50: ReadWrite[int] = ReadWrite(self, _codec_f50)
@@ -1262,7 +1203,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x00DF; parameter F50; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f51: ReadWrite[int] = ReadWrite(self, _codec_f51)
@@ -1271,7 +1211,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x002A; parameter F51; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f52: ReadWrite[int] = ReadWrite(self, _codec_f52)
@@ -1280,7 +1219,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x002B; parameter F52; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f53: ReadWrite[int] = ReadWrite(self, _codec_f53)
@@ -1289,7 +1227,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x002C; parameter F53; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.f54: ReadWriteArray[int] = ReadWriteArray(self, _codec_f54)
@@ -1298,7 +1235,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x002D, 3 elements, stride 1; parameter F54 (F54, F54, F54); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c00: ReadWrite[int] = ReadWrite(self, _codec_c00)
@@ -1307,7 +1243,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0064; parameter C00; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c01: ReadWrite[int] = ReadWrite(self, _codec_c01)
@@ -1316,7 +1251,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0065; parameter C01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c02: ReadWrite[int] = ReadWrite(self, _codec_c02)
@@ -1325,7 +1259,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0066; parameter C02; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c03: ReadWrite[int] = ReadWrite(self, _codec_c03)
@@ -1334,7 +1267,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0067; parameter C03; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c04: ReadWrite[int] = ReadWrite(self, _codec_c04)
@@ -1343,7 +1275,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0068; parameter C04; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c05: ReadWrite[int] = ReadWrite(self, _codec_c05)
@@ -1352,7 +1283,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0069; parameter C05; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c06: ReadWrite[int] = ReadWrite(self, _codec_c06)
@@ -1361,7 +1291,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006A; parameter C06; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c07: ReadWrite[int] = ReadWrite(self, _codec_c07)
@@ -1370,7 +1299,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006B; parameter C07; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c08: ReadWrite[int] = ReadWrite(self, _codec_c08)
@@ -1379,7 +1307,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006C; parameter C08; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c09: ReadWrite[int] = ReadWrite(self, _codec_c09)
@@ -1388,7 +1315,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006D; parameter C09; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c10: ReadWrite[int] = ReadWrite(self, _codec_c10)
@@ -1397,7 +1323,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006E; parameter C10; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c11: ReadWrite[int] = ReadWrite(self, _codec_c11)
@@ -1406,7 +1331,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x006F; parameter C11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c12: ReadWrite[int] = ReadWrite(self, _codec_c12)
@@ -1415,7 +1339,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0070; parameter C12; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c13: ReadWrite[int] = ReadWrite(self, _codec_c13)
@@ -1424,7 +1347,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0071; parameter C13; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c14: ReadWrite[int] = ReadWrite(self, _codec_c14)
@@ -1433,7 +1355,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x009A; parameter C14; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c15: ReadWrite[int] = ReadWrite(self, _codec_c15)
@@ -1442,7 +1363,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0007; parameter C15; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c16: ReadWrite[int] = ReadWrite(self, _codec_c16)
@@ -1451,7 +1371,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x009E; parameter C16; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c17: ReadWrite[int] = ReadWrite(self, _codec_c17)
@@ -1460,7 +1379,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007A; parameter C17; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c18: ReadWrite[int] = ReadWrite(self, _codec_c18)
@@ -1469,7 +1387,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007B; parameter C18; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c19: ReadWrite[int] = ReadWrite(self, _codec_c19)
@@ -1478,7 +1395,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007C; parameter C19; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c20: ReadWrite[int] = ReadWrite(self, _codec_c20)
@@ -1487,7 +1403,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007D; parameter C20; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c21: ReadWrite[int] = ReadWrite(self, _codec_c21)
@@ -1496,7 +1411,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007E; parameter C21; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c22: ReadWrite[int] = ReadWrite(self, _codec_c22)
@@ -1505,7 +1419,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x007F; parameter C22; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c23: ReadWrite[int] = ReadWrite(self, _codec_c23)
@@ -1514,7 +1427,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000C; parameter C23; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c24: ReadWrite[int] = ReadWrite(self, _codec_c24)
@@ -1523,7 +1435,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x000D; parameter C24; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c25: ReadWrite[int] = ReadWrite(self, _codec_c25)
@@ -1532,7 +1443,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0029; parameter C25; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c26: ReadWrite[int] = ReadWrite(self, _codec_c26)
@@ -1541,7 +1451,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0080; parameter C26; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c27: ReadWrite[int] = ReadWrite(self, _codec_c27)
@@ -1550,7 +1459,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0081; parameter C27; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c28: ReadWrite[int] = ReadWrite(self, _codec_c28)
@@ -1559,7 +1467,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0082; parameter C28; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c29: ReadWrite[int] = ReadWrite(self, _codec_c29)
@@ -1568,7 +1475,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0083; parameter C29; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c30: ReadWrite[int] = ReadWrite(self, _codec_c30)
@@ -1577,7 +1483,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008A; parameter C30; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c31: ReadWrite[int] = ReadWrite(self, _codec_c31)
@@ -1586,7 +1491,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008B; parameter C31; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c32: ReadWrite[int] = ReadWrite(self, _codec_c32)
@@ -1595,7 +1499,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008C; parameter C32; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c33: ReadWrite[int] = ReadWrite(self, _codec_c33)
@@ -1604,7 +1507,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008D; parameter C33; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c34: ReadWrite[int] = ReadWrite(self, _codec_c34)
@@ -1613,7 +1515,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008E; parameter C34; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c35: ReadWrite[int] = ReadWrite(self, _codec_c35)
@@ -1622,7 +1523,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x008F; parameter C35; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c36: ReadWrite[int] = ReadWrite(self, _codec_c36)
@@ -1631,7 +1531,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0090; parameter C36; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c37: ReadWrite[int] = ReadWrite(self, _codec_c37)
@@ -1640,7 +1539,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0091; parameter C37; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c38: ReadWrite[int] = ReadWrite(self, _codec_c38)
@@ -1649,7 +1547,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0093; parameter C38; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c39: ReadWrite[int] = ReadWrite(self, _codec_c39)
@@ -1658,7 +1555,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0094; parameter C39; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c40: ReadWrite[int] = ReadWrite(self, _codec_c40)
@@ -1667,7 +1563,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0072; parameter C40; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c41: ReadWrite[int] = ReadWrite(self, _codec_c41)
@@ -1676,7 +1571,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x009D; parameter C41; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c42: ReadWrite[int] = ReadWrite(self, _codec_c42)
@@ -1685,7 +1579,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0073; parameter C42; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c43: ReadWrite[int] = ReadWrite(self, _codec_c43)
@@ -1694,7 +1587,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0074; parameter C43; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c44: ReadWrite[int] = ReadWrite(self, _codec_c44)
@@ -1703,7 +1595,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0075; parameter C44; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c45: ReadWrite[int] = ReadWrite(self, _codec_c45)
@@ -1712,7 +1603,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0078; parameter C45; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c46: ReadWrite[int] = ReadWrite(self, _codec_c46)
@@ -1721,7 +1611,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0079; parameter C46; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c47: ReadWrite[int] = ReadWrite(self, _codec_c47)
@@ -1730,7 +1619,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0030; parameter C47; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c48: ReadWrite[int] = ReadWrite(self, _codec_c48)
@@ -1739,7 +1627,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0084; parameter C48; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c49: ReadWrite[int] = ReadWrite(self, _codec_c49)
@@ -1748,7 +1635,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0085; parameter C49; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c50: ReadWrite[int] = ReadWrite(self, _codec_c50)
@@ -1757,7 +1643,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0086; parameter C50; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c51: ReadWrite[int] = ReadWrite(self, _codec_c51)
@@ -1766,7 +1651,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0087; parameter C51; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c52: ReadWrite[int] = ReadWrite(self, _codec_c52)
@@ -1775,7 +1659,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0088; parameter C52; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c53: ReadWrite[int] = ReadWrite(self, _codec_c53)
@@ -1784,7 +1667,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x0089; parameter C53; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c54: ReadWrite[int] = ReadWrite(self, _codec_c54)
@@ -1793,7 +1675,6 @@ class Client(ClientBase[Snapshot]):
         Address 0x009B; parameter C54; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self.c55: ReadWrite[int] = ReadWrite(self, _codec_c55)
@@ -1802,15 +1683,9 @@ class Client(ClientBase[Snapshot]):
         Address 0x009C; parameter C55; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
-        May be written by broadcast.
         Manual: 004 §6.
         """
         self._register_accessors()
-
-    @classmethod
-    def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> BroadcastClient:
-        """Writes to every unit at once (unit 0); never waits for a reply."""
-        return BroadcastClient(bus, page_policy=page_policy)
 
 
 class AsyncClient(AsyncClientBase[Snapshot]):
@@ -2079,492 +1954,5 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         self.c54: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_c54)
         """c54 (see :attr:`Client.c54`)."""
         self.c55: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_c55)
-        """c55 (see :attr:`Client.c55`)."""
-        self._register_accessors()
-
-    @classmethod
-    def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncBroadcastClient:
-        """Writes to every unit at once (unit 0); never waits for a reply."""
-        return AsyncBroadcastClient(bus, page_policy=page_policy)
-
-
-class BroadcastClient(ClientBase[SnapshotBase]):
-    """Broadcast (unit 0): only the writes the map allows by broadcast; reads fail before sending."""
-
-    SPEC = SPEC
-    EXCEPTIONS = EXCEPTIONS
-    CODECS = CODECS
-
-    def __init__(self, bus: Bus, unit: int = 0, *, page_policy: PagePolicy = "raise",
-                 _broadcast: bool = True, _owns_bus: bool = False) -> None:
-        super().__init__(bus, unit, page_policy=page_policy, _broadcast=True, _owns_bus=_owns_bus)
-        self.operation_signal: WriteOnly[OperationSignal] = WriteOnly(self, _codec_operation_signal)
-        """Operation Signal (see :attr:`Client.operation_signal`)."""
-        self.frequency_command: WriteOnly[float] = WriteOnly(self, _codec_frequency_command)
-        """Frequency Command (see :attr:`Client.frequency_command`)."""
-        self.remote_keypad_used: WriteOnly[int] = WriteOnly(self, _codec_remote_keypad_used)
-        """Remote Keypad Used (see :attr:`Client.remote_keypad_used`)."""
-        self.f00: WriteOnly[int] = WriteOnly(self, _codec_f00)
-        """f00 (see :attr:`Client.f00`)."""
-        self.f01: WriteOnly[int] = WriteOnly(self, _codec_f01)
-        """f01 (see :attr:`Client.f01`)."""
-        self.f02: WriteOnly[int] = WriteOnly(self, _codec_f02)
-        """f02 (see :attr:`Client.f02`)."""
-        self.f03: WriteOnly[int] = WriteOnly(self, _codec_f03)
-        """f03 (see :attr:`Client.f03`)."""
-        self.f04: WriteOnly[int] = WriteOnly(self, _codec_f04)
-        """f04 (see :attr:`Client.f04`)."""
-        self.f05: WriteOnly[int] = WriteOnly(self, _codec_f05)
-        """f05 (see :attr:`Client.f05`)."""
-        self.f06: WriteOnly[int] = WriteOnly(self, _codec_f06)
-        """f06 (see :attr:`Client.f06`)."""
-        self.f07: WriteOnly[int] = WriteOnly(self, _codec_f07)
-        """f07 (see :attr:`Client.f07`)."""
-        self.f08: WriteOnly[int] = WriteOnly(self, _codec_f08)
-        """f08 (see :attr:`Client.f08`)."""
-        self.f09: WriteOnly[int] = WriteOnly(self, _codec_f09)
-        """f09 (see :attr:`Client.f09`)."""
-        self.f10: WriteOnly[int] = WriteOnly(self, _codec_f10)
-        """f10 (see :attr:`Client.f10`)."""
-        self.f11: WriteOnly[int] = WriteOnly(self, _codec_f11)
-        """f11 (see :attr:`Client.f11`)."""
-        self.f12: WriteOnly[int] = WriteOnly(self, _codec_f12)
-        """f12 (see :attr:`Client.f12`)."""
-        self.f13: WriteOnly[int] = WriteOnly(self, _codec_f13)
-        """f13 (see :attr:`Client.f13`)."""
-        self.f14: WriteOnly[int] = WriteOnly(self, _codec_f14)
-        """f14 (see :attr:`Client.f14`)."""
-        self.f15: WriteOnly[int] = WriteOnly(self, _codec_f15)
-        """f15 (see :attr:`Client.f15`)."""
-        self.f16: WriteOnly[int] = WriteOnly(self, _codec_f16)
-        """f16 (see :attr:`Client.f16`)."""
-        self.f17: WriteOnly[int] = WriteOnly(self, _codec_f17)
-        """f17 (see :attr:`Client.f17`)."""
-        self.f18: WriteOnly[int] = WriteOnly(self, _codec_f18)
-        """f18 (see :attr:`Client.f18`)."""
-        self.f19: WriteOnly[int] = WriteOnly(self, _codec_f19)
-        """f19 (see :attr:`Client.f19`)."""
-        self.f20: WriteOnly[int] = WriteOnly(self, _codec_f20)
-        """f20 (see :attr:`Client.f20`)."""
-        self.f21: WriteOnly[int] = WriteOnly(self, _codec_f21)
-        """f21 (see :attr:`Client.f21`)."""
-        self.f22: WriteOnly[int] = WriteOnly(self, _codec_f22)
-        """f22 (see :attr:`Client.f22`)."""
-        self.f23: WriteOnly[int] = WriteOnly(self, _codec_f23)
-        """f23 (see :attr:`Client.f23`)."""
-        self.f24: WriteOnly[int] = WriteOnly(self, _codec_f24)
-        """f24 (see :attr:`Client.f24`)."""
-        self.f25: WriteOnly[int] = WriteOnly(self, _codec_f25)
-        """f25 (see :attr:`Client.f25`)."""
-        self.f26: WriteOnly[int] = WriteOnly(self, _codec_f26)
-        """f26 (see :attr:`Client.f26`)."""
-        self.f27: WriteOnly[int] = WriteOnly(self, _codec_f27)
-        """f27 (see :attr:`Client.f27`)."""
-        self.f28: WriteOnly[int] = WriteOnly(self, _codec_f28)
-        """f28 (see :attr:`Client.f28`)."""
-        self.f29: WriteOnly[int] = WriteOnly(self, _codec_f29)
-        """f29 (see :attr:`Client.f29`)."""
-        self.f30: WriteOnly[int] = WriteOnly(self, _codec_f30)
-        """f30 (see :attr:`Client.f30`)."""
-        self.f31: WriteOnly[int] = WriteOnly(self, _codec_f31)
-        """f31 (see :attr:`Client.f31`)."""
-        self.f32: WriteOnly[int] = WriteOnly(self, _codec_f32)
-        """f32 (see :attr:`Client.f32`)."""
-        self.f33: WriteOnly[int] = WriteOnly(self, _codec_f33)
-        """f33 (see :attr:`Client.f33`)."""
-        self.f34: WriteOnly[int] = WriteOnly(self, _codec_f34)
-        """f34 (see :attr:`Client.f34`)."""
-        self.f35: WriteOnly[int] = WriteOnly(self, _codec_f35)
-        """f35 (see :attr:`Client.f35`)."""
-        self.f36: WriteOnly[int] = WriteOnly(self, _codec_f36)
-        """f36 (see :attr:`Client.f36`)."""
-        self.f37: WriteOnly[int] = WriteOnly(self, _codec_f37)
-        """f37 (see :attr:`Client.f37`)."""
-        self.f38: WriteOnly[int] = WriteOnly(self, _codec_f38)
-        """f38 (see :attr:`Client.f38`)."""
-        self.f39: WriteOnly[int] = WriteOnly(self, _codec_f39)
-        """f39 (see :attr:`Client.f39`)."""
-        self.f40: WriteOnly[int] = WriteOnly(self, _codec_f40)
-        """f40 (see :attr:`Client.f40`)."""
-        self.f41: WriteOnly[int] = WriteOnly(self, _codec_f41)
-        """f41 (see :attr:`Client.f41`)."""
-        self.f42: WriteOnly[int] = WriteOnly(self, _codec_f42)
-        """f42 (see :attr:`Client.f42`)."""
-        self.f43: WriteOnly[int] = WriteOnly(self, _codec_f43)
-        """f43 (see :attr:`Client.f43`)."""
-        self.f44: WriteOnly[int] = WriteOnly(self, _codec_f44)
-        """f44 (see :attr:`Client.f44`)."""
-        self.f45: WriteOnly[int] = WriteOnly(self, _codec_f45)
-        """f45 (see :attr:`Client.f45`)."""
-        self.f46: WriteOnly[int] = WriteOnly(self, _codec_f46)
-        """f46 (see :attr:`Client.f46`)."""
-        self.f47: WriteOnly[int] = WriteOnly(self, _codec_f47)
-        """f47 (see :attr:`Client.f47`)."""
-        self.f48: WriteOnly[int] = WriteOnly(self, _codec_f48)
-        """f48 (see :attr:`Client.f48`)."""
-        self.f49: WriteOnly[int] = WriteOnly(self, _codec_f49)
-        """f49 (see :attr:`Client.f49`)."""
-        self.f50: WriteOnly[int] = WriteOnly(self, _codec_f50)
-        """f50 (see :attr:`Client.f50`)."""
-        self.f51: WriteOnly[int] = WriteOnly(self, _codec_f51)
-        """f51 (see :attr:`Client.f51`)."""
-        self.f52: WriteOnly[int] = WriteOnly(self, _codec_f52)
-        """f52 (see :attr:`Client.f52`)."""
-        self.f53: WriteOnly[int] = WriteOnly(self, _codec_f53)
-        """f53 (see :attr:`Client.f53`)."""
-        self.f54: WriteOnlyArray[int] = WriteOnlyArray(self, _codec_f54)
-        """f54 (see :attr:`Client.f54`)."""
-        self.c00: WriteOnly[int] = WriteOnly(self, _codec_c00)
-        """c00 (see :attr:`Client.c00`)."""
-        self.c01: WriteOnly[int] = WriteOnly(self, _codec_c01)
-        """c01 (see :attr:`Client.c01`)."""
-        self.c02: WriteOnly[int] = WriteOnly(self, _codec_c02)
-        """c02 (see :attr:`Client.c02`)."""
-        self.c03: WriteOnly[int] = WriteOnly(self, _codec_c03)
-        """c03 (see :attr:`Client.c03`)."""
-        self.c04: WriteOnly[int] = WriteOnly(self, _codec_c04)
-        """c04 (see :attr:`Client.c04`)."""
-        self.c05: WriteOnly[int] = WriteOnly(self, _codec_c05)
-        """c05 (see :attr:`Client.c05`)."""
-        self.c06: WriteOnly[int] = WriteOnly(self, _codec_c06)
-        """c06 (see :attr:`Client.c06`)."""
-        self.c07: WriteOnly[int] = WriteOnly(self, _codec_c07)
-        """c07 (see :attr:`Client.c07`)."""
-        self.c08: WriteOnly[int] = WriteOnly(self, _codec_c08)
-        """c08 (see :attr:`Client.c08`)."""
-        self.c09: WriteOnly[int] = WriteOnly(self, _codec_c09)
-        """c09 (see :attr:`Client.c09`)."""
-        self.c10: WriteOnly[int] = WriteOnly(self, _codec_c10)
-        """c10 (see :attr:`Client.c10`)."""
-        self.c11: WriteOnly[int] = WriteOnly(self, _codec_c11)
-        """c11 (see :attr:`Client.c11`)."""
-        self.c12: WriteOnly[int] = WriteOnly(self, _codec_c12)
-        """c12 (see :attr:`Client.c12`)."""
-        self.c13: WriteOnly[int] = WriteOnly(self, _codec_c13)
-        """c13 (see :attr:`Client.c13`)."""
-        self.c14: WriteOnly[int] = WriteOnly(self, _codec_c14)
-        """c14 (see :attr:`Client.c14`)."""
-        self.c15: WriteOnly[int] = WriteOnly(self, _codec_c15)
-        """c15 (see :attr:`Client.c15`)."""
-        self.c16: WriteOnly[int] = WriteOnly(self, _codec_c16)
-        """c16 (see :attr:`Client.c16`)."""
-        self.c17: WriteOnly[int] = WriteOnly(self, _codec_c17)
-        """c17 (see :attr:`Client.c17`)."""
-        self.c18: WriteOnly[int] = WriteOnly(self, _codec_c18)
-        """c18 (see :attr:`Client.c18`)."""
-        self.c19: WriteOnly[int] = WriteOnly(self, _codec_c19)
-        """c19 (see :attr:`Client.c19`)."""
-        self.c20: WriteOnly[int] = WriteOnly(self, _codec_c20)
-        """c20 (see :attr:`Client.c20`)."""
-        self.c21: WriteOnly[int] = WriteOnly(self, _codec_c21)
-        """c21 (see :attr:`Client.c21`)."""
-        self.c22: WriteOnly[int] = WriteOnly(self, _codec_c22)
-        """c22 (see :attr:`Client.c22`)."""
-        self.c23: WriteOnly[int] = WriteOnly(self, _codec_c23)
-        """c23 (see :attr:`Client.c23`)."""
-        self.c24: WriteOnly[int] = WriteOnly(self, _codec_c24)
-        """c24 (see :attr:`Client.c24`)."""
-        self.c25: WriteOnly[int] = WriteOnly(self, _codec_c25)
-        """c25 (see :attr:`Client.c25`)."""
-        self.c26: WriteOnly[int] = WriteOnly(self, _codec_c26)
-        """c26 (see :attr:`Client.c26`)."""
-        self.c27: WriteOnly[int] = WriteOnly(self, _codec_c27)
-        """c27 (see :attr:`Client.c27`)."""
-        self.c28: WriteOnly[int] = WriteOnly(self, _codec_c28)
-        """c28 (see :attr:`Client.c28`)."""
-        self.c29: WriteOnly[int] = WriteOnly(self, _codec_c29)
-        """c29 (see :attr:`Client.c29`)."""
-        self.c30: WriteOnly[int] = WriteOnly(self, _codec_c30)
-        """c30 (see :attr:`Client.c30`)."""
-        self.c31: WriteOnly[int] = WriteOnly(self, _codec_c31)
-        """c31 (see :attr:`Client.c31`)."""
-        self.c32: WriteOnly[int] = WriteOnly(self, _codec_c32)
-        """c32 (see :attr:`Client.c32`)."""
-        self.c33: WriteOnly[int] = WriteOnly(self, _codec_c33)
-        """c33 (see :attr:`Client.c33`)."""
-        self.c34: WriteOnly[int] = WriteOnly(self, _codec_c34)
-        """c34 (see :attr:`Client.c34`)."""
-        self.c35: WriteOnly[int] = WriteOnly(self, _codec_c35)
-        """c35 (see :attr:`Client.c35`)."""
-        self.c36: WriteOnly[int] = WriteOnly(self, _codec_c36)
-        """c36 (see :attr:`Client.c36`)."""
-        self.c37: WriteOnly[int] = WriteOnly(self, _codec_c37)
-        """c37 (see :attr:`Client.c37`)."""
-        self.c38: WriteOnly[int] = WriteOnly(self, _codec_c38)
-        """c38 (see :attr:`Client.c38`)."""
-        self.c39: WriteOnly[int] = WriteOnly(self, _codec_c39)
-        """c39 (see :attr:`Client.c39`)."""
-        self.c40: WriteOnly[int] = WriteOnly(self, _codec_c40)
-        """c40 (see :attr:`Client.c40`)."""
-        self.c41: WriteOnly[int] = WriteOnly(self, _codec_c41)
-        """c41 (see :attr:`Client.c41`)."""
-        self.c42: WriteOnly[int] = WriteOnly(self, _codec_c42)
-        """c42 (see :attr:`Client.c42`)."""
-        self.c43: WriteOnly[int] = WriteOnly(self, _codec_c43)
-        """c43 (see :attr:`Client.c43`)."""
-        self.c44: WriteOnly[int] = WriteOnly(self, _codec_c44)
-        """c44 (see :attr:`Client.c44`)."""
-        self.c45: WriteOnly[int] = WriteOnly(self, _codec_c45)
-        """c45 (see :attr:`Client.c45`)."""
-        self.c46: WriteOnly[int] = WriteOnly(self, _codec_c46)
-        """c46 (see :attr:`Client.c46`)."""
-        self.c47: WriteOnly[int] = WriteOnly(self, _codec_c47)
-        """c47 (see :attr:`Client.c47`)."""
-        self.c48: WriteOnly[int] = WriteOnly(self, _codec_c48)
-        """c48 (see :attr:`Client.c48`)."""
-        self.c49: WriteOnly[int] = WriteOnly(self, _codec_c49)
-        """c49 (see :attr:`Client.c49`)."""
-        self.c50: WriteOnly[int] = WriteOnly(self, _codec_c50)
-        """c50 (see :attr:`Client.c50`)."""
-        self.c51: WriteOnly[int] = WriteOnly(self, _codec_c51)
-        """c51 (see :attr:`Client.c51`)."""
-        self.c52: WriteOnly[int] = WriteOnly(self, _codec_c52)
-        """c52 (see :attr:`Client.c52`)."""
-        self.c53: WriteOnly[int] = WriteOnly(self, _codec_c53)
-        """c53 (see :attr:`Client.c53`)."""
-        self.c54: WriteOnly[int] = WriteOnly(self, _codec_c54)
-        """c54 (see :attr:`Client.c54`)."""
-        self.c55: WriteOnly[int] = WriteOnly(self, _codec_c55)
-        """c55 (see :attr:`Client.c55`)."""
-        self._register_accessors()
-
-
-class AsyncBroadcastClient(AsyncClientBase[SnapshotBase]):
-    """Asyncio form of :class:`BroadcastClient`."""
-
-    SPEC = SPEC
-    EXCEPTIONS = EXCEPTIONS
-    CODECS = CODECS
-
-    def __init__(self, bus: AsyncBus, unit: int = 0, *, page_policy: PagePolicy = "raise",
-                 _broadcast: bool = True, _owns_bus: bool = False) -> None:
-        super().__init__(bus, unit, page_policy=page_policy, _broadcast=True, _owns_bus=_owns_bus)
-        self.operation_signal: AsyncWriteOnly[OperationSignal] = AsyncWriteOnly(self, _codec_operation_signal)
-        """Operation Signal (see :attr:`Client.operation_signal`)."""
-        self.frequency_command: AsyncWriteOnly[float] = AsyncWriteOnly(self, _codec_frequency_command)
-        """Frequency Command (see :attr:`Client.frequency_command`)."""
-        self.remote_keypad_used: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_remote_keypad_used)
-        """Remote Keypad Used (see :attr:`Client.remote_keypad_used`)."""
-        self.f00: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f00)
-        """f00 (see :attr:`Client.f00`)."""
-        self.f01: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f01)
-        """f01 (see :attr:`Client.f01`)."""
-        self.f02: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f02)
-        """f02 (see :attr:`Client.f02`)."""
-        self.f03: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f03)
-        """f03 (see :attr:`Client.f03`)."""
-        self.f04: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f04)
-        """f04 (see :attr:`Client.f04`)."""
-        self.f05: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f05)
-        """f05 (see :attr:`Client.f05`)."""
-        self.f06: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f06)
-        """f06 (see :attr:`Client.f06`)."""
-        self.f07: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f07)
-        """f07 (see :attr:`Client.f07`)."""
-        self.f08: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f08)
-        """f08 (see :attr:`Client.f08`)."""
-        self.f09: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f09)
-        """f09 (see :attr:`Client.f09`)."""
-        self.f10: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f10)
-        """f10 (see :attr:`Client.f10`)."""
-        self.f11: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f11)
-        """f11 (see :attr:`Client.f11`)."""
-        self.f12: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f12)
-        """f12 (see :attr:`Client.f12`)."""
-        self.f13: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f13)
-        """f13 (see :attr:`Client.f13`)."""
-        self.f14: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f14)
-        """f14 (see :attr:`Client.f14`)."""
-        self.f15: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f15)
-        """f15 (see :attr:`Client.f15`)."""
-        self.f16: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f16)
-        """f16 (see :attr:`Client.f16`)."""
-        self.f17: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f17)
-        """f17 (see :attr:`Client.f17`)."""
-        self.f18: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f18)
-        """f18 (see :attr:`Client.f18`)."""
-        self.f19: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f19)
-        """f19 (see :attr:`Client.f19`)."""
-        self.f20: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f20)
-        """f20 (see :attr:`Client.f20`)."""
-        self.f21: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f21)
-        """f21 (see :attr:`Client.f21`)."""
-        self.f22: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f22)
-        """f22 (see :attr:`Client.f22`)."""
-        self.f23: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f23)
-        """f23 (see :attr:`Client.f23`)."""
-        self.f24: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f24)
-        """f24 (see :attr:`Client.f24`)."""
-        self.f25: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f25)
-        """f25 (see :attr:`Client.f25`)."""
-        self.f26: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f26)
-        """f26 (see :attr:`Client.f26`)."""
-        self.f27: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f27)
-        """f27 (see :attr:`Client.f27`)."""
-        self.f28: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f28)
-        """f28 (see :attr:`Client.f28`)."""
-        self.f29: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f29)
-        """f29 (see :attr:`Client.f29`)."""
-        self.f30: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f30)
-        """f30 (see :attr:`Client.f30`)."""
-        self.f31: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f31)
-        """f31 (see :attr:`Client.f31`)."""
-        self.f32: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f32)
-        """f32 (see :attr:`Client.f32`)."""
-        self.f33: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f33)
-        """f33 (see :attr:`Client.f33`)."""
-        self.f34: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f34)
-        """f34 (see :attr:`Client.f34`)."""
-        self.f35: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f35)
-        """f35 (see :attr:`Client.f35`)."""
-        self.f36: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f36)
-        """f36 (see :attr:`Client.f36`)."""
-        self.f37: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f37)
-        """f37 (see :attr:`Client.f37`)."""
-        self.f38: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f38)
-        """f38 (see :attr:`Client.f38`)."""
-        self.f39: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f39)
-        """f39 (see :attr:`Client.f39`)."""
-        self.f40: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f40)
-        """f40 (see :attr:`Client.f40`)."""
-        self.f41: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f41)
-        """f41 (see :attr:`Client.f41`)."""
-        self.f42: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f42)
-        """f42 (see :attr:`Client.f42`)."""
-        self.f43: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f43)
-        """f43 (see :attr:`Client.f43`)."""
-        self.f44: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f44)
-        """f44 (see :attr:`Client.f44`)."""
-        self.f45: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f45)
-        """f45 (see :attr:`Client.f45`)."""
-        self.f46: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f46)
-        """f46 (see :attr:`Client.f46`)."""
-        self.f47: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f47)
-        """f47 (see :attr:`Client.f47`)."""
-        self.f48: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f48)
-        """f48 (see :attr:`Client.f48`)."""
-        self.f49: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f49)
-        """f49 (see :attr:`Client.f49`)."""
-        self.f50: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f50)
-        """f50 (see :attr:`Client.f50`)."""
-        self.f51: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f51)
-        """f51 (see :attr:`Client.f51`)."""
-        self.f52: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f52)
-        """f52 (see :attr:`Client.f52`)."""
-        self.f53: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_f53)
-        """f53 (see :attr:`Client.f53`)."""
-        self.f54: AsyncWriteOnlyArray[int] = AsyncWriteOnlyArray(self, _codec_f54)
-        """f54 (see :attr:`Client.f54`)."""
-        self.c00: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c00)
-        """c00 (see :attr:`Client.c00`)."""
-        self.c01: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c01)
-        """c01 (see :attr:`Client.c01`)."""
-        self.c02: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c02)
-        """c02 (see :attr:`Client.c02`)."""
-        self.c03: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c03)
-        """c03 (see :attr:`Client.c03`)."""
-        self.c04: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c04)
-        """c04 (see :attr:`Client.c04`)."""
-        self.c05: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c05)
-        """c05 (see :attr:`Client.c05`)."""
-        self.c06: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c06)
-        """c06 (see :attr:`Client.c06`)."""
-        self.c07: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c07)
-        """c07 (see :attr:`Client.c07`)."""
-        self.c08: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c08)
-        """c08 (see :attr:`Client.c08`)."""
-        self.c09: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c09)
-        """c09 (see :attr:`Client.c09`)."""
-        self.c10: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c10)
-        """c10 (see :attr:`Client.c10`)."""
-        self.c11: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c11)
-        """c11 (see :attr:`Client.c11`)."""
-        self.c12: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c12)
-        """c12 (see :attr:`Client.c12`)."""
-        self.c13: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c13)
-        """c13 (see :attr:`Client.c13`)."""
-        self.c14: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c14)
-        """c14 (see :attr:`Client.c14`)."""
-        self.c15: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c15)
-        """c15 (see :attr:`Client.c15`)."""
-        self.c16: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c16)
-        """c16 (see :attr:`Client.c16`)."""
-        self.c17: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c17)
-        """c17 (see :attr:`Client.c17`)."""
-        self.c18: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c18)
-        """c18 (see :attr:`Client.c18`)."""
-        self.c19: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c19)
-        """c19 (see :attr:`Client.c19`)."""
-        self.c20: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c20)
-        """c20 (see :attr:`Client.c20`)."""
-        self.c21: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c21)
-        """c21 (see :attr:`Client.c21`)."""
-        self.c22: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c22)
-        """c22 (see :attr:`Client.c22`)."""
-        self.c23: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c23)
-        """c23 (see :attr:`Client.c23`)."""
-        self.c24: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c24)
-        """c24 (see :attr:`Client.c24`)."""
-        self.c25: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c25)
-        """c25 (see :attr:`Client.c25`)."""
-        self.c26: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c26)
-        """c26 (see :attr:`Client.c26`)."""
-        self.c27: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c27)
-        """c27 (see :attr:`Client.c27`)."""
-        self.c28: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c28)
-        """c28 (see :attr:`Client.c28`)."""
-        self.c29: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c29)
-        """c29 (see :attr:`Client.c29`)."""
-        self.c30: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c30)
-        """c30 (see :attr:`Client.c30`)."""
-        self.c31: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c31)
-        """c31 (see :attr:`Client.c31`)."""
-        self.c32: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c32)
-        """c32 (see :attr:`Client.c32`)."""
-        self.c33: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c33)
-        """c33 (see :attr:`Client.c33`)."""
-        self.c34: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c34)
-        """c34 (see :attr:`Client.c34`)."""
-        self.c35: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c35)
-        """c35 (see :attr:`Client.c35`)."""
-        self.c36: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c36)
-        """c36 (see :attr:`Client.c36`)."""
-        self.c37: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c37)
-        """c37 (see :attr:`Client.c37`)."""
-        self.c38: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c38)
-        """c38 (see :attr:`Client.c38`)."""
-        self.c39: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c39)
-        """c39 (see :attr:`Client.c39`)."""
-        self.c40: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c40)
-        """c40 (see :attr:`Client.c40`)."""
-        self.c41: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c41)
-        """c41 (see :attr:`Client.c41`)."""
-        self.c42: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c42)
-        """c42 (see :attr:`Client.c42`)."""
-        self.c43: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c43)
-        """c43 (see :attr:`Client.c43`)."""
-        self.c44: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c44)
-        """c44 (see :attr:`Client.c44`)."""
-        self.c45: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c45)
-        """c45 (see :attr:`Client.c45`)."""
-        self.c46: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c46)
-        """c46 (see :attr:`Client.c46`)."""
-        self.c47: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c47)
-        """c47 (see :attr:`Client.c47`)."""
-        self.c48: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c48)
-        """c48 (see :attr:`Client.c48`)."""
-        self.c49: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c49)
-        """c49 (see :attr:`Client.c49`)."""
-        self.c50: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c50)
-        """c50 (see :attr:`Client.c50`)."""
-        self.c51: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c51)
-        """c51 (see :attr:`Client.c51`)."""
-        self.c52: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c52)
-        """c52 (see :attr:`Client.c52`)."""
-        self.c53: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c53)
-        """c53 (see :attr:`Client.c53`)."""
-        self.c54: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c54)
-        """c54 (see :attr:`Client.c54`)."""
-        self.c55: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_c55)
         """c55 (see :attr:`Client.c55`)."""
         self._register_accessors()

@@ -800,6 +800,7 @@ class Client(ClientBase[Snapshot]):
         Unit: r/min; scale 1; range 60 .. 10000 r/min.
         Default: 3000; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
+        While the drive runs the manual advises: 馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_speed_ram instead) [001 §4.6 NOTE]; writing it then gives a RunningWriteWarning.
         Manual: 001 §4.6.
         """
         self.digital_accel_time: ReadWriteArray[float] = ReadWriteArray(self, _codec_digital_accel_time)
@@ -810,6 +811,7 @@ class Client(ClientBase[Snapshot]):
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: 1; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
+        While the drive runs the manual advises: 馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_accel_time_ram instead) [001 §4.6 NOTE]; writing it then gives a RunningWriteWarning.
         Manual: 001 §4.6.
         """
         self.digital_decel_time: ReadWriteArray[float] = ReadWriteArray(self, _codec_digital_decel_time)
@@ -820,6 +822,7 @@ class Client(ClientBase[Snapshot]):
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: 1; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
+        While the drive runs the manual advises: 馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_decel_time_ram instead) [001 §4.6 NOTE]; writing it then gives a RunningWriteWarning.
         Manual: 001 §4.6.
         """
         self.digital_torque_limit: ReadWriteArray[float] = ReadWriteArray(self, _codec_digital_torque_limit)
@@ -830,6 +833,7 @@ class Client(ClientBase[Snapshot]):
         Unit: %; scale 0.1; range 0 .. 200 %.
         Default: 200; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
+        While the drive runs the manual advises: 馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_torque_limit_ram instead) [001 §4.6 NOTE]; writing it then gives a RunningWriteWarning.
         Manual: 001 §4.6.
         """
         self.digital_duty: ReadWriteArray[float] = ReadWriteArray(self, _codec_digital_duty)
@@ -840,6 +844,7 @@ class Client(ClientBase[Snapshot]):
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: 10, 20, 30, 40, 50, 60, 80, 100; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
+        While the drive runs the manual advises: 馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_duty_ram instead) [001 §4.6 NOTE]; writing it then gives a RunningWriteWarning.
         Manual: 001 §4.6.
         """
         self.digital_speed_ram: ReadWriteArray[int] = ReadWriteArray(self, _codec_digital_speed_ram)

@@ -382,9 +382,9 @@ SPEC = DeviceSpec(
             storage='eeprom',
             write_delay_ms=20,
             broadcast=True,
-            refuse_while_running=True,
             param='03-09',
             source='001 §4.6',
+            running_advice='馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_speed_ram instead) [001 §4.6 NOTE]',
         ),
         RegisterSpec(
             name='digital_accel_time',
@@ -399,9 +399,9 @@ SPEC = DeviceSpec(
             storage='eeprom',
             write_delay_ms=20,
             broadcast=True,
-            refuse_while_running=True,
             param='04-01',
             source='001 §4.6',
+            running_advice='馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_accel_time_ram instead) [001 §4.6 NOTE]',
         ),
         RegisterSpec(
             name='digital_decel_time',
@@ -416,9 +416,9 @@ SPEC = DeviceSpec(
             storage='eeprom',
             write_delay_ms=20,
             broadcast=True,
-            refuse_while_running=True,
             param='04-09',
             source='001 §4.6',
+            running_advice='馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_decel_time_ram instead) [001 §4.6 NOTE]',
         ),
         RegisterSpec(
             name='digital_torque_limit',
@@ -433,9 +433,9 @@ SPEC = DeviceSpec(
             storage='eeprom',
             write_delay_ms=20,
             broadcast=True,
-            refuse_while_running=True,
             param='07-01',
             source='001 §4.6',
+            running_advice='馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_torque_limit_ram instead) [001 §4.6 NOTE]',
         ),
         RegisterSpec(
             name='digital_duty',
@@ -450,9 +450,9 @@ SPEC = DeviceSpec(
             storage='eeprom',
             write_delay_ms=20,
             broadcast=True,
-            refuse_while_running=True,
             param='07-09',
             source='001 §4.6',
+            running_advice='馬達運轉中，請使用數位運轉資料寄存器 RAM 位置來變更設定運轉資料 (while the motor runs, change operation data through the RAM addresses) (write digital_duty_ram instead) [001 §4.6 NOTE]',
         ),
         RegisterSpec(
             name='digital_speed_ram',
@@ -604,4 +604,5 @@ SPEC = DeviceSpec(
     configuration=('configuration', 1),
     max_frame_bytes=None,
     fixed_units=(17,),
+    running_state=('motor_state', (2,)),
 )

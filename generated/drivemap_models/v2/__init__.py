@@ -26,9 +26,7 @@ from drivemap.runtime.errors import (
 from .client import (
     CODECS,
     EXCEPTIONS,
-    AsyncBroadcastClient,
     AsyncClient,
-    BroadcastClient,
     Client,
     DataSettingError,
     FunctionCodeError,
@@ -43,10 +41,8 @@ from .client import (
 from .spec import SPEC
 
 __all__ = [
-    'AsyncBroadcastClient',
     'AsyncBus',
     'AsyncClient',
-    'BroadcastClient',
     'BroadcastRead',
     'Bus',
     'Client',

@@ -35,9 +35,7 @@ from drivemap.runtime.errors import DeviceException
 from .spec import SPEC
 
 __all__ = [
-    'AsyncBroadcastClient',
     'AsyncClient',
-    'BroadcastClient',
     'Client',
     'CODECS',
     'DataSettingError',
@@ -323,17 +321,12 @@ class Client(ClientBase[Snapshot]):
         self.parameters: ReadWriteArray[int] = ReadWriteArray(self, _codec_parameters)
         """参数 P_0..P_255
 
-        Address 0x0000, 256 elements, stride 1; parameter P_0; u16, access rw.
+        Address 0x0000, 256 elements, stride 1; parameter P_0 (element i: P_0 … P_255); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §参数与暂存器编号对照表.
         """
         self._register_accessors()
-
-    @classmethod
-    def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> BroadcastClient:
-        """Writes to every unit at once (unit 0); never waits for a reply."""
-        return BroadcastClient(bus, page_policy=page_policy)
 
 
 class AsyncClient(AsyncClientBase[Snapshot]):
@@ -373,35 +366,4 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         """TM2 之 AV2 输入量 (1024 / 10V) *1 (see :attr:`Client.av2_input`)."""
         self.parameters: AsyncReadWriteArray[int] = AsyncReadWriteArray(self, _codec_parameters)
         """参数 P_0..P_255 (see :attr:`Client.parameters`)."""
-        self._register_accessors()
-
-    @classmethod
-    def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncBroadcastClient:
-        """Writes to every unit at once (unit 0); never waits for a reply."""
-        return AsyncBroadcastClient(bus, page_policy=page_policy)
-
-
-class BroadcastClient(ClientBase[SnapshotBase]):
-    """Broadcast (unit 0): only the writes the map allows by broadcast; reads fail before sending."""
-
-    SPEC = SPEC
-    EXCEPTIONS = EXCEPTIONS
-    CODECS = CODECS
-
-    def __init__(self, bus: Bus, unit: int = 0, *, page_policy: PagePolicy = "raise",
-                 _broadcast: bool = True, _owns_bus: bool = False) -> None:
-        super().__init__(bus, unit, page_policy=page_policy, _broadcast=True, _owns_bus=_owns_bus)
-        self._register_accessors()
-
-
-class AsyncBroadcastClient(AsyncClientBase[SnapshotBase]):
-    """Asyncio form of :class:`BroadcastClient`."""
-
-    SPEC = SPEC
-    EXCEPTIONS = EXCEPTIONS
-    CODECS = CODECS
-
-    def __init__(self, bus: AsyncBus, unit: int = 0, *, page_policy: PagePolicy = "raise",
-                 _broadcast: bool = True, _owns_bus: bool = False) -> None:
-        super().__init__(bus, unit, page_policy=page_policy, _broadcast=True, _owns_bus=_owns_bus)
         self._register_accessors()

@@ -42,6 +42,9 @@ class Simulator(SimulatorBase):
 
     ``units`` are the unit ids it answers (several drives on one bus); ``state_file`` keeps
     EEPROM-class registers across restarts; ``realistic_timing`` delays replies like the device;
+    ``refuse_advised_while_running`` (off by default) also refuses, while running, writes the manual
+    only advises against (``running_advice``; the device is not known to refuse them);
+    ``reply_quirks`` answers in non-standard reply forms the map lists (none by default);
     ``behaviour`` replaces the one registered for the model (entry point ``drivemap.behaviours``).
     Presets: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
     """
@@ -53,6 +56,8 @@ class Simulator(SimulatorBase):
         state_file: str | os.PathLike[str] | None = None,
         realistic_timing: bool = False,
         behaviour: Behaviour | None = None,
+        refuse_advised_while_running: bool = False,
+        reply_quirks: Sequence[str] = (),
     ) -> None:
         super().__init__(
             SPEC,
@@ -60,6 +65,8 @@ class Simulator(SimulatorBase):
             behaviour=behaviour if behaviour is not None else behaviour_for(MODEL),
             state_file=state_file,
             realistic_timing=realistic_timing,
+            refuse_advised_while_running=refuse_advised_while_running,
+            reply_quirks=reply_quirks,
         )
 
 

@@ -26,10 +26,10 @@ SPEC = DeviceSpec(
     broadcast_address=0,
     serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
     function_codes=(
-        FunctionSpec(code=0x03, max_quantity=16, broadcast=None),
-        FunctionSpec(code=0x08, max_quantity=None, broadcast=None),
-        FunctionSpec(code=0x06, max_quantity=1, broadcast=None),
-        FunctionSpec(code=0x10, max_quantity=11, broadcast=None),
+        FunctionSpec(code=0x03, max_quantity=16, broadcast=False, broadcast_reason='map choice: a read needs a reply, and 003 §2 通信格式 does not say what the drives do with a broadcast read (every drive answering at once would collide on the line)'),
+        FunctionSpec(code=0x08, max_quantity=None, broadcast=False, broadcast_reason='map choice: a loopback test needs a reply, and 003 §2 通信格式 does not say what the drives do with a broadcast one'),
+        FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='003 §2 通信格式 only names the address ("0 表一齐发送指令": 0 sends the command to all at once); it does not say which function codes a drive executes when addressed by 0, nor that it then stays silent (same wording as edx 004 §1.3 and vfd1000 002 §RTU frame format, read the same way)'),
+        FunctionSpec(code=0x10, max_quantity=11, broadcast=None, broadcast_reason='003 §2 通信格式 only names the address ("0 表一齐发送指令": 0 sends the command to all at once); it does not say which function codes a drive executes when addressed by 0, nor that it then stays silent (same wording as edx 004 §1.3 and vfd1000 002 §RTU frame format, read the same way)'),
     ),
     exceptions=(
         ExceptionSpec(code=0x51, name='function_code_error', meaning='机能代码错误: 来自 PLC 的机能代码超出 03H, 06H, 08H, 10H 以外 (function code other than 03H, 06H, 08H, 10H).'),

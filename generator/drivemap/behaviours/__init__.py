@@ -53,6 +53,10 @@ class Behaviour:
     def on_read(self, unit: Unit, names: Sequence[str]) -> None:
         """A Modbus read is about to return the cells ``names``: refresh them if needed."""
 
+    def on_request(self, unit: Unit) -> None:
+        """A well-formed request reached ``unit`` (addressed to it, or a broadcast), before it is served
+        (also when it is then refused): e.g. a communication watchdog restarts."""
+
     def on_tick(self, unit: Unit, dt: float) -> None:
         """``dt`` seconds of device time passed."""
 

@@ -14,6 +14,14 @@
 * An alarm (alarm_no != 0) puts the motor in FAULT and is pushed into the alarm history;
   writing 1 to Alarm Reset (0A00h) clears it. 0A22h / 0A26h clear the alarm / communication
   error histories.
+* Communication timeout (Tb1, 001 §1.3): when the time between two queries to a unit exceeds
+  09-12 RS-485 communication timeout (ms; 0 = no monitoring; the fixed RS-232 unit 17 uses 09-14),
+  the drive records communication error 85h (001 §4.5) and acts as 09-10 says (0: alarm,
+  1: NET-IO state cleared, 2: both). Monitoring starts with the first query (the manual speaks of
+  the interval between queries); any well-formed request addressed to the unit, or a broadcast,
+  is a query; it is raised once per silence. The alarm number is not in this document (the
+  alarm list is in PGNUM-033): the alarm puts the motor in FAULT and leaves alarm_no at 0 unless
+  ``Ev(comm_timeout_alarm_no=N)`` gives one; Alarm Reset clears it.
 """
 
 from __future__ import annotations
@@ -35,6 +43,10 @@ F_M0, F_M1, F_M2, F_EBRAKE, F_STOP = 10, 11, 12, 13, 17
 #: Acceleration/deceleration times are the time for a change of 3000 r/min.
 RAMP_SPAN_RPM = 3000.0
 _TWINS = ("digital_speed", "digital_accel_time", "digital_decel_time", "digital_torque_limit", "digital_duty")
+#: CommErrorAction (09-10)
+ACTION_ALARM, ACTION_NET_IO_CLEAR, ACTION_BOTH = 0, 1, 2
+#: The unit id of the RS-232 port (fixed, 001 §1 note 2): watched with 09-14 instead of 09-12.
+RS232_UNIT = 17
 
 
 def _count(unit: Unit, name: str) -> int:
@@ -47,6 +59,10 @@ def _is_array(unit: Unit, name: str) -> bool:
 
 @register("ev")
 class Ev(Behaviour):
+    def __init__(self, comm_timeout_alarm_no: int | None = None) -> None:
+        #: alarm_no shown by the communication-timeout alarm (not in 001; None: alarm_no stays 0)
+        self.comm_timeout_alarm_no = comm_timeout_alarm_no
+
     def on_start(self, unit: Unit) -> None:
         for base in _TWINS:
             ram = f"{base}_ram"
@@ -94,11 +110,38 @@ class Ev(Behaviour):
         self._update(unit, 0.0)
 
     def on_tick(self, unit: Unit, dt: float) -> None:
+        self._watch_communication(unit, dt)
         self._update(unit, dt)
+
+    def on_request(self, unit: Unit) -> None:
+        unit.scratch["since_query"] = 0.0
+        unit.scratch["timed_out"] = False
 
     def is_running(self, unit: Unit) -> bool:
         state = unit.raw("motor_state") if unit.has("motor_state") else STOP
         return state == RUN or float(unit.scratch.get("speed", 0.0)) > 0.0
+
+    # ---- communication timeout (Tb1) --------------------------------------------------------
+    def _watch_communication(self, unit: Unit, dt: float) -> None:
+        since = unit.scratch.get("since_query")
+        if since is None:  # no query yet: nothing to monitor
+            return
+        since = unit.scratch["since_query"] = since + dt
+        name = "rs232_timeout" if unit.id == RS232_UNIT else "rs485_timeout"
+        limit_ms = unit.get(name) if unit.has(name) else 0
+        if not limit_ms or since * 1000.0 <= limit_ms or unit.scratch.get("timed_out"):
+            return
+        unit.scratch["timed_out"] = True
+        code = unit.sim.spec.comm_policy("timeout")
+        if code is not None:
+            unit.record_comm_error(code)
+        action = unit.raw("comm_error_action") if unit.has("comm_error_action") else ACTION_ALARM
+        if action in (ACTION_NET_IO_CLEAR, ACTION_BOTH) and unit.has("net_in"):
+            unit.set_raw("net_in", 0)
+        if action in (ACTION_ALARM, ACTION_BOTH):
+            unit.scratch["comm_alarm"] = True
+            if self.comm_timeout_alarm_no is not None and unit.has("alarm_no"):
+                unit.set_raw("alarm_no", self.comm_timeout_alarm_no)
 
     # ---- state machine --------------------------------------------------------------------
     def _clear(self, unit: Unit, name: str) -> None:
@@ -109,6 +152,7 @@ class Ev(Behaviour):
         if unit.has("alarm_no"):
             unit.set_raw("alarm_no", 0)
         unit.scratch["alarm"] = 0
+        unit.scratch["comm_alarm"] = False
         if unit.has("motor_state") and unit.raw("motor_state") == FAULT:
             unit.set_raw("motor_state", STOP)
 
@@ -131,7 +175,7 @@ class Ev(Behaviour):
             self._reset_alarm(unit)
         speed = float(unit.scratch.get("speed", 0.0))
         direction = unit.raw("motor_direction") if unit.has("motor_direction") else CW
-        if self._alarm(unit):
+        if self._alarm(unit) or unit.scratch.get("comm_alarm"):
             self._show(unit, FAULT, 0.0, direction, 0.0)
             return
         if F_FREE in on or F_EBRAKE in on or F_EBRAKE_ALM_RST in on:

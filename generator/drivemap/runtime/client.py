@@ -28,6 +28,7 @@ from pymodbus.pdu.register_message import (
     WriteSingleRegisterRequest,
 )
 
+from .advice import warn_if_running
 from .bus import AsyncBus, Bus, Exchange, Stats
 from .codec import Codec, EnumCodec, FieldsCodec, FlagCodec, RawCodec, raw_to_words, words_to_raw
 from .errors import (
@@ -45,6 +46,7 @@ from .errors import (
     WrongPage,
 )
 from .planner import Key, ReadRequest, max_write_words, plan_reads, read_function, units
+from .quirks import accept as accept_reply_quirks
 from .spec import DeviceSpec, FunctionSpec, PageSpec, RegisterSpec
 
 log = logging.getLogger("drivemap")
@@ -147,6 +149,8 @@ class Core:
         self.broadcast = broadcast
         self.tables = _tables(spec)
         self.pages: dict[str, int] = {}  # selector -> value it is known to show
+        #: while read_all visits pages under page_policy "raise": selector -> the value it showed before
+        self._visiting: dict[str, int] | None = None
         self.pending_configuration: list[str] = []
         self.pending_power_cycle: list[str] = []
 
@@ -181,7 +185,13 @@ class Core:
             current = self.pages[page.selector] = words_to_raw(sel, words)
             if current == page.value:
                 return
-        raise WrongPage(f"{page.selector} shows page {current}, not {page.value} (use page_policy='switch')")
+        if self._visiting is not None and current is not None and sel.writable:  # read_all: visit, restore later
+            self._visiting.setdefault(page.selector, current)
+            yield from self._write_words(sel.address, raw_to_words(sel, page.value), hold_ms=sel.write_delay_ms or 0)
+            self.pages[page.selector] = page.value
+            return
+        raise WrongPage(f"{page.selector} shows page {current}, not {page.value} (use page_policy='switch', or "
+                        "read_all(), which visits each page and puts the selector back)")
 
     def _read_words(self, address: int, count: int) -> Op[list[int]]:
         code = self.tables.read_code
@@ -263,6 +273,33 @@ class Core:
                     pages[key[0]] = raw
         return out
 
+    def read_visiting_pages(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
+        """:meth:`read_raw` for ``read_all``: under page_policy "raise", switch to each page the plan
+        needs and afterwards (also after a failure) write every selector back to the page it showed."""
+        if self.page_policy == "switch" or self.broadcast or all(req.page is None for req in plan):
+            return (yield from self.read_raw(keys, plan, checked=True))
+        original: dict[str, int] = {}
+        self._visiting = original
+        try:
+            out = yield from self.read_raw(keys, plan, checked=True)
+        except DriveError:
+            self._visiting = None
+            yield from self._restore_pages(original)  # its own failure is raised with this one as context
+            raise
+        finally:
+            self._visiting = None
+        yield from self._restore_pages(original)
+        return out
+
+    def _restore_pages(self, original: Mapping[str, int]) -> Op[None]:
+        for selector, value in original.items():
+            if self.pages.get(selector) == value:
+                continue
+            sel = self.spec.register(selector)
+            self.pages.pop(selector, None)  # unknown until the write is confirmed
+            yield from self._write_words(sel.address, raw_to_words(sel, value), hold_ms=sel.write_delay_ms or 0)
+            self.pages[selector] = value
+
     # -- writes
     def check_write(self, key: Key) -> RegisterSpec:
         reg = self.spec.register(key[0])
@@ -288,6 +325,8 @@ class Core:
             words = raw_to_words(reg, raw)
             if len(words) > 1 and limit == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
+            if reg.running_advice is not None:
+                yield from self._advise_if_running([(reg, key)])
             if reg.page is not None:
                 yield from self._page_ops(reg.page)
             pdu, code = self._write_request(reg.element_address(key[1]), words)  # _write_words, inlined
@@ -313,6 +352,9 @@ class Core:
             for reg, _key, words in group:
                 if len(words) > 1 and limit == 0:
                     raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
+        advised = [(reg, key) for reg, key, _ in regs if reg.running_advice is not None]
+        if advised:
+            yield from self._advise_if_running(advised)
         written: list[str] = []
         for number, group in enumerate(groups):
             reg0, key0, _ = group[0]
@@ -335,6 +377,17 @@ class Core:
             for reg, key, ws in group:
                 self._after_write(reg, key, words_to_raw(reg, ws))
                 written.append(reg.element_name(key[1]))
+
+    def _advise_if_running(self, items: Sequence[tuple[RegisterSpec, Key]]) -> Op[None]:
+        """The map's running_advice: read its running_state register and warn if the drive runs
+        (:mod:`drivemap.runtime.advice`); never refuses. A broadcast client cannot read: no check."""
+        state = self.spec.running_state
+        if state is None or self.broadcast:
+            return
+        sel = self.spec.register(state[0])
+        yield from self._page_ops(sel.page)
+        words = yield from self._read_words(sel.address, sel.words)
+        warn_if_running(self.spec, [(reg, reg.element_name(key[1])) for reg, key in items], words_to_raw(sel, words))
 
     def _after_write(self, reg: RegisterSpec, key: Key, raw: int) -> None:
         if reg.name in self.tables.selectors:
@@ -774,6 +827,8 @@ class ClientBase(_Common[S]):
             raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
                                + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)
 
@@ -800,8 +855,10 @@ class ClientBase(_Common[S]):
 
     @classmethod
     def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> ClientBase[Any]:
-        """A client that writes to every unit at once (generated when the map has a broadcast address)."""
-        raise UnsupportedFunction(f"{cls.SPEC.model}: the map gives no broadcast address")
+        """A client that writes to every unit at once (generated when the map allows a broadcast write).
+
+        Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
+        raise broadcast_refusal(cls.SPEC)
 
     @property
     def stats(self) -> Stats:
@@ -841,13 +898,17 @@ class ClientBase(_Common[S]):
         return self._snapshot(self._read_raw_keys(self._keys(accessors)))
 
     def read_all(self) -> S:
-        """Read every readable register (plan computed once per client class)."""
+        """Read every readable register (plan computed once per client class).
+
+        Paged registers: with ``page_policy="raise"`` (the default) it switches the page selector to
+        each page it needs and then puts it back to the page it found (also when a read fails);
+        with ``"switch"`` it leaves the last page selected."""
         core = self._core
         keys = core.tables.all_keys
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
         plan = self.plan()
         with self.bus.lock:
-            return self._snapshot(_run(self.bus, core.read_raw(keys, plan, checked=True)))
+            return self._snapshot(_run(self.bus, core.read_visiting_pages(keys, plan)))
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
         """Write several registers; contiguous ones go out in one 10h request where the map allows it.
@@ -902,6 +963,8 @@ class AsyncClientBase(_Common[S]):
             raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
                                + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
         self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast)
 
@@ -925,8 +988,8 @@ class AsyncClientBase(_Common[S]):
 
     @classmethod
     def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncClientBase[Any]:
-        """A client that writes to every unit at once (generated when the map has a broadcast address)."""
-        raise UnsupportedFunction(f"{cls.SPEC.model}: the map gives no broadcast address")
+        """A client that writes to every unit at once (see :meth:`ClientBase.broadcast`)."""
+        raise broadcast_refusal(cls.SPEC)
 
     @property
     def stats(self) -> Stats:
@@ -962,12 +1025,13 @@ class AsyncClientBase(_Common[S]):
         return self._snapshot(await self._read_raw_keys(self._keys(accessors)))
 
     async def read_all(self) -> S:
+        """See :meth:`ClientBase.read_all` (pages visited and restored under ``page_policy="raise"``)."""
         core = self._core
         keys = core.tables.all_keys
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
         plan = self.plan()
         async with self.bus.lock:
-            return self._snapshot(await _arun(self.bus, core.read_raw(keys, plan, checked=True)))
+            return self._snapshot(await _arun(self.bus, core.read_visiting_pages(keys, plan)))
 
     async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
         await self._write_raw_items([(acc.key, acc.codec.encode(value)) for acc, value in items])
@@ -1008,6 +1072,23 @@ class AsyncClientBase(_Common[S]):
             return await _arun(self.bus, op)
 
 
+def broadcast_refusal(spec: DeviceSpec) -> DriveError:
+    """The error ``Client.broadcast`` raises when the map allows no broadcast write, naming why.
+
+    :class:`UnsupportedFunction` without a broadcast address; else :class:`NotBroadcastable` with
+    each write function's state (not stated in the manual / not allowed) and the map's reason.
+    """
+    if spec.broadcast_address is None:
+        return UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
+    reasons = []
+    for fc in spec.function_codes:
+        if fc.code in (0x06, 0x10) and fc.broadcast is not True:
+            state = "not stated in the manual" if fc.broadcast is None else "not allowed by the map"
+            reasons.append(f"{fc.code:02X}h by broadcast: {state}" + (f" ({fc.broadcast_reason})" if fc.broadcast_reason else ""))
+    why = "; ".join(reasons) if reasons else "no register can be written by a function the map allows by broadcast"
+    return NotBroadcastable(f"{spec.model}: no broadcast client (unit {spec.broadcast_address}): {why}")
+
+
 def broadcast_unit(spec: DeviceSpec) -> int:
     if spec.broadcast_address is None:
         raise UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
@@ -1037,5 +1118,6 @@ __all__ = [
     "Stats",
     "WriteOnly",
     "WriteOnlyArray",
+    "broadcast_refusal",
     "broadcast_unit",
 ]

@@ -113,6 +113,13 @@ class DeviceException(DriveError):
         super().__init__(f"device answered exception 0x{code:02X} ({self.name}) to function 0x{function_code:02X}: {self.meaning}")
 
 
+class RunningWriteWarning(UserWarning):
+    """A register the manual advises against writing while the drive runs was written while it reported
+    running (the map's ``running_advice``). A Python warning, not an error: the manual only advises, the
+    device is not known to refuse. ``warnings.simplefilter("error", RunningWriteWarning)`` makes it an
+    error (raised before the write is sent), ``"ignore"`` silences it."""
+
+
 __all__ = [
     "AccessError",
     "BroadcastRead",
@@ -123,6 +130,7 @@ __all__ = [
     "NotBroadcastable",
     "PartialWrite",
     "ReadOnlyRegister",
+    "RunningWriteWarning",
     "TransportError",
     "UnknownRegister",
     "UnsupportedFunction",

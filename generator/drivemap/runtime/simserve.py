@@ -451,6 +451,10 @@ def serve_cli(args: argparse.Namespace) -> int:
 def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
     """Build the simulator from parsed options and serve it in the foreground."""
     kwargs: dict[str, Any] = {"state_file": args.state, "realistic_timing": args.realistic_timing}
+    if getattr(args, "refuse_advised_while_running", False):
+        kwargs["refuse_advised_while_running"] = True
+    if getattr(args, "reply_quirks", None):
+        kwargs["reply_quirks"] = args.reply_quirks
     sim = factory(args.units or [1], **kwargs)
     server = SimServer(
         sim,
@@ -491,6 +495,10 @@ def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
     parser.add_argument("--unit", type=int, action="append", dest="units")
     parser.add_argument("--state", default=None, help="JSON file keeping EEPROM-class registers across restarts")
     parser.add_argument("--realistic-timing", action="store_true")
+    parser.add_argument("--refuse-advised-while-running", action="store_true",
+                        help="also refuse (busy) writes the manual only advises against while the motor runs")
+    parser.add_argument("--reply-quirk", action="append", dest="reply_quirks", metavar="QUIRK",
+                        help="answer in a non-standard reply form the map lists (e.g. two_byte_byte_count)")
     parser.add_argument("--allow-remote", action="store_true", help="allow binding to a non-loopback address")
 
 

@@ -19,7 +19,9 @@ Error cases and what the simulator answers (the code comes from the map's except
 ``out_of_range``      a written value outside the register's type, min/max or enum values
 ``read_only``         a write to a register without ``w`` access
 ``write_only``        a read of a register without ``r`` access
-``busy``              a write to a ``refuse_while_running`` register while the behaviour says running
+``busy``              a write to a ``refuse_while_running`` register while the behaviour says running;
+                      with ``refuse_advised_while_running=True`` (opt-in, off by default) also a write
+                      to a register that only carries the manual's ``running_advice``
 
 A case the map leaves out falls back to a related case (write_only/read_only -> illegal_address,
 bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard Modbus code
@@ -40,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .quirks import encode_read_reply
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
 if TYPE_CHECKING:
@@ -239,7 +242,14 @@ class Simulator:
         behaviour: Behaviour | None = None,
         state_file: str | os.PathLike[str] | None = None,
         realistic_timing: bool = False,
+        refuse_advised_while_running: bool = False,
+        reply_quirks: Sequence[str] = (),
     ) -> None:
+        """``refuse_advised_while_running``: also answer ``busy`` to writes the manual only advises
+        against while running (``running_advice``); off by default, since the manual does not say
+        the device refuses them (the client warns instead). ``reply_quirks``: answer in these
+        non-standard forms of the map's ``reply_quirks`` (e.g. ``two_byte_byte_count``, as a
+        manual prints a reply) instead of the standard one; none by default."""
         if behaviour is None:
             from ..behaviours import Behaviour
 
@@ -247,6 +257,12 @@ class Simulator:
         self.spec = spec
         self.behaviour = behaviour
         self.realistic_timing = realistic_timing
+        self.refuse_advised_while_running = refuse_advised_while_running
+        self.reply_quirks = tuple(dict.fromkeys(reply_quirks))
+        for quirk in self.reply_quirks:
+            if quirk not in spec.reply_quirks:
+                raise SimulatorError(f"{spec.model}: the map lists no reply quirk {quirk!r} "
+                                     f"(it lists: {', '.join(spec.reply_quirks) or 'none'})")
         self.state_file = Path(state_file) if state_file is not None else None
         self._lock = threading.RLock()
         self._dirty = False
@@ -403,11 +419,14 @@ class Simulator:
         with self._lock:
             try:
                 if self.spec.broadcast_address is not None and unit_id == self.spec.broadcast_address:
+                    for each in self.units.values():
+                        self.behaviour.on_request(each)
                     self._broadcast(pdu)
                     return None
                 unit = self.units.get(unit_id)
                 if unit is None:
                     return None
+                self.behaviour.on_request(unit)
                 injected = unit.injected
                 if injected is not None:
                     for other in self.units.values():
@@ -481,6 +500,8 @@ class Simulator:
         values = unit.values
         body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
                                        for cell, shift in words])
+        if self.reply_quirks:
+            return encode_read_reply(code, body, self.reply_quirks)
         return bytes((code, 2 * quantity)) + body
 
     def _read_plan(self, unit: Unit, address: int, quantity: int) -> _ReadPlan | str:
@@ -556,7 +577,7 @@ class Simulator:
                 raise _Refused("read_only")
             changes.append((slot.cell, reg, _from_words(reg, words[i : i + reg.words])))
             i += reg.words
-        if any(reg.refuse_while_running for _, reg, _ in changes) and self.behaviour.is_running(unit):
+        if any(self._refused_while_running(reg) for _, reg, _ in changes) and self.behaviour.is_running(unit):
             raise _Refused("busy")
         for _, reg, raw in changes:
             if not self._in_range(reg, raw):
@@ -572,6 +593,10 @@ class Simulator:
             ):
                 unit.apply_configuration()
             self.behaviour.on_write(unit, cell, raw)
+
+    def _refused_while_running(self, reg: RegisterSpec) -> bool:
+        """Documented refusals always; the manual's mere advice only when the option asks for it."""
+        return reg.refuse_while_running or (self.refuse_advised_while_running and reg.running_advice is not None)
 
     def _in_range(self, reg: RegisterSpec, raw: int) -> bool:
         low, high = _TYPE_BOUNDS[reg.type]

@@ -57,6 +57,8 @@ class RegisterSpec:
     refuse_while_running: bool = False
     param: str | None = None
     source: str = ""
+    #: the manual's advice for writes while the drive runs (the client warns; nothing is refused)
+    running_advice: str | None = None
 
     @property
     def words(self) -> int:
@@ -101,6 +103,8 @@ class FunctionSpec:
     code: int
     max_quantity: int | None
     broadcast: bool | None
+    #: why broadcast is null (unclear in the manual) or false by the map's choice
+    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -170,6 +174,10 @@ class DeviceSpec:
     max_frame_bytes: int | None = None
     #: unit ids a port fixes outside the settable range (e.g. EV's RS-232 port answers as 17)
     fixed_units: tuple[int, ...] = ()
+    #: (register, raw values) by which the drive reports that it is running, or None
+    running_state: tuple[str, tuple[int, ...]] | None = None
+    #: non-standard reply forms the client accepts besides the standard ones (runtime.quirks)
+    reply_quirks: tuple[str, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

@@ -77,6 +77,8 @@ def _doc(model: Model, reg: Register) -> list[str]:
         where += f"; parameter {reg.param}"
     if reg.element_params and reg.is_array:
         where += f" ({', '.join(reg.element_params)})"
+    elif reg.element_param_format and reg.is_array:
+        where += f" (element i: {reg.element_param(0)} … {reg.element_param(reg.count - 1)})"
     lines.append(where + f"; {reg.type}, access {reg.access}.")
     unit = f" {reg.unit}" if reg.unit else ""
     scale = f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else "")
@@ -91,6 +93,9 @@ def _doc(model: Model, reg: Register) -> list[str]:
         lines.append(f"Command: writing {reg.command_value} executes it.")
     if reg.broadcast:
         lines.append("May be written by broadcast.")
+    if reg.running_advice is not None:
+        lines.append(f"While the drive runs the manual advises: {reg.running_advice.text()}; "
+                     "writing it then gives a RunningWriteWarning.")
     lines.append(f"Manual: {reg.source}.")
     return lines
 
@@ -201,7 +206,9 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     if any(r["fields"] and any(f["type"] not in ("bool", "int") for f in r["fields"]) or r["fields"] for r in records):
         codec_classes.add("Field")
 
-    has_broadcast = model.protocol.broadcast_address is not None
+    # a broadcast client only where some register may be written by broadcast; else the runtime's
+    # ClientBase.broadcast refuses with the map's reason (broadcast_refusal)
+    has_broadcast = model.protocol.broadcast_address is not None and any(a.broadcast for a in accessors)
     bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
     broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
     broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]

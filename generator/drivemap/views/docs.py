@@ -18,7 +18,7 @@ from typing import Any
 
 from .. import frames
 from ..exporters.base import Options
-from ..model import Cell, Example, Model, Register
+from ..model import Cell, Example, FunctionCode, Model, Register
 from .common import header
 
 #: The TCP port the page's snippet uses (tests substitute a free one).
@@ -150,13 +150,19 @@ def _function_codes(model: Model) -> list[dict[str, str | None]]:
             "code": hex2(fc.code),
             "name": fc.name,
             "max_quantity": num(fc.max_quantity) if fc.max_quantity is not None else "not stated",
-            "broadcast": {True: "yes", False: "no", None: "not stated"}[fc.broadcast],
+            "broadcast": _broadcast_text(fc),
             "request_bytes": f"{fc.request_bytes.min}-{fc.request_bytes.max}" if fc.request_bytes else "not stated",
             "response_bytes": f"{fc.response_bytes.min}-{fc.response_bytes.max}" if fc.response_bytes else "not stated",
             "source": fc.source,
             "notes": fc.notes,
         })
     return out
+
+
+def _broadcast_text(fc: FunctionCode) -> str:
+    """yes / no / not stated, with the map's reason where broadcast is null or a map choice."""
+    text = {True: "yes", False: "no", None: "not stated"}[fc.broadcast]
+    return f"{text} — {fc.broadcast_reason}" if fc.broadcast_reason else text
 
 
 def _policies(model: Model) -> list[dict[str, str | None]]:
@@ -230,13 +236,26 @@ def _elements(reg: Register) -> str | None:
         return None
     if reg.count > 16:
         last = reg.element_address(reg.count - 1)
+        fmt = reg.element_param_format
+        ids = ""
+        if fmt:
+            ids = f"; No.i is parameter {fmt.replace('{index}', 'i').replace('{address}', 'n')}"
+            ids += ", n = its address in decimal" if "{address}" in fmt else ""
         return (f"No.0-No.{reg.count - 1}: No.i at {hex4(reg.address)} + {reg.stride}·i "
-                f"({hex4(reg.address)} … {hex4(last)})")
+                f"({hex4(reg.address)} … {hex4(last)}){ids}")
     parts = []
     for i in range(reg.count):
         param = reg.element_param(i)
-        parts.append(f"No.{i} {hex4(reg.element_address(i))}" + (f" ({param})" if param and reg.element_params else ""))
+        parts.append(f"No.{i} {hex4(reg.element_address(i))}"
+                     + (f" ({param})" if param and (reg.element_params or reg.element_param_format) else ""))
     return ", ".join(parts)
+
+
+def _param_text(reg: Register) -> str | None:
+    """The parameter id; for an array whose ids follow a rule, the first … last id."""
+    if reg.is_array and reg.element_param_format:
+        return f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
+    return reg.param
 
 
 def _register_row(model: Model, reg: Register) -> dict[str, Any]:
@@ -253,6 +272,8 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         extras.append("may be written by broadcast")
     if reg.refuse_while_running:
         extras.append("writes refused while running")
+    if reg.running_advice is not None:
+        extras.append(_advice_text(reg))
     if reg.word_order:
         extras.append(f"word order: {reg.word_order.replace('_', ' ')}")
     storage = reg.storage
@@ -263,7 +284,7 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         "register": reg.name,
         "address": address,
         "decimal": decimal,
-        "param": reg.param,
+        "param": _param_text(reg),
         "label": reg.label,
         "type": reg.type,
         "scale": _scale(reg),
@@ -283,6 +304,28 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         "param_rule": reg.param_rule,
         "source": reg.source,
     }
+
+
+def _advice_text(reg: Register) -> str:
+    """The manual's advice for writes while running (the device is not known to refuse them)."""
+    advice = reg.running_advice
+    assert advice is not None
+    instead = f"; write {advice.instead} instead" if advice.instead else ""
+    return (f"while the drive runs the manual advises: {advice.advice}{instead} ({advice.source}; advice only: "
+            "the client warns with RunningWriteWarning, nothing is refused)")
+
+
+_QUIRK_TEXT = {
+    "two_byte_byte_count": "03h/04h replies may carry a two-byte (high, low) byte count instead of one byte",
+}
+
+
+def _running_state(model: Model) -> dict[str, str] | None:
+    state = model.protocol.running_state
+    if state is None:
+        return None
+    return {"register": state.register, "address": hex4(model.register(state.register).address),
+            "shows": ", ".join(str(v) for v in state.values), "source": state.source, "notes": state.notes or ""}
 
 
 def _groups(model: Model) -> list[dict[str, Any]]:
@@ -328,11 +371,20 @@ def _groups(model: Model) -> list[dict[str, Any]]:
     return out
 
 
+#: What the manual shows at a reserved range (Reserved.kind), as the docs say it.
+RESERVED_KIND = {
+    "reserved": "marked reserved",
+    "unlabeled": "listed without a name",
+    "not_listed": "not listed in the manual",
+}
+
+
 def _reserved(model: Model) -> list[dict[str, str | None]]:
     out = []
     for r in model.reserved:
         readable = {True: "yes", False: "no", None: "not stated"}[r.readable]
         out.append({
+            "kind": RESERVED_KIND[r.kind],
             "range": hex4(r.start) if r.start == r.end else f"{hex4(r.start)}-{hex4(r.end)}",
             "decimal": str(r.start) if r.start == r.end else f"{r.start}-{r.end}",
             "readable": readable,
@@ -486,7 +538,7 @@ def _word_meaning(model: Model, at: dict[int, list[tuple[Cell, int]]], address: 
     if not hits:
         for r in model.reserved:
             if r.start <= address <= r.end:
-                return f"{where} (reserved): {shown}"
+                return f"{where} ({RESERVED_KIND[r.kind]}): {shown}"
         return f"{where} (not in the map): {shown}"
     descs = []
     for cell, word in hits:
@@ -957,7 +1009,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "function_codes": _function_codes(model),
         "exceptions": [
             {"code": hex2(e.code), "name": e.name, "meaning": e.meaning,
-             "comm_errors": ", ".join(hex2(c) for c in e.comm_errors) or None, "source": e.source, "notes": e.notes}
+             "comm_errors": ", ".join(hex2(c) for c in e.comm_errors) or None, "source": e.source, "notes": e.notes,
+             "documented": "yes" if e.documented else "no: assumed by the map"}
             for e in p.exceptions
         ],
         "comm_errors": [
@@ -975,6 +1028,9 @@ def context(model: Model, options: Options) -> dict[str, Any]:
              "address": hex4(model.register(p.configuration.register).address)}
             if p.configuration else None
         ),
+        "running_state": _running_state(model),
+        "reply_quirks": [{"quirk": q.quirk, "text": _QUIRK_TEXT.get(q.quirk, q.quirk), "source": q.source,
+                          "reason": q.reason} for q in p.reply_quirks],
         "protocol_source": p.source,
         "protocol_notes": p.notes,
         "register_count": len(model.registers),

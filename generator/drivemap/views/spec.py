@@ -52,6 +52,7 @@ def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
     add("refuse_while_running", reg.refuse_while_running, False)
     add("param", reg.param, None)
     args.append(("source", repr(reg.source)))
+    add("running_advice", reg.running_advice.text() if reg.running_advice else None, None)
     return args
 
 
@@ -85,6 +86,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "fixed_units": tuple(sorted({x.fixed_unit for x in p.ports if x.fixed_unit is not None
                                      and not p.unit_min <= x.fixed_unit <= p.unit_max})),
         "imports": _imports(model),
+        "running_state": ((p.running_state.register, p.running_state.values) if p.running_state else None),
+        "reply_quirks": tuple(q.quirk for q in p.reply_quirks),
     }
 
 
