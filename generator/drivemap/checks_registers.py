@@ -133,6 +133,9 @@ class RegisterChecks(CheckerBase):
             self.error(where + ("scale_register",), f"scale_register needs an integer type, not {rtype}")
         elif reg.get("scale_register") and (reg.get("enum") or reg.get("bits")):
             self.error(where + ("scale_register",), "a register with a scale register cannot have an enum or bits")
+        elif reg.get("scale_register") and reg.get("broadcast"):
+            self.error(where + ("broadcast",), "a register with a scale register cannot be written by broadcast "
+                       "(its factor is read before every write)")
         for j, value in enumerate(reg.get("not_available", ()) if rtype not in ("bool", "string") else ()):
             if normalize_raw(rtype, table, 1, value) is None:
                 self.error(where + ("not_available", j), f"not_available value {value} does not fit {rtype}")

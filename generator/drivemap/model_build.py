@@ -221,7 +221,8 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
         element_params=tuple(r.get("element_params", ())),
         page=Page(r["page"]["selector"], r["page"]["value"]) if r.get("page") else None,
         command_value=r["command"]["value"] if r.get("command") else None,
-        broadcast=r.get("broadcast", writable and _broadcast_writable(p, table, type_words(rtype, length))),
+        broadcast=r.get("broadcast", writable and not r.get("scale_register")
+                        and _broadcast_writable(p, table, type_words(rtype, length))),
         refuse_while_running=r.get("refuse_while_running", False),
         source=r["source"], notes=r.get("notes"),
         table=table, byte_order=r.get("byte_order", "high_first"), length=length,

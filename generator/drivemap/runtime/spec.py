@@ -59,7 +59,8 @@ class RegisterSpec:
     unit: str | None = None
     min: float | None = None
     max: float | None = None
-    defaults: tuple[float | None, ...] = (None,)
+    defaults: tuple[float | str | None, ...] = (None,)
+    """Factory default per element (engineering units; text for strings, True/False for bools)."""
     reflect: str = "unknown"
     storage: str = "unknown"
     write_delay_ms: float | None = None
@@ -110,7 +111,7 @@ class RegisterSpec:
     def element_name(self, index: int) -> str:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
-    def default_at(self, index: int) -> float | None:
+    def default_at(self, index: int) -> float | str | None:
         return self.defaults[0] if len(self.defaults) == 1 else self.defaults[index]
 
 
