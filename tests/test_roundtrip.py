@@ -38,8 +38,8 @@ import pytest
 
 from drivemap import frames
 from drivemap.compiler import compile_map, map_paths
-from drivemap.model import Example, Model
 from drivemap.inmemory import load_package
+from drivemap.model import Example, Model
 from drivemap.runtime.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
 from drivemap.runtime.simserve import ThreadedSimServer

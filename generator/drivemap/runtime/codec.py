@@ -182,7 +182,7 @@ class Codec(Generic[T]):
 
     def _check_range(self, value: float) -> None:
         spec = self.spec
-        tol = _EPS * max(1.0, abs(value))
+        tol = _EPS * max(1.0, abs(value)) if math.isfinite(value) else 0.0
         if spec.min is not None and value < spec.min - tol:
             raise ValueOutOfRange(f"{spec.name}: {value} is below the minimum {spec.min}{_unit(spec)}")
         if spec.max is not None and value > spec.max + tol:
