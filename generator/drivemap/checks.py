@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from . import frames
-from .checks_registers import RegisterChecks
+from .checks_registers import RegisterChecks, table_name
 from .diagnostics import Diagnostic
 from .load import Document, PathT
 from .model import camel, is_keyword
@@ -331,8 +331,8 @@ class Checker(RegisterChecks):
         for ref in meaning.get("values", {}) if table is not None and part == "request" else ():
             index = self.register_names.get(ref.partition("[")[0])
             if index is not None and index in self.locations and self.locations[index][0] != table:
-                self.error(where + ("meaning", "values", ref), f"{ref} is a {self.locations[index][0]} register, but "
-                           f"function {base_fc:#04x} addresses the {table} table", key=True)
+                self.error(where + ("meaning", "values", ref), f"{ref} is {table_name(self.locations[index][0])} "
+                           f"register, but function {base_fc:#04x} addresses the {table} table", key=True)
         if meaning.get("broadcast") and unit != self.data["protocol"].get("broadcast_address"):
             self.error(where + ("meaning", "broadcast"), "a broadcast example must address the broadcast unit")
 

@@ -37,6 +37,11 @@ Cell = tuple[str, int, str, int, "tuple[str, int] | None"]
 """(table, address, register name, register index, page) of one word of one register element."""
 
 
+def table_name(table: str) -> str:
+    """``an input``, ``a holding``: the table name with its article."""
+    return ("an " if table[0] in "aeiou" else "a ") + table
+
+
 class CheckerBase:
     """What every check needs: the document, its data and the list of diagnostics."""
 
@@ -85,7 +90,7 @@ class RegisterChecks(CheckerBase):
             return
         ok = True
         if table is not None and table != found:
-            self.error(where + ("register",), f"register {number} is a {found} number "
+            self.error(where + ("register",), f"register {number} is {table_name(found)} number "
                        f"({modicon.TABLE_DIGIT[found]}xxxx) but table says {table}", related=where + ("table",),
                        note="table is given here")
             ok = False
@@ -324,7 +329,8 @@ class RegisterChecks(CheckerBase):
                        if not (rpage and c[2] and c[2][0] == rpage[0] and c[2][1] != rpage[1])]
                 if hit:
                     name, index, _ = hit[0]
-                    self.error(("reserved", i, "start"), f"reserved range overlaps register {name!r} at {address:#06x}",
+                    where = "" if table == "holding" else f"{table} address "
+                    self.error(("reserved", i, "start"), f"reserved range overlaps register {name!r} at {where}{address:#06x}",
                                related=self.where_address(index), note=f"{name!r} is defined here")
                     break
 
@@ -421,4 +427,4 @@ class RegisterChecks(CheckerBase):
                            f"list (first: {reg['name']!r})")
 
 
-__all__ = ["CheckerBase", "READ_LIMITS", "RegisterChecks", "WRITE_CODES"]
+__all__ = ["CheckerBase", "READ_LIMITS", "RegisterChecks", "WRITE_CODES", "table_name"]
