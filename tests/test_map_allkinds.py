@@ -448,3 +448,51 @@ async def test_async_client_reads_writes_and_splits() -> None:
             assert _holding(port, 0x124, 4) == pymodbus_words(MODEL.register("balance"), -42)
             assert await drive.power_limit.modify(lambda v: 12.0 if v is None else v + 1) == 12.0
             assert await drive.power_limit.read() == 12.0
+
+
+ISSUE_REGISTERS = """
+registers:
+  - name: phase_1_voltage
+    table: input            # holding (default) | input | coil | discrete
+    address: 0x0000         # protocol address, 0-based, as today
+    type: f32               # u16 s16 u32 s32 u64 s64 f32 f64 string bool
+    word_order: high_first  # every multi-word type (today 32-bit only)
+    byte_order: high_first  # bytes inside each word: high_first (Modbus standard) | low_first
+    access: r
+    unit: V
+  - {name: model_name, address: 30000, type: string, length: 15, access: r}   # length in registers
+  - {name: run, table: coil, address: 0x0000, access: rw}                       # bool by default
+  - {name: active_power, address: 40083, type: s16, scale_register: active_power_sf, unit: W}
+  - {name: active_power_sf, address: 40084, type: s16, access: r}              # value v -> x 10^v
+  - {name: ac_current, address: 40071, type: u16, not_available: [0xFFFF], scale: 0.1, unit: A}
+"""
+
+
+def test_the_syntax_of_issue_14_validates(tmp_path: Path) -> None:
+    """The register list printed in issue 14, as written (plus the group and source every register
+    needs), compiles, and means what the issue says."""
+    import yaml
+
+    from drivemap.render import scaffold
+
+    text = scaffold("issue14").replace(
+        "  - {name: parameters, title: Parameters, source: \"manual §4\"}\n",
+        "  - {name: parameters, title: Parameters, source: \"manual §4\"}\n  - {name: issue, title: Issue, source: \"x\"}\n")
+    registers = yaml.safe_load(ISSUE_REGISTERS)["registers"]
+    data = yaml.safe_load(text)
+    for reg in registers:
+        reg.update(group="issue", source="issue 14")
+    data["registers"] = [r for r in data["registers"] if r["name"] not in {x["name"] for x in registers}
+                         and r.get("table") not in ("coil",) and r["name"] != "line_voltage"] + registers
+    data["examples"] = [e for e in data["examples"] if e["name"] == "read_frequency_command"]
+    path = tmp_path / "issue14.yaml"
+    path.write_text(yaml.safe_dump(data, allow_unicode=True, sort_keys=False), encoding="utf-8")
+    model = compile_map(path)
+    regs = {r.name: r for r in model.registers}
+    assert (regs["phase_1_voltage"].table, regs["phase_1_voltage"].type) == ("input", "f32")
+    assert (regs["model_name"].table, regs["model_name"].words, regs["model_name"].encoding) == ("holding", 15, "ascii")
+    assert (regs["run"].type, regs["run"].access) == ("bool", "rw")
+    assert regs["active_power"].scale_register == "active_power_sf" and regs["active_power"].access == "r"
+    assert regs["ac_current"].not_available == (0xFFFF,) and regs["ac_current"].optional
+    package = load_package(model)
+    assert package.Client.plan([("active_power", 0), ("active_power_sf", 0)])[0].count == 2

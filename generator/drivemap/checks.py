@@ -168,7 +168,7 @@ class Checker(RegisterChecks):
             name = cfg["register"]
             if name not in self.register_names:
                 self.error(("protocol", "configuration", "register"), f"unknown register {name!r}")
-            elif "w" not in self.data["registers"][self.register_names[name]]["access"]:
+            elif "w" not in self.data["registers"][self.register_names[name]].get("access", "r"):
                 self.error(("protocol", "configuration", "register"), f"configuration register {name!r} is not writable")
         for i, port in enumerate(p["ports"]):
             for key, options in (("default_baudrate", "baudrates"), ("default_parity", "parity"), ("default_stop_bits", "stop_bits"), ("default_mode", "modes")):

@@ -108,7 +108,7 @@ class RegisterChecks(CheckerBase):
         rtype = str(reg.get("type", default_type(table)))
         if table in BIT_TABLES and rtype != "bool":
             self.error(where + ("type",), f"a {table} register is one bit: its type is bool, not {rtype}")
-        if table in ("input", "discrete") and "w" in reg["access"]:
+        if table in ("input", "discrete") and "w" in reg.get("access", "r"):
             self.error(where + ("access",), f"{table} registers are read-only (no Modbus function writes them); "
                        "access must be r")
         if rtype == "bool":
@@ -196,7 +196,7 @@ class RegisterChecks(CheckerBase):
             self.error(where + ("enum",), "a register has either an enum or bits, not both")
         if reg.get("enum") and (reg.get("scale", 1) != 1 or reg.get("offset", 0) != 0):
             self.error(where + ("enum",), "an enum register cannot be scaled")
-        if reg.get("command") and "w" not in reg["access"]:
+        if reg.get("command") and "w" not in reg.get("access", "r"):
             self.error(where + ("command",), "a command register must be writable")
         if reg.get("write_delay_ms") is not None and reg.get("storage") not in ("eeprom",):
             self.error(where + ("write_delay_ms",), "write_delay_ms is for storage: eeprom")
@@ -351,7 +351,7 @@ class RegisterChecks(CheckerBase):
                 self.error(where, "a register cannot be its own scale register")
             elif self.type_of(j) not in INTEGER_TYPES:
                 self.error(where, f"scale register {name!r} must have an integer type, not {self.type_of(j)}")
-            elif "r" not in other["access"]:
+            elif "r" not in other.get("access", "r"):
                 self.error(where, f"scale register {name!r} must be readable")
             elif other.get("count", 1) > 1:
                 self.error(where, f"scale register {name!r} must not be an array")
@@ -383,7 +383,7 @@ class RegisterChecks(CheckerBase):
                 self.error(where, f"min_read {size} is more than one read may carry ({limit})")
             elif start + size > 0x10000:
                 self.error(where, f"the block of min_read {size} extends past address 0xFFFF")
-            elif "r" not in reg["access"] or reg.get("page"):
+            elif "r" not in reg.get("access", "r") or reg.get("page"):
                 self.error(where, "min_read needs a readable register without a page")
             else:
                 self._check_block_contents(where, table, start, size, cells)
@@ -394,7 +394,7 @@ class RegisterChecks(CheckerBase):
         for address in range(start, start + size):
             for index in cells.get((table, address), []):
                 other = regs[index]
-                if "r" not in other["access"] or other.get("page"):
+                if "r" not in other.get("access", "r") or other.get("page"):
                     self.error(where, f"the block of min_read {size} covers {other['name']!r}, which is "
                                f"{'write-only' if 'r' not in other['access'] else 'paged'}")
                     return
@@ -415,12 +415,12 @@ class RegisterChecks(CheckerBase):
             table = self.locations[i][0]
             kind_where: PathT = ("registers", i, "table" if "table" in reg else "access")
             read = READ_CODES[table]
-            if "r" in reg["access"] and read not in codes and (table, "r") not in reported:
+            if "r" in reg.get("access", "r") and read not in codes and (table, "r") not in reported:
                 reported.add((table, "r"))
                 self.error(kind_where, f"{table} registers are read with {read:02X}h, which "
                            f"protocol.function_codes does not list (first: {reg['name']!r})")
             writes = WRITE_CODES.get(table, ())
-            if "w" in reg["access"] and writes and not codes & set(writes) and (table, "w") not in reported:
+            if "w" in reg.get("access", "r") and writes and not codes & set(writes) and (table, "w") not in reported:
                 reported.add((table, "w"))
                 self.error(kind_where, f"{table} registers are written with "
                            f"{' or '.join(f'{c:02X}h' for c in writes)}, which protocol.function_codes does not "

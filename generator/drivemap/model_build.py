@@ -200,7 +200,7 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
     length = r.get("length", 1)
     default = r.get("default")
     defaults: tuple[Value, ...] = tuple(default) if isinstance(default, list) else (default,)
-    writable = "w" in r["access"]
+    writable = "w" in r.get("access", "r")
     not_available = tuple(
         raw for raw in (normalize_raw(rtype, table, length, v) for v in r.get("not_available", ())) if raw is not None
     )
@@ -208,7 +208,7 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
     return Register(
         name=r["name"], address=address, param=r.get("param"), param_rule=r.get("param_rule"),
         label=r.get("label"), description=r.get("description"), group=r["group"],
-        type=rtype, word_order=r.get("word_order"), access=r["access"],
+        type=rtype, word_order=r.get("word_order"), access=r.get("access", "r"),
         scale=r.get("scale", 1), offset=r.get("offset", 0), unit=r.get("unit"),
         min=r.get("min"), max=r.get("max"), defaults=defaults,
         reflect=r.get("reflect", "unknown"), storage=r.get("storage", "unknown"),
