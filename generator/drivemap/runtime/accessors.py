@@ -111,7 +111,8 @@ class WriteOnly(_Element[T]):
     """A writable register; ``write`` checks type, range and access before sending."""
 
     def write(self, value: T) -> None:
-        self._owner._write_raw_items([(self._key, encode_for_write(self.codec, value))])
+        raw = self.codec.encode(value) if self._scale is None else encode_for_write(self.codec, value)
+        self._owner._write_raw_items([(self._key, raw)])
 
     def write_raw(self, raw: int) -> None:
         self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])

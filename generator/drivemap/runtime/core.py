@@ -368,12 +368,12 @@ class Core:
         several requests, that failure is raised as :class:`PartialWrite` (written / unconfirmed /
         not written elements); a single request raises its own error (all or nothing).
         """
-        if any(isinstance(raw, Deferred) for _, raw in items):
-            resolved: Sequence[tuple[Key, int]] = yield from self._resolve(items)
-        else:
-            resolved = items  # type: ignore[assignment]
-        if len(resolved) == 1:  # one element: one request, all or nothing (the common case, kept lean)
-            key, raw = resolved[0]
+        if len(items) == 1:  # one element: one request, all or nothing (the common case, kept lean)
+            key, item = items[0]
+            if isinstance(item, Deferred):
+                key, raw = (yield from self._resolve(items))[0]
+            else:
+                raw = item
             reg = self.check_write(key)
             words = raw_to_words(reg, raw)
             if len(words) > 1 and self._limit(reg.table) == 0:
@@ -386,6 +386,10 @@ class Core:
                 self.raise_for(reply, code)
             self._after_write(reg, key, int(raw))  # raw fits its type (raw_to_words checked): the words' value
             return
+        if any(isinstance(item, Deferred) for _, item in items):
+            resolved: Sequence[tuple[Key, int]] = yield from self._resolve(items)
+        else:
+            resolved = items  # type: ignore[assignment]
         yield from self._write_groups(self._groups(resolved))
 
     def _limit(self, table: str) -> int:

@@ -88,8 +88,9 @@ _STATE_VERSION = 1
 #: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
 _PACKERS: dict[int, Callable[..., bytes]] = {}
-#: (cells read, per word: (cell or None for a word read as 0, bit shift in the cell's raw value, swap bytes))
-_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int, bool], ...]]
+#: (cells read, per word: (cell or None for a word read as 0, bit shift in the cell's raw value, swap bytes),
+#: whether any word swaps its bytes)
+_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int, bool], ...], bool]
 
 
 def _packer(count: int) -> Callable[..., bytes]:
@@ -409,10 +410,10 @@ class Simulator:
 
     def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
-        cells, words = self._plan(unit, _READ_TABLES[code], address, quantity)
+        cells, words, swapping = self._plan(unit, _READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
-        if any(swap for _, _, swap in words):
+        if swapping:
             body = _packer(quantity)(*[0 if cell is None else _swapped((values[cell] >> shift) & 0xFFFF, swap)
                                        for cell, shift, swap in words])
         else:
@@ -422,7 +423,7 @@ class Simulator:
 
     def _read_bits(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
-        cells, words = self._plan(unit, _READ_TABLES[code], address, quantity)
+        cells, words, _ = self._plan(unit, _READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
         packed = bytearray((quantity + 7) // 8)
@@ -454,7 +455,7 @@ class Simulator:
             reg = slot.reg
             words.append((slot.cell, _word_shift(reg, slot.word), reg.byte_order == "low_first" and not reg.bit_table))
         cells = tuple(dict.fromkeys(cell for cell, _, _ in words if cell is not None))
-        return cells, tuple(words)
+        return cells, tuple(words), any(swap for _, _, swap in words)
 
     def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
         if len(data) != 4:
