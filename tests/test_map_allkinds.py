@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import asyncio
+import importlib
 import contextlib
 import math
 import threading
@@ -496,3 +497,70 @@ def test_the_syntax_of_issue_14_validates(tmp_path: Path) -> None:
     assert regs["ac_current"].not_available == (0xFFFF,) and regs["ac_current"].optional
     package = load_package(model)
     assert package.Client.plan([("active_power", 0), ("active_power_sf", 0)])[0].count == 2
+
+
+# ---------------------------------------------------------------- the generated simulator
+
+
+def _pdu(code: int, *fields: int) -> bytes:
+    return bytes([code]) + b"".join(f.to_bytes(2, "big") for f in fields)
+
+
+def test_simulator_serves_every_table_and_refuses_what_the_map_says() -> None:
+    sim = importlib.import_module(f"{PKG.__name__}.simulator").Simulator([1])
+    sim.set("run", True)
+    sim.set("alarms[1]", True)
+    sim.set("temperature", None)
+    sim.set("phase_1_voltage", 230.5)
+    assert sim.handle(1, _pdu(0x01, 0x0000, 1)) == bytes([0x01, 1, 0b1])
+    assert sim.handle(1, _pdu(0x01, 0x0000, 2)) == bytes([0x81, 0x02])  # coil 1 (fault_reset) is write-only
+    assert sim.handle(1, _pdu(0x02, 0x0000, 4)) == bytes([0x02, 1, 0b0100])
+    assert sim.handle(1, _pdu(0x04, 0x0016, 1)) == bytes([0x04, 2, 0x80, 0x00])  # None: the not-available raw
+    assert sim.handle(1, _pdu(0x04, 0x0000, 2)) == bytes([0x04, 4]) + bytes.fromhex("43668000")
+    assert sim.handle(1, _pdu(0x03, 0x0000, 2)) == bytes([0x83, 0x02])  # holding 0x0001 is not in the map
+    assert sim.handle(1, _pdu(0x03, 0x0106, 1)) == bytes([0x83, 0x02])  # reserved, not readable
+    assert sim.handle(1, _pdu(0x04, 0x0030, 2)) == bytes([0x04, 4, 0, 0, 0, 0])  # reserved, readable
+    assert sim.handle(1, _pdu(0x04, 0x0014, 2)) == bytes([0x04, 4, 0, 0, 0, 0])  # max_gap words read as 0
+    assert sim.handle(1, _pdu(0x04, 0x0018, 1)) == bytes([0x84, 0x02])  # outside max_gap use: unknown
+    assert sim.handle(1, _pdu(0x03, 0x0201, 1)) == bytes([0x83, 0x02])  # part of a min_read block
+    assert sim.handle(1, _pdu(0x03, 0x0200, 3))[:2] == bytes([0x03, 6])  # the whole block
+    assert sim.handle(1, _pdu(0x05, 0x0000, 0x1234)) == bytes([0x85, 0x03])  # not FF00/0000
+    assert sim.handle(1, _pdu(0x05, 0x0000, 0x0000)) == _pdu(0x05, 0x0000, 0x0000) and sim.get("run") is False
+    assert sim.handle(1, _pdu(0x05, 0x0010, 0xFF00)) == _pdu(0x05, 0x0010, 0xFF00) and sim.get("relays[0]") is True
+    assert sim.handle(1, _pdu(0x0F, 0x0010, 4) + bytes([1, 0b1010])) == _pdu(0x0F, 0x0010, 4)
+    assert [sim.get(f"relays[{i}]") for i in range(4)] == [False, True, False, True]
+    assert sim.handle(1, _pdu(0x0F, 0x0010, 4) + bytes([2, 0, 0])) == bytes([0x8F, 0x03])  # byte count
+    assert sim.handle(1, _pdu(0x06, 0x0101, 0)) == bytes([0x86, 0x02])  # half of an f32
+    f32 = M.convert_to_registers(150.0, DT.FLOAT32)
+    assert sim.handle(1, _pdu(0x10, 0x0100, 2) + bytes([4]) + b"".join(w.to_bytes(2, "big") for w in f32)) \
+        == bytes([0x90, 0x03])  # above max 100
+    assert sim.handle(1, _pdu(0x06, 0x0000, 1)) == bytes([0x86, 0x02])  # input registers are not writable by 06h
+    assert sim.handle(1, _pdu(0x04, 0x0100, 1)) == bytes([0x84, 0x02])  # holding addresses are not input ones
+
+
+def test_export_json_of_the_new_constructs() -> None:
+    from drivemap.export import export
+
+    regs = {r["name"]: r for r in export(MODEL)["registers"]}
+    assert regs["phase_3_voltage"]["table"] == "input" and regs["phase_3_voltage"]["byte_order"] == "low_first"
+    assert regs["phase_3_voltage"]["word_order"] == "low_first" and regs["phase_3_voltage"]["length"] == 2
+    assert regs["serial_number"]["length"] == 8 and regs["serial_number"]["encoding"] == "ascii"
+    assert regs["active_power"]["scale_register"] == "active_power_sf"
+    assert regs["temperature"]["not_available"] == [-32768] and regs["ac_current"]["not_available"] == [0xFFFF]
+    assert regs["relays[3]"]["table"] == "coil" and regs["relays[3]"]["address"] == 0x13
+    assert regs["device_name"]["default"] == "PUMP" and regs["enable"]["default"] is False
+
+
+def test_docs_show_tables_modicon_numbers_layouts_and_not_available_values() -> None:
+    from drivemap.exporters.base import Options
+    from drivemap.exporters.docs import DocsExporter
+
+    page = DocsExporter().render(MODEL, Options())["allkinds.md"]
+    for text in ("**Input registers** (read 04h, read-only)", "**Coils** (read 01h, written 05h/0Fh",
+                 "**Discrete inputs** (read 02h", "| 0x0016 | 22 | 30023 |", "440110-440113",
+                 "the manual gives Modicon 30023", "bytes on the wire DC BA", "bytes on the wire CD AB",
+                 "bytes on the wire BA DC", "bytes on the wire AB CD", "IEEE-754 binary64",
+                 "not available: raw 0xFFFF (the client reads None)", "1 × 10^active\\_power\\_sf",
+                 "string[8]", "16 bytes, ascii", "every read of it reads the block",
+                 "| Example | Mode | Status | Source |", "phase\\_1\\_voltage word 2 of 2 → 230.5 V", '"SN-2024-000042"'):
+        assert text in page, text

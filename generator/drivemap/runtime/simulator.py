@@ -6,9 +6,10 @@ communication error codes a device records (``comm_error_policy``, ``comm_error_
 function codes exist and which may be broadcast, register access, ranges, pages and storage.
 
 Tables: holding registers answer 03h/06h/10h, input registers 04h, coils 01h/05h/0Fh, discrete
-inputs 02h, each its own address space. Reserved ranges the map marks readable read as 0; with the
-map's ``max_gap``, so do undocumented words (the map says the device reads across them); a read that
-covers part of a ``min_read`` block is refused like an unknown address.
+inputs 02h, each its own address space. Reserved ranges the map marks readable read as 0, and so do
+undocumented words in a gap of at most the map's ``max_gap`` words between documented ones (the map
+says the device reads across them); a read that covers part of a ``min_read`` block is refused like
+an unknown address.
 
 The core works on PDUs (function code + data) and knows nothing about transports;
 :mod:`drivemap.runtime.simserve` puts it behind a pymodbus server (TCP, RTU, ASCII).
@@ -133,6 +134,19 @@ def _word_shift(reg: RegisterSpec, word: int) -> int:
     return 16 * (n - 1 - canonical)
 
 
+def _gap_words(spec: DeviceSpec, documented: frozenset[tuple[str, int]]) -> frozenset[tuple[str, int]]:
+    """Undocumented words between two documented ones at most ``max_gap`` apart (the device reads them)."""
+    if not spec.max_gap:
+        return frozenset()
+    out: set[tuple[str, int]] = set()
+    for table in {t for t, _ in documented}:
+        addresses = sorted(a for t, a in documented if t == table)
+        for low, high in zip(addresses, addresses[1:], strict=False):
+            if 1 < high - low <= spec.max_gap + 1:
+                out.update((table, a) for a in range(low + 1, high))
+    return frozenset(out)
+
+
 def _swapped(word: int, swap: bool) -> int:
     return ((word & 0xFF) << 8) | (word >> 8) if swap else word
 
@@ -180,8 +194,8 @@ class Simulator:
         # min_read blocks: (table, start, end); words inside that no register covers read as 0
         self._blocks = tuple((r.table, r.address, r.address + r.min_read) for r in spec.registers
                              if r.min_read is not None)
-        self._documented = frozenset(self._by_address) | frozenset(
-            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1))
+        self._gap_words = _gap_words(spec, frozenset(self._by_address) | frozenset(
+            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1)))
         # every selector a page depends on: the page state of a unit is their values
         self._selectors: tuple[str, ...] = tuple(sorted(
             {r.page.selector for r in spec.registers if r.page is not None}
@@ -587,14 +601,15 @@ class Simulator:
         return None
 
     def _reads_as_zero(self, unit: Unit, table: str, address: int) -> bool:
-        """Reserved addresses the map marks readable answer 0, as do undocumented ones when the map
-        gives a max_gap or they lie in a min_read block; other unknown or unreadable ones are refused."""
+        """Reserved addresses the map marks readable answer 0, as do undocumented ones in a gap the
+        map's max_gap lets the client read across or in a min_read block; other unknown or unreadable
+        ones are refused."""
         if any(r.table == table and r.start <= address <= r.end and r.readable is True and self._page_ok(unit, r.page)
                for r in self.spec.reserved):
             return True
-        if (table, address) in self._documented:
-            return False
-        return bool(self.spec.max_gap) or any(t == table and s <= address < e for t, s, e in self._blocks)
+        if (table, address) in self._gap_words:
+            return True
+        return any(t == table and s <= address < e for t, s, e in self._blocks)
 
     # ==== names ===============================================================================
     def _check_cell(self, name: str) -> str:
