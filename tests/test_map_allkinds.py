@@ -15,8 +15,8 @@
 from __future__ import annotations
 
 import asyncio
-import importlib
 import contextlib
+import importlib
 import math
 import threading
 from collections.abc import Iterator
@@ -564,3 +564,22 @@ def test_docs_show_tables_modicon_numbers_layouts_and_not_available_values() -> 
                  "string[8]", "16 bytes, ascii", "every read of it reads the block",
                  "| Example | Mode | Status | Source |", "phase\\_1\\_voltage word 2 of 2 → 230.5 V", '"SN-2024-000042"'):
         assert text in page, text
+
+
+def test_scaffold_examples_are_served_as_printed(tmp_path: Path) -> None:
+    """`drivemap new` writes examples of the new constructs (an f32 input register, a coil): the
+    generated simulator answers their requests with the printed replies, the client decodes them."""
+    from drivemap import frames
+    from drivemap.render import scaffold
+
+    path = tmp_path / "scaffolded.yaml"
+    path.write_text(scaffold("scaffolded"), encoding="utf-8")
+    model = compile_map(path)
+    package = load_package(model)
+    sim = importlib.import_module(f"{package.__name__}.simulator").Simulator([1])
+    for ex in model.examples:
+        for name, value in ex.meaning.values:
+            sim.set(name, value)
+        request = frames.parse(ex.request, ex.mode).body
+        response = frames.parse(ex.response, ex.mode).body
+        assert sim.handle(request[0], request[1:]) == response[1:], ex.name
