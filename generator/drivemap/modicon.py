@@ -7,7 +7,8 @@ reach address 9998 (``49999``); six-digit numbers (``400001`` .. ``465536``) the
 transcription error, so the compiler converts and cross-checks, and the docs print both forms.
 
 An integer loses leading zeros, so an integer below 10000 is a five-digit coil number
-(``17`` = ``00017``); six-digit coil numbers above ``009999`` must be written as strings.
+(``17`` = ``00017``); six-digit coil numbers above ``009999`` must be written as strings. (The
+loader refuses an unquoted ``00017``: YAML 1.1 reads it as octal.)
 """
 
 from __future__ import annotations
