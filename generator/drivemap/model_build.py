@@ -48,100 +48,7 @@ __all__ = ["build_model"]
 
 def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int]) -> Model:
     """Turn a checked document into the model (``statuses``: example name -> status)."""
-    dev = data["device"]
-    man = dev["manual"]
-    device = Device(
-        model=dev["model"],
-        title=dev["title"],
-        vendor=dev.get("vendor"),
-        manual=Manual(
-            man["file"], man.get("document"), man.get("revision"), man.get("date"), man["language"],
-            tuple(man.get("cross_check", ())),
-        ),
-        coverage=dev.get("coverage"),
-        source=dev["source"],
-        notes=dev.get("notes"),
-    )
     p = data["protocol"]
-    t = p["timing"]
-    proc = t.get("processing_ms")
-    timing = Timing(
-        silent_interval_chars=t.get("silent_interval_chars"),
-        silent_interval_floor_ms=t.get("silent_interval_floor_ms"),
-        silent_interval_floor_above_bps=t.get("silent_interval_floor_above_bps"),
-        processing_ms=(proc["min"], proc["max"]) if proc else None,
-        inter_frame_gap_ms=t.get("inter_frame_gap_ms"),
-        broadcast_gap_ms=t.get("broadcast_gap_ms"),
-        response_timeout_ms=t.get("response_timeout_ms"),
-        retries=t.get("retries"),
-        source=t["source"],
-        notes=t.get("notes"),
-    )
-
-    def lr(item: dict[str, int] | None) -> LengthRange | None:
-        return LengthRange(item["min"], item["max"]) if item else None
-
-    ck = p.get("checksum")
-    checksum = None
-    if ck:
-        lx = ck.get("lrc_example")
-        checksum = Checksum(
-            ck["crc_first_byte_label"], ck.get("crc_second_byte_label"),
-            LrcExample(bytes.fromhex(lx["data"]), lx["lrc"], lx.get("ascii"), lx["source"]) if lx else None,
-            ck["source"], ck.get("notes"),
-        )
-    cfg = p.get("configuration")
-    protocol = Protocol(
-        modes=tuple(p["modes"]),
-        unit_min=p["unit_ids"]["min"],
-        unit_max=p["unit_ids"]["max"],
-        unit_source=p["unit_ids"]["source"],
-        broadcast_address=p.get("broadcast_address"),
-        ports=tuple(
-            Port(
-                name=x["name"], modes=tuple(x["modes"]), default_mode=x.get("default_mode"),
-                baudrates=tuple(x["baudrates"]), default_baudrate=x.get("default_baudrate"),
-                parity=tuple(x["parity"]), default_parity=x.get("default_parity"),
-                data_bits=tuple(x["data_bits"]), stop_bits=tuple(x["stop_bits"]),
-                default_stop_bits=x.get("default_stop_bits"), fixed_unit=x.get("fixed_unit"),
-                set_by=x["set_by"],
-                settings=tuple(
-                    PortSetting(s["what"], s["how"], s.get("when"), s["source"], s.get("notes"))
-                    for s in x.get("settings", ())
-                ),
-                source=x["source"], notes=x.get("notes"),
-            )
-            for x in p["ports"]
-        ),
-        function_codes=tuple(
-            FunctionCode(
-                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
-                lr(f.get("request_bytes")), lr(f.get("response_bytes")), f["source"], f.get("notes"),
-            )
-            for f in p["function_codes"]
-        ),
-        exceptions=tuple(
-            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"))
-            for e in p["exceptions"]
-        ),
-        comm_errors=tuple(
-            CommError(e["code"], e["name"], e["meaning"], e["source"], e.get("notes")) for e in p.get("comm_errors", ())
-        ),
-        exception_policy=tuple(
-            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("exception_policy", {}).items()
-        ),
-        comm_error_policy=tuple(
-            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("comm_error_policy", {}).items()
-        ),
-        comm_error_history=p.get("comm_error_history"),
-        timing=timing,
-        max_frame_bytes=p.get("max_frame_bytes"),
-        configuration=CommandRef(cfg["register"], cfg["value"]) if cfg else None,
-        checksum=checksum,
-        source=p["source"],
-        notes=p.get("notes"),
-        max_gap=p.get("max_gap", 0),
-    )
     enums = tuple(
         Enum(
             name,
@@ -165,33 +72,136 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         KnownIssue(k["title"], k["source"], k["printed"], k.get("corrected"), k["chosen"], k["reason"], tuple(k.get("affects", ())))
         for k in data.get("known_issues", ())
     )
-    examples = []
-    for e in data["examples"]:
-        m = e["meaning"]
-        err = e.get("erratum") or {}
-        examples.append(
-            Example(
-                name=e["name"], title=e.get("title"), source=e["source"], mode=e["mode"],
-                request=e.get("request"), response=e.get("response"),
-                meaning=Meaning(
-                    unit=m["unit"], operation=m["operation"], address=m.get("address"), quantity=m.get("quantity"),
-                    values=tuple(m.get("values", {}).items()), raw=tuple(m.get("raw", ())),
-                    loopback=tuple(m.get("loopback", ())), exception=m.get("exception"),
-                    broadcast=m.get("broadcast", False),
-                ),
-                preset=tuple((e.get("preset") or {}).items()),
-                inject_exception=e.get("inject_exception"),
-                corrected_request=err.get("request"), corrected_response=err.get("response"),
-                erratum=err.get("reason"), illegible=e.get("illegible"), notes=e.get("notes"),
-                status=statuses[e["name"]],
-            )
-        )
     model = Model(
-        path=path, device=device, protocol=protocol, enums=enums, groups=groups, registers=tuple(registers),
-        reserved=reserved, known_issues=issues, examples=tuple(examples),
+        path=path, device=_device(data["device"]), protocol=_protocol(p), enums=enums, groups=groups,
+        registers=tuple(registers), reserved=reserved, known_issues=issues,
+        examples=tuple(_example(e, statuses[e["name"]]) for e in data["examples"]),
     )
     model._by_name.update({r.name: r for r in registers})
     return model
+
+
+def _device(dev: dict[str, Any]) -> Device:
+    man = dev["manual"]
+    return Device(
+        model=dev["model"],
+        title=dev["title"],
+        vendor=dev.get("vendor"),
+        manual=Manual(
+            man["file"], man.get("document"), man.get("revision"), man.get("date"), man["language"],
+            tuple(man.get("cross_check", ())),
+        ),
+        coverage=dev.get("coverage"),
+        source=dev["source"],
+        notes=dev.get("notes"),
+    )
+
+
+def _timing(t: dict[str, Any]) -> Timing:
+    proc = t.get("processing_ms")
+    return Timing(
+        silent_interval_chars=t.get("silent_interval_chars"),
+        silent_interval_floor_ms=t.get("silent_interval_floor_ms"),
+        silent_interval_floor_above_bps=t.get("silent_interval_floor_above_bps"),
+        processing_ms=(proc["min"], proc["max"]) if proc else None,
+        inter_frame_gap_ms=t.get("inter_frame_gap_ms"),
+        broadcast_gap_ms=t.get("broadcast_gap_ms"),
+        response_timeout_ms=t.get("response_timeout_ms"),
+        retries=t.get("retries"),
+        source=t["source"],
+        notes=t.get("notes"),
+    )
+
+
+def _checksum(ck: dict[str, Any] | None) -> Checksum | None:
+    if not ck:
+        return None
+    lx = ck.get("lrc_example")
+    return Checksum(
+        ck["crc_first_byte_label"], ck.get("crc_second_byte_label"),
+        LrcExample(bytes.fromhex(lx["data"]), lx["lrc"], lx.get("ascii"), lx["source"]) if lx else None,
+        ck["source"], ck.get("notes"),
+    )
+
+
+def _port(x: dict[str, Any]) -> Port:
+    return Port(
+        name=x["name"], modes=tuple(x["modes"]), default_mode=x.get("default_mode"),
+        baudrates=tuple(x["baudrates"]), default_baudrate=x.get("default_baudrate"),
+        parity=tuple(x["parity"]), default_parity=x.get("default_parity"),
+        data_bits=tuple(x["data_bits"]), stop_bits=tuple(x["stop_bits"]),
+        default_stop_bits=x.get("default_stop_bits"), fixed_unit=x.get("fixed_unit"),
+        set_by=x["set_by"],
+        settings=tuple(
+            PortSetting(s["what"], s["how"], s.get("when"), s["source"], s.get("notes"))
+            for s in x.get("settings", ())
+        ),
+        source=x["source"], notes=x.get("notes"),
+    )
+
+
+def _lengths(item: dict[str, int] | None) -> LengthRange | None:
+    return LengthRange(item["min"], item["max"]) if item else None
+
+
+def _protocol(p: dict[str, Any]) -> Protocol:
+    cfg = p.get("configuration")
+    return Protocol(
+        modes=tuple(p["modes"]),
+        unit_min=p["unit_ids"]["min"],
+        unit_max=p["unit_ids"]["max"],
+        unit_source=p["unit_ids"]["source"],
+        broadcast_address=p.get("broadcast_address"),
+        ports=tuple(_port(x) for x in p["ports"]),
+        function_codes=tuple(
+            FunctionCode(
+                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
+                _lengths(f.get("request_bytes")), _lengths(f.get("response_bytes")), f["source"], f.get("notes"),
+            )
+            for f in p["function_codes"]
+        ),
+        exceptions=tuple(
+            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"))
+            for e in p["exceptions"]
+        ),
+        comm_errors=tuple(
+            CommError(e["code"], e["name"], e["meaning"], e["source"], e.get("notes")) for e in p.get("comm_errors", ())
+        ),
+        exception_policy=tuple(
+            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("exception_policy", {}).items()
+        ),
+        comm_error_policy=tuple(
+            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("comm_error_policy", {}).items()
+        ),
+        comm_error_history=p.get("comm_error_history"),
+        timing=_timing(p["timing"]),
+        max_frame_bytes=p.get("max_frame_bytes"),
+        configuration=CommandRef(cfg["register"], cfg["value"]) if cfg else None,
+        checksum=_checksum(p.get("checksum")),
+        source=p["source"],
+        notes=p.get("notes"),
+        max_gap=p.get("max_gap", 0),
+    )
+
+
+def _example(e: dict[str, Any], status: Status) -> Example:
+    m = e["meaning"]
+    err = e.get("erratum") or {}
+    return Example(
+        name=e["name"], title=e.get("title"), source=e["source"], mode=e["mode"],
+        request=e.get("request"), response=e.get("response"),
+        meaning=Meaning(
+            unit=m["unit"], operation=m["operation"], address=m.get("address"), quantity=m.get("quantity"),
+            values=tuple(m.get("values", {}).items()), raw=tuple(m.get("raw", ())),
+            loopback=tuple(m.get("loopback", ())), exception=m.get("exception"),
+            broadcast=m.get("broadcast", False),
+        ),
+        preset=tuple((e.get("preset") or {}).items()),
+        inject_exception=e.get("inject_exception"),
+        corrected_request=err.get("request"), corrected_response=err.get("response"),
+        erratum=err.get("reason"), illegible=e.get("illegible"), notes=e.get("notes"),
+        status=status,
+    )
 
 
 def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Register:

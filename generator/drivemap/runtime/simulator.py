@@ -35,12 +35,9 @@ bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard M
 
 from __future__ import annotations
 
-import contextlib
-import json
 import math
 import os
 import struct
-import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -48,6 +45,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .codec import raw_bounds
+from .simstate import StateFile
 from .simunit import SimulatorError, SimValue, Unit, to_value, unwire_words
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
@@ -85,7 +83,6 @@ _FALLBACK = {
 _STANDARD_MAX_QUANTITY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x06: 1, 0x0F: 1968, 0x10: 123}
 #: The table each read function code reads.
 _READ_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input"}
-_STATE_VERSION = 1
 #: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
 _PACKERS: dict[int, Callable[..., bytes]] = {}
@@ -151,7 +148,7 @@ def _swapped(word: int, swap: bool) -> int:
     return ((word & 0xFF) << 8) | (word >> 8) if swap else word
 
 
-class Simulator:
+class Simulator(StateFile):
     """A simulated device: one register store per unit id, answering in the device's dialect.
 
     ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
@@ -627,56 +624,3 @@ class Simulator:
             if spec.name == bit:
                 return spec
         raise SimulatorError(f"{name} has no bit {bit!r}")
-
-    # ==== persistence ===========================================================================
-    def _eeprom_cells(self) -> list[str]:
-        return [name for name, (reg, _) in self._cells.items() if reg.storage == "eeprom"]
-
-    def _save_if_dirty(self) -> None:
-        if self._dirty and self.state_file is not None:
-            self._write_state(self.state_file)
-        self._dirty = False
-
-    def _write_state(self, path: Path) -> None:
-        cells = self._eeprom_cells()
-        data = {
-            "model": self.spec.model,
-            "version": _STATE_VERSION,
-            "units": {str(uid): {name: unit.values[name] for name in cells} for uid, unit in self.units.items()},
-        }
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as handle:
-                json.dump(data, handle, indent=2, sort_keys=True)
-                handle.write("\n")
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
-
-    def _load_state(self, path: Path) -> None:
-        try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise SimulatorError(f"{path}: cannot read simulator state: {exc}") from exc
-        if not isinstance(data, dict) or data.get("model") != self.spec.model:
-            raise SimulatorError(f"{path}: state file is not for model {self.spec.model!r}")
-        units = data.get("units", {})
-        if not isinstance(units, dict):
-            raise SimulatorError(f"{path}: 'units' must be a mapping")
-        eeprom = set(self._eeprom_cells())
-        for uid, values in units.items():
-            unit = self.units.get(int(uid))
-            if unit is None or not isinstance(values, dict):
-                continue
-            for name, raw in values.items():
-                if name in eeprom and isinstance(raw, int):
-                    reg = self._cells[name][0]
-                    low, high = raw_bounds(reg)
-                    if low <= raw <= high:
-                        unit.values[name] = raw
-

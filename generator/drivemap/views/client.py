@@ -204,12 +204,8 @@ def _isort_key(name: str) -> tuple[int, str]:
     return (0 if name.isupper() else 1 if name[:1].isupper() else 2, name)
 
 
-def context(model: Model, options: Options) -> dict[str, Any]:
-    enums = [
-        {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
-         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
-        for e in model.enums
-    ]
+def _bit_classes(model: Model) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(IntFlag classes, dataclass records) of the map's bit fields."""
     flags: list[dict[str, Any]] = []
     records: list[dict[str, Any]] = []
     seen_bits: set[str] = set()
@@ -233,7 +229,10 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         names = [f["name"] for f in rec["fields"]]
         if len(set(names)) != len(names):
             raise ValueError(f"{model.path}: bit names of {rec['name']} collide once lower-cased")
+    return flags, records
 
+
+def _exceptions(model: Model) -> list[dict[str, str]]:
     exceptions = []
     used: set[str] = set()
     for ex in model.protocol.exceptions:
@@ -243,10 +242,11 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         used.add(cls)
         exceptions.append({"name": cls, "code": f"0x{ex.code:02X}", "code_name": ex.name, "meaning": ex.meaning,
                            "source": ex.source})
+    return exceptions
 
-    _check_names(model, [(e["name"], "enum") for e in enums] + [(f["name"], "bit-field class") for f in flags]
-                 + [(r["name"], "bit-field class") for r in records] + [(e["name"], "exception class") for e in exceptions])
 
+def _accessors(model: Model) -> tuple[list[AccessorView], list[dict[str, str]], set[str]]:
+    """(accessor views, codec variables, codec classes used)."""
     accessors: list[AccessorView] = []
     codecs: list[dict[str, str]] = []
     codec_classes: set[str] = set()
@@ -260,7 +260,30 @@ def context(model: Model, options: Options) -> dict[str, Any]:
             async_class=_access_class(reg, True), codec=var, doc=_doc(model, reg),
             broadcast=reg.broadcast and reg.writable, readable=reg.readable, is_array=reg.is_array,
         ))
-    if any(r["fields"] and any(f["type"] not in ("bool", "int") for f in r["fields"]) or r["fields"] for r in records):
+    return accessors, codecs, codec_classes
+
+
+#: Names every generated package exports besides its own classes.
+PACKAGE_NAMES = frozenset({
+    "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
+    "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
+    "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
+    "ScaleUnavailable",
+})
+
+
+def context(model: Model, options: Options) -> dict[str, Any]:
+    enums = [
+        {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
+         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
+        for e in model.enums
+    ]
+    flags, records = _bit_classes(model)
+    exceptions = _exceptions(model)
+    _check_names(model, [(e["name"], "enum") for e in enums] + [(f["name"], "bit-field class") for f in flags]
+                 + [(r["name"], "bit-field class") for r in records] + [(e["name"], "exception class") for e in exceptions])
+    accessors, codecs, codec_classes = _accessors(model)
+    if any(r["fields"] for r in records):
         codec_classes.add("Field")
 
     has_broadcast = model.protocol.broadcast_address is not None
@@ -271,8 +294,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
     for a in accessors:
         runtime_names.update({a.sync_class, a.async_class})
-    runtime_names.update(cls for _, cls in broadcast_sync)
-    runtime_names.update(cls for _, cls in broadcast_async)
+    runtime_names.update(cls for _, cls in broadcast_sync + broadcast_async)
 
     snapshot_fields = [
         {"name": a.name, "type": f"tuple[{a.base} | None, ...] | None" if a.is_array else f"{a.base} | None"}
@@ -303,12 +325,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "broadcast_async": broadcast_async,
         "snapshot_fields": snapshot_fields,
         "client_all": sorted(all_names, key=lambda n: (n.lower(), n)),
-        "package_all": sorted(set(all_names) | {
-            "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
-            "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
-            "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
-            "ScaleUnavailable",
-        }, key=lambda n: (n.lower(), n)),
+        "package_all": sorted(set(all_names) | PACKAGE_NAMES, key=lambda n: (n.lower(), n)),
         "client_exports": sorted(all_names, key=_isort_key),
         "loopback": model.protocol.function(0x08) is not None,
     }
