@@ -583,3 +583,35 @@ def test_scaffold_examples_are_served_as_printed(tmp_path: Path) -> None:
         request = frames.parse(ex.request, ex.mode).body
         response = frames.parse(ex.response, ex.mode).body
         assert sim.handle(request[0], request[1:]) == response[1:], ex.name
+
+
+@pytest.mark.parametrize(("number", "where"), [
+    (30001, ("input", 0)), (40001, ("holding", 0)), (49999, ("holding", 9998)), (400001, ("holding", 0)),
+    (465536, ("holding", 65535)), (10001, ("discrete", 0)), (1, ("coil", 0)), (9999, ("coil", 9998)),
+    ("00017", ("coil", 16)), ("012345", ("coil", 12344)), ("300001", ("input", 0)), (365536, ("input", 65535)),
+])
+def test_modicon_numbers(number: int | str, where: tuple[str, int]) -> None:
+    from drivemap import modicon
+
+    assert modicon.parse(number) == where
+    table, address = where
+    assert modicon.parse(modicon.number(table, address)) == where
+
+
+@pytest.mark.parametrize("number", [40000, 20001, 50001, 465537, 300000, "4001", "4000001", "40000"])
+def test_modicon_numbers_refused(number: int | str) -> None:
+    from drivemap import modicon
+
+    with pytest.raises(modicon.ModiconError):
+        modicon.parse(number)
+
+
+def test_simulator_applies_broadcast_coil_writes_to_every_unit() -> None:
+    sim = importlib.import_module(f"{PKG.__name__}.simulator").Simulator([1, 2])
+    assert sim.handle(0, _pdu(0x05, 0x0000, 0xFF00)) is None
+    assert sim.get("run", unit=1) is True and sim.get("run", unit=2) is True
+    assert sim.handle(0, _pdu(0x0F, 0x0010, 2) + bytes([1, 0b11])) is None
+    assert [sim.get(f"relays[{i}]", unit=2) for i in range(2)] == [True, True]
+    broadcast = PKG.BroadcastClient(PKG.Bus.tcp("127.0.0.1", 9))  # never connected
+    assert "run" in broadcast.registers and "relays" in broadcast.registers
+    assert "power_limit" not in broadcast.registers  # scaled: its factor must be read first
