@@ -96,10 +96,14 @@ def test_export_contract(model: str) -> None:
     assert set(data) == {"model", "title", "protocol", "registers", "reserved", "known_issues", "examples"}
     assert data["model"] == model
     keys = {"name", "address", "param", "access", "type", "scale", "offset", "unit", "min", "max", "default",
-            "reflect", "storage", "broadcast", "enum", "bits", "page"}
+            "reflect", "storage", "broadcast", "enum", "bits", "page", "table", "length", "word_order", "byte_order",
+            "encoding", "scale_register", "not_available"}
     for reg in data["registers"]:
         assert set(reg) == keys
-        assert reg["access"] in ("r", "w", "rw") and reg["type"] in ("u16", "s16", "u32", "s32")
+        assert reg["access"] in ("r", "w", "rw") and reg["type"] in ("u16", "s16", "u32", "s32", "u64", "s64",
+                                                                     "f32", "f64", "string", "bool")
+        assert reg["table"] in ("holding", "input", "coil", "discrete") and reg["length"] >= 1
+        assert reg["byte_order"] in ("high_first", "low_first")
         assert reg["reflect"] in ("immediate", "configuration", "power_cycle", None)
         assert reg["storage"] in ("eeprom", "ram", "volatile", None)
         assert isinstance(reg["broadcast"], bool)

@@ -203,17 +203,19 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
     m = by_name(models, model_id)
     page = pages[f"docs/{model_id}.md"]
     register_rows = [
-        row for s in page.sections for t in s.tables if t[0][:4] == ["Address", "Dec", "Param", "Name"] for row in t[1:]
+        row for s in page.sections for t in s.tables if t[0][:5] == ["Address", "Dec", "Modicon", "Param", "Name"]
+        for row in t[1:]
     ]
     assert len(register_rows) == len(m.registers)
     for reg in m.registers:
         name = f"{reg.name}[0..{reg.count - 1}]" if reg.is_array else reg.name
-        matches = [r for r in register_rows if r[3] == name]
+        matches = [r for r in register_rows if r[4] == name]
         assert len(matches) == 1, f"{reg.name}: {len(matches)} rows"
         row = matches[0]
         assert row[0].split("-")[0] == f"0x{reg.address:04X}"
         assert row[1].split("-")[0] == str(reg.address)
-        assert row[10] in ("read", "write", "read/write")
+        assert row[2].split("-")[0] == reg.modicon  # both notations, side by side
+        assert row[11] in ("read", "write", "read/write")
         if reg.is_array:
             last = reg.element_address(reg.count - 1)
             assert f"0x{last:04X}" in " ".join(row)
@@ -221,9 +223,9 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
                 for i in range(reg.count):
                     assert f"No.{i} 0x{reg.element_address(i):04X}" in row[-1]
         if reg.param:
-            assert row[2].split(" … ")[0] == reg.param
+            assert row[3].split(" … ")[0] == reg.param
         if reg.element_param_format:  # ids by rule: first … last (v2 P_0 … P_255)
-            assert row[2] == f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
+            assert row[3] == f"{reg.element_param(0)} … {reg.element_param(reg.count - 1)}"
         if reg.page is not None:
             assert f"{reg.page.selector}" in row[-1] and f"= {reg.page.value}" in row[-1]
 
@@ -455,9 +457,9 @@ def test_map_text_cannot_break_tables_or_inject_html(models: list[Model]) -> Non
     assert [s.title for s in page.sections if s.level <= 2] == [
         f"{m.name}: {flat}" if s.level == 1 else s.title for s in original.sections if s.level <= 2
     ]
-    register_rows = [row for s in page.sections for t in s.tables if t[0][:4] == ["Address", "Dec", "Param", "Name"]
-                     for row in t[1:]]
-    assert any(row[4] == evil.replace("\n", " ") for row in register_rows)
+    register_rows = [row for s in page.sections for t in s.tables
+                     if t[0][:5] == ["Address", "Dec", "Modicon", "Param", "Name"] for row in t[1:]]
+    assert any(row[5] == evil.replace("\n", " ") for row in register_rows)
 
 
 # ---------------------------------------------------------------- the usage snippet runs against the simulator

@@ -16,28 +16,38 @@ test code. For every example, in its mode (RTU or ASCII), on a virtual serial li
 
 Replies-only examples (the manual prints no request) are decoded from a scripted device that
 answers the printed bytes.
+
+Besides the project's maps, the synthetic maps in ``tests/maps/`` (every construct of the map
+language, frames computed with pymodbus) run here too, through their generated package built in
+memory (:func:`drivemap.inmemory.load_package`).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import pytest
 
 from drivemap import frames
 from drivemap.compiler import compile_map, map_paths
+from drivemap.inmemory import load_package
 from drivemap.model import Example, Model
-from drivemap.runtime.codec import EnumCodec, FieldsCodec, FlagCodec
+from drivemap.runtime.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
 from drivemap.runtime.simserve import ThreadedSimServer
 from drivemap.testing import VirtualSerialLine
 
-MODELS: dict[str, Model] = {m.name: m for m in (compile_map(p) for p in map_paths())}
+TEST_MAPS = sorted((Path(__file__).resolve().parent / "maps").glob("*.yaml"))
+PROJECT: dict[str, Model] = {m.name: m for m in (compile_map(p) for p in map_paths())}
+MODELS: dict[str, Model] = {**PROJECT, **{m.name: m for m in (compile_map(p) for p in TEST_MAPS)}}
 CASES = [(m, ex) for m in MODELS.values() for ex in m.examples]
 #: example ids run by this module, with the status seen (checked against the maps at the end)
 SEEN: dict[str, str] = {}
@@ -63,9 +73,17 @@ class Exchange:
     error: BaseException | None
 
 
+@functools.cache
+def package(name: str) -> ModuleType:
+    """The generated package of a model: built (``drivemap_models``) or, for tests/maps, in memory."""
+    if name in PROJECT:
+        return importlib.import_module(f"drivemap_models.{name}")
+    return load_package(MODELS[name])
+
+
 def serial_overrides(model: Model, mode: str) -> dict[str, Any]:
     """Settings for a pty line: the map's defaults where it has them, else explicit ones."""
-    spec = importlib.import_module(f"drivemap_models.{model.name}").SPEC.serial
+    spec = package(model.name).SPEC.serial
     options: dict[str, Any] = {"mode": mode}
     if spec.baudrate is None:
         options["baudrate"] = 9600
@@ -76,8 +94,10 @@ def serial_overrides(model: Model, mode: str) -> dict[str, Any]:
     return options
 
 
-def _typed(acc: Any, value: float) -> Any:
-    codec = acc.codec
+def _typed(acc: Any, value: Any) -> Any:
+    codec = unwrap(acc.codec)
+    if value is None or isinstance(value, (str, bool)):
+        return value
     if isinstance(codec, EnumCodec):
         return codec.enum_type(int(value))
     if isinstance(codec, FlagCodec):
@@ -147,7 +167,7 @@ def perform(model: Model, ex: Example, client: Any) -> Any:
 
 
 def make_simulator(model: Model, ex: Example) -> Any:
-    sim_module = importlib.import_module(f"drivemap_models.{model.name}.simulator")
+    sim_module = importlib.import_module(f"{package(model.name).__name__}.simulator")
     units = [1, 2] if ex.meaning.broadcast else [ex.meaning.unit]
     sim = sim_module.Simulator(units)
     for name, value in ex.preset:
@@ -157,7 +177,7 @@ def make_simulator(model: Model, ex: Example) -> Any:
 
 def run_with_simulator(model: Model, ex: Example) -> tuple[Exchange, Any]:
     """Client on the master end, the generated simulator on the device end."""
-    client_cls = importlib.import_module(f"drivemap_models.{model.name}").Client
+    client_cls = package(model.name).Client
     sim = make_simulator(model, ex)
     if ex.inject_exception is not None:
         sim.inject_exception(ex.inject_exception)
@@ -215,7 +235,7 @@ class ScriptedDevice:
 
 
 def run_with_reply(model: Model, ex: Example, reply: bytes) -> Exchange:
-    client_cls = importlib.import_module(f"drivemap_models.{model.name}").Client
+    client_cls = package(model.name).Client
     with VirtualSerialLine() as line:
         device = ScriptedDevice(line, reply)
         try:
@@ -247,7 +267,12 @@ def assert_decoded(model: Model, ex: Example, exchange: Exchange) -> None:
     if meaning.operation == "read":
         for name, expected in meaning.values:
             got = exchange.result[name]
-            assert math.isclose(float(got), expected, rel_tol=1e-9, abs_tol=1e-9), f"{name}: {got!r} != {expected}"
+            if expected is None or isinstance(expected, (str, bool)):
+                assert got == expected and type(got) is type(expected), f"{name}: {got!r} != {expected!r}"
+            elif isinstance(expected, int) and isinstance(got, int) and abs(expected) > 2**52:
+                assert got == expected, f"{name}: {got!r} != {expected}"  # 64-bit integers, exactly
+            else:
+                assert math.isclose(float(got), expected, rel_tol=1e-9, abs_tol=1e-9), f"{name}: {got!r} != {expected}"
     if meaning.operation == "loopback":
         assert exchange.result == (meaning.loopback[-1] if meaning.loopback else 0xA537)
 
@@ -271,11 +296,18 @@ def test_example_round_trip(model: Model, ex: Example) -> None:
             assert exchange.replies == [], "serve: a broadcast got an answer"
             for name, value in ex.meaning.values:
                 for unit in (1, 2):
-                    assert math.isclose(float(sim.get(name, unit=unit)), value), f"unit {unit}: {name} not written"
+                    got = sim.get(name, unit=unit)
+                    assert got == value if isinstance(value, (str, bool)) or value is None else \
+                        math.isclose(float(got), value), f"unit {unit}: {name} not written"
         elif response is not None and legible(response, ex.mode):
             assert exchange.replies, "serve: the simulator did not answer"
             assert exchange.replies[0] == wire(response, ex.mode), "serve: response differs from the manual"
             assert_decoded(model, ex, exchange)
+            if ex.meaning.operation in ("write", "write_multiple") and ex.meaning.exception is None:
+                for name, value in ex.meaning.values:  # the simulator decoded the written words as the client meant
+                    got = sim.get(name, unit=ex.meaning.unit)
+                    assert got == value if isinstance(value, (str, bool)) or value is None else \
+                        math.isclose(float(got), value, rel_tol=1e-9), f"{name}: simulator holds {got!r}"
         else:
             skipped.append("serve/decode: response illegible")
     else:
@@ -348,7 +380,7 @@ def test_crc_byte_order_as_printed(model: Model) -> None:
 
 
 def _all_example_ids() -> Iterator[str]:
-    for path in map_paths():
+    for path in [*map_paths(), *TEST_MAPS]:
         model = compile_map(path)
         for ex in model.examples:
             yield f"{model.name}/{ex.name}"
@@ -369,7 +401,7 @@ def test_zz_examples_command_agrees_with_the_run(capsys: pytest.CaptureFixture[s
         pytest.fail("the round-trip tests did not run in this session (run the whole module)")
     assert main(["examples"]) == 0
     out = capsys.readouterr().out
-    for model in MODELS.values():
+    for model in PROJECT.values():
         statuses = [s for key, s in SEEN.items() if key.startswith(model.name + "/")]
         line = (f"{model.name}: frames {len(statuses)}, verified {statuses.count('verified')}, "
                 f"errata {statuses.count('erratum')}, illegible {statuses.count('illegible')}")

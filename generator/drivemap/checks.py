@@ -5,15 +5,14 @@ Each check reports a located :class:`Diagnostic`; all of a file's errors are col
 
 from __future__ import annotations
 
-import math
-import string
 from pathlib import Path
 from typing import Any
 
 from . import frames
+from .checks_registers import RegisterChecks, table_name
 from .diagnostics import Diagnostic
 from .load import Document, PathT
-from .model import TYPE_BOUNDS, camel, is_keyword
+from .model import camel, is_keyword
 
 #: Attribute names of the generated clients that a register may not take.
 CLIENT_ATTRIBUTES = frozenset(
@@ -21,7 +20,7 @@ CLIENT_ATTRIBUTES = frozenset(
         "read", "write", "read_all", "read_by_name", "write_by_name", "read_modify_write", "close",
         "stats", "bus", "unit", "pending_configuration", "pending_power_cycle", "apply_configuration",
         "registers", "accessor", "tcp", "serial", "rtu_over_tcp", "broadcast", "model", "page_policy",
-        "connect", "plan", "loopback", "write_many", "self", "cls",
+        "connect", "plan", "loopback", "write_many", "self", "cls", "holes",
     }
 )
 
@@ -31,24 +30,20 @@ FIXED_NAMES = frozenset({
     "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
     "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
     "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
+    "ScaleUnavailable",
 })
 
 STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
-OPERATION_CODES = {"read": (3, 4), "write": (6,), "write_multiple": (16,), "loopback": (8,)}
+OPERATION_CODES = {"read": (1, 2, 3, 4), "write": (5, 6), "write_multiple": (15, 16), "loopback": (8,)}
+#: The table each function code addresses.
+FUNCTION_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input", 0x05: "coil", 0x06: "holding",
+                   0x0F: "coil", 0x10: "holding"}
 
 
-class Checker:
+class Checker(RegisterChecks):
     def __init__(self, doc: Document) -> None:
-        self.doc = doc
-        self.data: dict[str, Any] = doc.data
-        self.diagnostics: list[Diagnostic] = []
+        super().__init__(doc)
         self.statuses: dict[str, str] = {}
-        self.register_names: dict[str, int] = {}
-
-    def error(self, where: PathT, message: str, *, key: bool = False, related: PathT | None = None,
-              note: str = "first defined here", related_key: bool = False) -> None:
-        rel = ((self.doc.positions.at(related, key=related_key), note),) if related is not None else ()
-        self.diagnostics.append(Diagnostic(self.doc.positions.at(where, key=key), message, related=rel))
 
     # --------------------------------------------------------------------- all
     def run(self) -> list[Diagnostic]:
@@ -104,10 +99,6 @@ class Checker:
                     self.error(where + ("name",), f"enum member {item['name']!r} is a Python keyword")
 
     # --------------------------------------------------------------- registers
-    def _enum_values(self, name: str) -> list[int] | None:
-        enum = self.data.get("enums", {}).get(name)
-        return [v["value"] for v in enum["values"]] if enum else None
-
     def check_registers(self) -> None:
         groups = {g["name"] for g in self.data.get("groups", [])}
         regs = self.data["registers"]
@@ -127,7 +118,8 @@ class Checker:
                 self.error(where + ("name",), f"register name {name!r} may not start with or contain '__'")
             if reg["group"] not in groups:
                 self.error(where + ("group",), f"unknown group {reg['group']!r} (define it under groups)")
-            self.check_register_values(reg, where)
+            self.locate(i, reg)
+            self.check_register_values(i, reg)
         self.check_overlaps()
         for i, reg in enumerate(regs):
             page = reg.get("page")
@@ -137,152 +129,28 @@ class Checker:
                     self.error(("registers", i, "page", "selector"), f"page selector {sel!r} is not a register")
                 elif sel == reg["name"]:
                     self.error(("registers", i, "page", "selector"), "a register cannot select its own page")
+        self.check_scale_registers()
+        self.check_read_blocks()
+        self.check_table_functions()
 
-    def check_register_values(self, reg: dict[str, Any], where: PathT) -> None:
-        rtype = reg.get("type", "u16")
-        bits_total = 32 if rtype in ("u32", "s32") else 16
-        lo_raw, hi_raw = TYPE_BOUNDS[rtype]
-        scale = reg.get("scale", 1)
-        offset = reg.get("offset", 0)
-        if rtype in ("u32", "s32") and "word_order" not in reg:
-            self.error(where + ("type",), f"{rtype} register needs word_order (high_first or low_first)")
-        if rtype in ("u16", "s16") and "word_order" in reg:
-            self.error(where + ("word_order",), "word_order only applies to 32-bit types")
-        count = reg.get("count", 1)
-        stride = reg.get("stride", 1)
-        words = bits_total // 16
-        if count > 1 and stride < words:
-            self.error(where + ("stride",), f"stride {stride} is smaller than the register width ({words} words)")
-        last = reg["address"] + (count - 1) * stride + words - 1
-        if last > 0xFFFF:
-            self.error(where + ("address",), f"register extends past address 0xFFFF (to {last:#x})")
-        if "stride" in reg and count == 1:
-            self.error(where + ("stride",), "stride without count")
-        if "element_params" in reg and len(reg["element_params"]) != count:
-            self.error(where + ("element_params",), f"element_params has {len(reg['element_params'])} entries, count is {count}")
-        if "element_param_format" in reg:
-            self.check_element_param_format(reg, where)
-        if reg.get("enum") and reg.get("bits"):
-            self.error(where + ("enum",), "a register has either an enum or bits, not both")
-        if reg.get("enum") and (scale != 1 or offset != 0):
-            self.error(where + ("enum",), "an enum register cannot be scaled")
-        if reg.get("command") and "w" not in reg["access"]:
-            self.error(where + ("command",), "a command register must be writable")
-        if reg.get("write_delay_ms") is not None and reg.get("storage") not in ("eeprom",):
-            self.error(where + ("write_delay_ms",), "write_delay_ms is for storage: eeprom")
-
-        def raw_of(value: float) -> float:
-            return float((value - offset) / scale)
-
-        def fits(value: float) -> bool:
-            raw = raw_of(value)
-            return lo_raw - 1e-9 <= raw <= hi_raw + 1e-9
-
-        enum_values: list[int] | None = None
-        if reg.get("enum"):
-            enum_values = self._enum_values(reg["enum"])
-            if enum_values is None:
-                self.error(where + ("enum",), f"unknown enum {reg['enum']!r}")
-            else:
-                for v in enum_values:
-                    if not lo_raw <= v <= hi_raw:
-                        self.error(where + ("enum",), f"enum {reg['enum']} value {v} does not fit type {rtype}")
-        lo, hi = reg.get("min"), reg.get("max")
-        for key, value in (("min", lo), ("max", hi)):
-            if value is not None and not fits(value):
-                self.error(where + (key,), f"{key} {value} does not fit type {rtype} at scale {scale}")
-        if lo is not None and hi is not None and lo > hi:
-            self.error(where + ("min",), f"min {lo} is greater than max {hi}")
-        default = reg.get("default")
-        defaults = default if isinstance(default, list) else [default]
-        if isinstance(default, list) and len(default) != count:
-            self.error(where + ("default",), f"default lists {len(default)} values, count is {count}")
-        for j, value in enumerate(defaults):
-            if value is None:
+    def check_running(self) -> None:
+        """protocol.running_state names a readable register; running_advice.instead a writable one."""
+        regs = self.data["registers"]
+        state = self.data["protocol"].get("running_state")
+        if state:
+            name = state["register"]
+            if name not in self.register_names:
+                self.error(("protocol", "running_state", "register"), f"unknown register {name!r}")
+            elif "r" not in regs[self.register_names[name]].get("access", "r"):
+                self.error(("protocol", "running_state", "register"), f"running_state register {name!r} is not readable")
+        for i, reg in enumerate(regs):
+            instead = (reg.get("running_advice") or {}).get("instead")
+            if instead is None:
                 continue
-            dwhere = where + (("default", j) if isinstance(default, list) else ("default",))
-            if not fits(value):
-                self.error(dwhere, f"default {value} does not fit type {rtype} at scale {scale}")
-            elif (lo is not None and value < lo - 1e-9) or (hi is not None and value > hi + 1e-9):
-                self.error(dwhere, f"default {value} is outside the range {lo}..{hi}")
-            elif not math.isclose(raw_of(value), round(raw_of(value)), abs_tol=1e-6):
-                self.error(dwhere, f"default {value} is not a multiple of the scale {scale}")
-            elif enum_values is not None and round(raw_of(value)) not in enum_values:
-                self.error(dwhere, f"default {value} is not a value of enum {reg['enum']}")
-        self.check_bits(reg, where, bits_total)
-
-    def check_element_param_format(self, reg: dict[str, Any], where: PathT) -> None:
-        """Only {index} and {address}, an array, not with element_params; element 0 gives param."""
-        fmt = reg["element_param_format"]
-        fwhere = where + ("element_param_format",)
-        try:
-            fields = {name for _, name, spec, conv in string.Formatter().parse(fmt) if name is not None}
-            bad = fields - {"index", "address"}
-            first = fmt.format(index=0, address=reg["address"]) if not bad else None
-        except (ValueError, KeyError, IndexError) as exc:
-            self.error(fwhere, f"element_param_format {fmt!r} is not a valid format: {exc}")
-            return
-        if bad:
-            self.error(fwhere, f"element_param_format may use only {{index}} and {{address}}, not {sorted(bad)}")
-        elif reg.get("count", 1) < 2:
-            self.error(fwhere, "element_param_format is for arrays (count > 1)")
-        elif "element_params" in reg:
-            self.error(fwhere, "give element_params or element_param_format, not both")
-        elif reg.get("param") is not None and first != reg["param"]:
-            self.error(fwhere, f"element_param_format gives {first!r} for element 0, but param is {reg['param']!r}")
-
-    def check_bits(self, reg: dict[str, Any], where: PathT, bits_total: int) -> None:
-        used: dict[int, int] = {}
-        names: dict[str, int] = {}
-        for j, bit in enumerate(reg.get("bits", [])):
-            bwhere = where + ("bits", j)
-            width = bit.get("width", 1)
-            if bit["offset"] + width > bits_total:
-                self.error(bwhere + ("offset",),
-                           f"bit field {bit['name']} (bits {bit['offset']}..{bit['offset'] + width - 1}) is wider than the {bits_total}-bit register")
-                continue
-            if bit["name"] in names:
-                self.error(bwhere + ("name",), f"duplicate bit name {bit['name']!r}", related=where + ("bits", names[bit["name"]]))
-            names.setdefault(bit["name"], j)
-            for b in range(bit["offset"], bit["offset"] + width):
-                if b in used:
-                    self.error(bwhere + ("offset",), f"bit field {bit['name']} overlaps bit {b} of another field",
-                               related=where + ("bits", used[b]))
-                    break
-                used[b] = j
-            if bit.get("enum"):
-                values = self._enum_values(bit["enum"])
-                if values is None:
-                    self.error(bwhere + ("enum",), f"unknown enum {bit['enum']!r}")
-                elif any(not 0 <= v < (1 << width) for v in values):
-                    self.error(bwhere + ("enum",), f"enum {bit['enum']} has values that do not fit {width} bits")
-
-    def _cells(self) -> list[tuple[int, str, int, tuple[str, int] | None]]:
-        """(address, name, register index, page) for every word of every register."""
-        out = []
-        for i, reg in enumerate(self.data["registers"]):
-            words = 2 if reg.get("type") in ("u32", "s32") else 1
-            page = (reg["page"]["selector"], reg["page"]["value"]) if reg.get("page") else None
-            for k in range(reg.get("count", 1)):
-                base = reg["address"] + k * reg.get("stride", 1)
-                for w in range(words):
-                    out.append((base + w, reg["name"], i, page))
-        return out
-
-    def check_overlaps(self) -> None:
-        seen: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}
-        for address, name, index, page in self._cells():
-            for other_name, other_index, other_page in seen.get(address, []):
-                if other_index == index:
-                    self.error(("registers", index, "stride"), f"elements of {name!r} overlap at {address:#06x}")
-                    break
-                if page and other_page and page[0] == other_page[0] and page[1] != other_page[1]:
-                    continue
-                self.error(("registers", index, "address"),
-                           f"register {name!r} overlaps {other_name!r} at address {address:#06x}",
-                           related=("registers", other_index, "address"), note=f"{other_name!r} is defined here")
-                break
-            seen.setdefault(address, []).append((name, index, page))
+            if instead not in self.register_names:
+                self.error(("registers", i, "running_advice", "instead"), f"unknown register {instead!r}")
+            elif "w" not in regs[self.register_names[instead]].get("access", "r"):
+                self.error(("registers", i, "running_advice", "instead"), f"register {instead!r} is not writable")
 
     # ---------------------------------------------------------------- protocol
     def check_protocol(self) -> None:
@@ -320,7 +188,7 @@ class Checker:
             name = cfg["register"]
             if name not in self.register_names:
                 self.error(("protocol", "configuration", "register"), f"unknown register {name!r}")
-            elif "w" not in self.data["registers"][self.register_names[name]]["access"]:
+            elif "w" not in self.data["registers"][self.register_names[name]].get("access", "r"):
                 self.error(("protocol", "configuration", "register"), f"configuration register {name!r} is not writable")
         for i, port in enumerate(p["ports"]):
             for key, options in (("default_baudrate", "baudrates"), ("default_parity", "parity"), ("default_stop_bits", "stop_bits"), ("default_mode", "modes")):
@@ -334,42 +202,6 @@ class Checker:
         proc = timing.get("processing_ms")
         if proc and proc["min"] > proc["max"]:
             self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
-
-    def check_running(self) -> None:
-        """protocol.running_state names a readable register; running_advice.instead a writable one."""
-        regs = self.data["registers"]
-        state = self.data["protocol"].get("running_state")
-        if state:
-            name = state["register"]
-            if name not in self.register_names:
-                self.error(("protocol", "running_state", "register"), f"unknown register {name!r}")
-            elif "r" not in regs[self.register_names[name]]["access"]:
-                self.error(("protocol", "running_state", "register"), f"running_state register {name!r} is not readable")
-        for i, reg in enumerate(regs):
-            instead = (reg.get("running_advice") or {}).get("instead")
-            if instead is None:
-                continue
-            if instead not in self.register_names:
-                self.error(("registers", i, "running_advice", "instead"), f"unknown register {instead!r}")
-            elif "w" not in regs[self.register_names[instead]]["access"]:
-                self.error(("registers", i, "running_advice", "instead"), f"register {instead!r} is not writable")
-
-    def check_reserved(self) -> None:
-        cells: dict[int, list[tuple[str, int, tuple[str, int] | None]]] = {}
-        for address, name, index, page in self._cells():
-            cells.setdefault(address, []).append((name, index, page))
-        for i, item in enumerate(self.data.get("reserved", [])):
-            if item["start"] > item["end"]:
-                self.error(("reserved", i, "start"), "reserved range start is after its end")
-                continue
-            rpage = (item["page"]["selector"], item["page"]["value"]) if item.get("page") else None
-            for address in range(item["start"], item["end"] + 1):
-                hit = [c for c in cells.get(address, []) if not (rpage and c[2] and c[2][0] == rpage[0] and c[2][1] != rpage[1])]
-                if hit:
-                    name, index, _ = hit[0]
-                    self.error(("reserved", i, "start"), f"reserved range overlaps register {name!r} at {address:#06x}",
-                               related=("registers", index, "address"), note=f"{name!r} is defined here")
-                    break
 
     def check_known_issues(self) -> None:
         names = set(self.register_names) | {e["name"] for e in self.data["examples"]}
@@ -405,14 +237,35 @@ class Checker:
             if ex["mode"] not in p["modes"]:
                 self.error(where + ("mode",), f"mode {ex['mode']!r} is not in protocol.modes")
             meaning = ex["meaning"]
-            for key in ("values",):
-                for ref in meaning.get(key, {}):
-                    if not self._value_ref(ref):
-                        self.error(where + ("meaning", key, ref), f"unknown register {ref!r}", key=True)
-            for ref in ex.get("preset") or {}:
+            for ref, value in meaning.get("values", {}).items():
+                if not self._value_ref(ref):
+                    self.error(where + ("meaning", "values", ref), f"unknown register {ref!r}", key=True)
+                else:
+                    self.check_value_type(where + ("meaning", "values", ref), ref, value)
+            for ref, value in (ex.get("preset") or {}).items():
                 if not self._value_ref(ref):
                     self.error(where + ("preset", ref), f"unknown register {ref!r}", key=True)
+                else:
+                    self.check_value_type(where + ("preset", ref), ref, value)
             self.statuses[ex["name"]] = self.check_frames(ex, where)
+
+    def check_value_type(self, where: PathT, ref: str, value: Any) -> None:
+        """An example's value fits its register: text for strings, true/false for bools, null only where
+        the register lists not_available values, a number otherwise."""
+        index = self.register_names[ref.partition("[")[0]]
+        reg = self.data["registers"][index]
+        rtype = self.type_of(index)
+        if value is None:
+            if not reg.get("not_available"):
+                self.error(where, f"{ref} is null, but the register lists no not_available values")
+        elif rtype == "string":
+            if not isinstance(value, str):
+                self.error(where, f"{ref} is a string register: its value is text")
+        elif rtype == "bool":
+            if isinstance(value, str) or value not in (0, 1):
+                self.error(where, f"{ref} is a bool register: its value is true or false")
+        elif isinstance(value, (bool, str)):
+            self.error(where, f"{ref} is a {rtype} register: its value is a number")
 
     def check_frames(self, ex: dict[str, Any], where: PathT) -> str:
         mode = ex["mode"]
@@ -490,10 +343,16 @@ class Checker:
                 self.error(where + ("meaning", "exception"), f"response carries exception code {code:#04x} but meaning.exception is {meaning.get('exception')}")
         elif part == "response" and meaning.get("exception") is not None:
             self.error(where + ("meaning", "exception"), "meaning.exception is set but the response is a normal reply")
-        if part == "request" and meaning.get("address") is not None and base_fc in (3, 4, 6, 16) and len(frame.body) >= 4:
+        if part == "request" and meaning.get("address") is not None and base_fc in FUNCTION_TABLES and len(frame.body) >= 4:
             address = int.from_bytes(frame.body[2:4], "big")
             if address != meaning["address"]:
                 self.error(where + ("meaning", "address"), f"request addresses {address:#06x} but meaning.address is {meaning['address']:#06x}")
+        table = FUNCTION_TABLES.get(base_fc)
+        for ref in meaning.get("values", {}) if table is not None and part == "request" else ():
+            index = self.register_names.get(ref.partition("[")[0])
+            if index is not None and index in self.locations and self.locations[index][0] != table:
+                self.error(where + ("meaning", "values", ref), f"{ref} is {table_name(self.locations[index][0])} "
+                           f"register, but function {base_fc:#04x} addresses the {table} table", key=True)
         if meaning.get("broadcast") and unit != self.data["protocol"].get("broadcast_address"):
             self.error(where + ("meaning", "broadcast"), "a broadcast example must address the broadcast unit")
 

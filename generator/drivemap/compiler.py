@@ -8,7 +8,8 @@ from pathlib import Path
 from . import checks, schema
 from .diagnostics import CompileError, Diagnostic, Location
 from .load import load_file
-from .model import Model, build_model
+from .model import Model
+from .model_build import build_model
 from .project import Project, display, load_project
 
 #: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does

@@ -16,6 +16,12 @@ def _number(value: float | None) -> float | int | None:
     return int(value) if float(value).is_integer() else value
 
 
+def _default(value: float | str | None) -> float | int | str | bool | None:
+    if isinstance(value, (str, bool)):
+        return value
+    return _number(value)
+
+
 def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
     enum = None
     if reg.enum:
@@ -35,13 +41,20 @@ def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
                 "unit": reg.unit,
                 "min": _number(reg.min),
                 "max": _number(reg.max),
-                "default": _number(reg.default_at(i)),
+                "default": _default(reg.default_at(i)),
                 "reflect": None if reg.reflect == "unknown" else reg.reflect,
                 "storage": None if reg.storage == "unknown" else reg.storage,
                 "broadcast": reg.broadcast,
                 "enum": enum,
                 "bits": bits,
                 "page": {"selector": reg.page.selector, "value": reg.page.value} if reg.page else None,
+                "table": reg.table,
+                "length": reg.words,
+                "word_order": reg.word_order,
+                "byte_order": reg.byte_order,
+                "encoding": reg.encoding if reg.type == "string" else None,
+                "scale_register": reg.scale_register,
+                "not_available": list(reg.not_available) or None,
             }
         )
     return out

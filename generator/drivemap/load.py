@@ -8,6 +8,7 @@ bombs and ambiguity out. The result is plain Python data plus a :class:`Position
 from __future__ import annotations
 
 import os
+import re
 import stat
 from dataclasses import dataclass, field
 from typing import Any
@@ -88,6 +89,10 @@ class _Refused(Exception):
         self.message = message
 
 
+#: A plain integer with a leading zero: YAML 1.1 (PyYAML) reads it as octal (00017 is 15), never what a
+#: manual's "00017" means.
+_OCTAL = re.compile(r"[-+]?0[0-7_]+")
+
 _PLAIN_TAGS = {
     "tag:yaml.org,2002:str",
     "tag:yaml.org,2002:int",
@@ -143,6 +148,11 @@ class _Builder:
         if isinstance(node, SequenceNode):
             return [self.build(item, where + (i,), depth + 1) for i, item in enumerate(node.value)]
         assert isinstance(node, ScalarNode)
+        if node.tag == "tag:yaml.org,2002:int" and not node.style and _OCTAL.fullmatch(node.value):
+            self.errors.append(Diagnostic(_loc(self.path, node), f"{node.value} is an octal number in YAML 1.1 "
+                                          f"({int(node.value.replace('_', ''), 8)}): write it without leading zeros, "
+                                          f"or quote it (\"{node.value}\") for a Modicon number"))
+            return None
         try:
             value = self._constructor.construct_object(node, deep=True)
         except (yaml.YAMLError, ValueError, OverflowError) as exc:

@@ -9,19 +9,70 @@ from __future__ import annotations
 import keyword
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal
+
+from . import modicon
+from .modicon import Table
 
 Access = Literal["r", "w", "rw"]
-RegType = Literal["u16", "s16", "u32", "s32"]
+RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
 Mode = Literal["rtu", "ascii", "tcp"]
 Status = Literal["verified", "erratum", "illegible"]
+#: An example's or a default's value: a number, true/false (bool registers), text (strings) or None.
+Value = float | str | None
 
+#: Raw bounds of the integer types (and of a bool in a bit table).
 TYPE_BOUNDS: dict[str, tuple[int, int]] = {
     "u16": (0, 0xFFFF),
     "s16": (-0x8000, 0x7FFF),
     "u32": (0, 0xFFFFFFFF),
     "s32": (-0x80000000, 0x7FFFFFFF),
+    "u64": (0, 0xFFFFFFFFFFFFFFFF),
+    "s64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
+    "bool": (0, 1),
 }
+#: Words (registers) of each fixed-size type; a string has ``length`` words; coils and discrete
+#: inputs are one bit each.
+TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
+                              "f64": 4}
+INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
+SIGNED_TYPES = frozenset({"s16", "s32", "s64"})
+FLOAT_TYPES = frozenset({"f32", "f64"})
+#: Largest finite magnitude of each float type.
+FLOAT_MAX: dict[str, float] = {"f32": 3.4028234663852886e38, "f64": 1.7976931348623157e308}
+BIT_TABLES = frozenset({"coil", "discrete"})
+#: The read function code of each table.
+READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
+
+
+def default_type(table: str) -> RegType:
+    """The type a register has when the map gives none: bool in bit tables, else u16."""
+    return "bool" if table in BIT_TABLES else "u16"
+
+
+def type_words(rtype: str, length: int = 1) -> int:
+    """Words of a type (``length`` for strings)."""
+    return length if rtype == "string" else TYPE_WORDS[rtype]
+
+
+def raw_bounds(rtype: str, table: str, length: int = 1) -> tuple[int, int]:
+    """Bounds of a register's raw value: integers signed for s16/s32/s64; floats and strings as their
+    unsigned bit patterns; a bool is one bit in a bit table, a whole word in a register."""
+    if rtype in TYPE_BOUNDS and not (rtype == "bool" and table not in BIT_TABLES):
+        return TYPE_BOUNDS[rtype]
+    return 0, (1 << (16 * type_words(rtype, length))) - 1
+
+
+def normalize_raw(rtype: str, table: str, length: int, value: int) -> int | None:
+    """A raw value given as printed (``0x8000`` or ``-32768`` for an s16) as the register's raw value;
+    None when it fits neither form."""
+    lo, hi = raw_bounds(rtype, table, length)
+    if lo <= value <= hi:
+        return value
+    bits = 16 * type_words(rtype, length)
+    if rtype in SIGNED_TYPES and (1 << (bits - 1)) <= value < (1 << bits):
+        return value - (1 << bits)
+    return None
 
 
 def camel(name: str) -> str:
@@ -220,6 +271,8 @@ class Protocol:
     notes: str | None
     running_state: RunningState | None = None
     reply_quirks: tuple[ReplyQuirk, ...] = ()
+    max_gap: int = 0
+    """Undocumented words the read planner may read across (0: none)."""
 
     def function(self, code: int) -> FunctionCode | None:
         for fc in self.function_codes:
@@ -303,7 +356,7 @@ class Register:
     unit: str | None
     min: float | None
     max: float | None
-    defaults: tuple[float | None, ...]
+    defaults: tuple[Value, ...]
     reflect: str
     storage: str
     write_delay_ms: float | None
@@ -319,6 +372,17 @@ class Register:
     refuse_while_running: bool
     source: str
     notes: str | None
+    table: Table = "holding"
+    byte_order: str = "high_first"
+    length: int = 1
+    """Registers of a string (1 for every other type)."""
+    encoding: str = "ascii"
+    scale_register: str | None = None
+    not_available: tuple[int, ...] = ()
+    """Raw values (as the register's raw value: signed for s16/s32/s64) that mean "no value"."""
+    min_read: int | None = None
+    modicon_given: str | None = None
+    """The Modicon number as the map gives it (``register:``), else None."""
     line: int = 0
     running_advice: RunningAdvice | None = None
     #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
@@ -326,11 +390,33 @@ class Register:
 
     @property
     def words(self) -> int:
-        return 2 if self.type in ("u32", "s32") else 1
+        """Words on the wire (bits for coils and discrete inputs)."""
+        return type_words(self.type, self.length)
 
     @property
     def signed(self) -> bool:
-        return self.type in ("s16", "s32")
+        return self.type in SIGNED_TYPES
+
+    @property
+    def bit_table(self) -> bool:
+        return self.table in BIT_TABLES
+
+    @property
+    def is_float(self) -> bool:
+        return self.type in FLOAT_TYPES
+
+    @property
+    def optional(self) -> bool:
+        """Whether the client may read None (the map lists not_available values)."""
+        return bool(self.not_available)
+
+    @property
+    def modicon(self) -> str:
+        """The Modicon number of the register (of element 0 for arrays)."""
+        return modicon.number(self.table, self.address)
+
+    def element_modicon(self, index: int) -> str:
+        return modicon.number(self.table, self.element_address(index))
 
     @property
     def is_array(self) -> bool:
@@ -356,8 +442,10 @@ class Register:
 
     @property
     def is_integer(self) -> bool:
-        """Engineering values are ints when scale and offset are whole numbers."""
-        return float(self.scale).is_integer() and float(self.offset).is_integer()
+        """Engineering values are ints: an integer type whose scale and offset are whole numbers and
+        that has no scale register."""
+        return (self.type in INTEGER_TYPES and self.scale_register is None and float(self.scale).is_integer()
+                and float(self.offset).is_integer())
 
     def element_address(self, index: int) -> int:
         return self.address + index * self.stride
@@ -372,13 +460,13 @@ class Register:
             return self.element_param_format.format(index=index, address=self.element_address(index))
         return self.param if index == 0 else None
 
-    def default_at(self, index: int) -> float | None:
+    def default_at(self, index: int) -> Value:
         if len(self.defaults) == 1:
             return self.defaults[0]
         return self.defaults[index]
 
     def raw_bounds(self) -> tuple[int, int]:
-        return TYPE_BOUNDS[self.type]
+        return raw_bounds(self.type, self.table, self.length)
 
     def cells(self) -> Iterator[Cell]:
         for i in range(self.count):
@@ -416,6 +504,7 @@ class Reserved:
     notes: str | None
     #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed
     kind: str = "reserved"
+    table: Table = "holding"
 
 
 @dataclass(frozen=True)
@@ -435,7 +524,7 @@ class Meaning:
     operation: str
     address: int | None
     quantity: int | None
-    values: tuple[tuple[str, float], ...]
+    values: tuple[tuple[str, Value], ...]
     raw: tuple[int, ...]
     loopback: tuple[int, ...]
     exception: int | None
@@ -451,7 +540,7 @@ class Example:
     request: str | None
     response: str | None
     meaning: Meaning
-    preset: tuple[tuple[str, float], ...]
+    preset: tuple[tuple[str, Value], ...]
     inject_exception: int | None
     corrected_request: str | None
     corrected_response: str | None
@@ -517,205 +606,3 @@ class Model:
         for ex in self.examples:
             counts[ex.status] += 1
         return counts
-
-
-def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int]) -> Model:
-    """Turn a checked document into the model (``statuses``: example name -> status)."""
-    dev = data["device"]
-    man = dev["manual"]
-    device = Device(
-        model=dev["model"],
-        title=dev["title"],
-        vendor=dev.get("vendor"),
-        manual=Manual(
-            man["file"], man.get("document"), man.get("revision"), man.get("date"), man["language"],
-            tuple(man.get("cross_check", ())),
-        ),
-        coverage=dev.get("coverage"),
-        source=dev["source"],
-        notes=dev.get("notes"),
-    )
-    p = data["protocol"]
-    t = p["timing"]
-    proc = t.get("processing_ms")
-    timing = Timing(
-        silent_interval_chars=t.get("silent_interval_chars"),
-        silent_interval_floor_ms=t.get("silent_interval_floor_ms"),
-        silent_interval_floor_above_bps=t.get("silent_interval_floor_above_bps"),
-        processing_ms=(proc["min"], proc["max"]) if proc else None,
-        inter_frame_gap_ms=t.get("inter_frame_gap_ms"),
-        broadcast_gap_ms=t.get("broadcast_gap_ms"),
-        response_timeout_ms=t.get("response_timeout_ms"),
-        retries=t.get("retries"),
-        source=t["source"],
-        notes=t.get("notes"),
-    )
-
-    def lr(item: dict[str, int] | None) -> LengthRange | None:
-        return LengthRange(item["min"], item["max"]) if item else None
-
-    ck = p.get("checksum")
-    checksum = None
-    if ck:
-        lx = ck.get("lrc_example")
-        checksum = Checksum(
-            ck["crc_first_byte_label"], ck.get("crc_second_byte_label"),
-            LrcExample(bytes.fromhex(lx["data"]), lx["lrc"], lx.get("ascii"), lx["source"]) if lx else None,
-            ck["source"], ck.get("notes"),
-        )
-    cfg = p.get("configuration")
-    protocol = Protocol(
-        modes=tuple(p["modes"]),
-        unit_min=p["unit_ids"]["min"],
-        unit_max=p["unit_ids"]["max"],
-        unit_source=p["unit_ids"]["source"],
-        broadcast_address=p.get("broadcast_address"),
-        ports=tuple(
-            Port(
-                name=x["name"], modes=tuple(x["modes"]), default_mode=x.get("default_mode"),
-                baudrates=tuple(x["baudrates"]), default_baudrate=x.get("default_baudrate"),
-                parity=tuple(x["parity"]), default_parity=x.get("default_parity"),
-                data_bits=tuple(x["data_bits"]), stop_bits=tuple(x["stop_bits"]),
-                default_stop_bits=x.get("default_stop_bits"), fixed_unit=x.get("fixed_unit"),
-                set_by=x["set_by"],
-                settings=tuple(
-                    PortSetting(s["what"], s["how"], s.get("when"), s["source"], s.get("notes"))
-                    for s in x.get("settings", ())
-                ),
-                source=x["source"], notes=x.get("notes"),
-            )
-            for x in p["ports"]
-        ),
-        function_codes=tuple(
-            FunctionCode(
-                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
-                lr(f.get("request_bytes")), lr(f.get("response_bytes")), f["source"], f.get("notes"),
-                broadcast_reason=f.get("broadcast_reason"),
-            )
-            for f in p["function_codes"]
-        ),
-        exceptions=tuple(
-            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"),
-                          documented=e.get("documented", True))
-            for e in p["exceptions"]
-        ),
-        comm_errors=tuple(
-            CommError(e["code"], e["name"], e["meaning"], e["source"], e.get("notes")) for e in p.get("comm_errors", ())
-        ),
-        exception_policy=tuple(
-            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("exception_policy", {}).items()
-        ),
-        comm_error_policy=tuple(
-            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("comm_error_policy", {}).items()
-        ),
-        comm_error_history=p.get("comm_error_history"),
-        timing=timing,
-        max_frame_bytes=p.get("max_frame_bytes"),
-        configuration=CommandRef(cfg["register"], cfg["value"]) if cfg else None,
-        checksum=checksum,
-        source=p["source"],
-        notes=p.get("notes"),
-        running_state=_running_state(p.get("running_state")),
-        reply_quirks=tuple(ReplyQuirk(q["quirk"], q["source"], q["reason"]) for q in p.get("reply_quirks", ())),
-    )
-    enums = tuple(
-        Enum(
-            name,
-            tuple(EnumValue(v["value"], v["name"], v["label"], v.get("notes")) for v in e["values"]),
-            e["source"],
-            e.get("notes"),
-        )
-        for name, e in data.get("enums", {}).items()
-    )
-    groups = tuple(Group(g["name"], g["title"], g["source"], g.get("notes")) for g in data.get("groups", ()))
-    registers = []
-    for r in data["registers"]:
-        default = r.get("default")
-        defaults: tuple[float | None, ...] = tuple(default) if isinstance(default, list) else (default,)
-        writable = "w" in r["access"]
-        registers.append(
-            Register(
-                name=r["name"], address=r["address"], param=r.get("param"), param_rule=r.get("param_rule"),
-                label=r.get("label"), description=r.get("description"), group=r["group"],
-                type=r.get("type", "u16"), word_order=r.get("word_order"), access=r["access"],
-                scale=r.get("scale", 1), offset=r.get("offset", 0), unit=r.get("unit"),
-                min=r.get("min"), max=r.get("max"), defaults=defaults,
-                reflect=r.get("reflect", "unknown"), storage=r.get("storage", "unknown"),
-                write_delay_ms=r.get("write_delay_ms"), enum=r.get("enum"),
-                bits=tuple(
-                    Bit(b["name"], b["offset"], b.get("width", 1), b["label"], b.get("enum"), b.get("notes"))
-                    for b in r.get("bits", ())
-                ),
-                flags_name=r.get("flags_name"), count=r.get("count", 1), stride=r.get("stride", 1),
-                element_params=tuple(r.get("element_params", ())),
-                page=Page(r["page"]["selector"], r["page"]["value"]) if r.get("page") else None,
-                command_value=r["command"]["value"] if r.get("command") else None,
-                broadcast=r.get("broadcast", writable and _broadcast_writable(p, r)),
-                refuse_while_running=r.get("refuse_while_running", False),
-                source=r["source"], notes=r.get("notes"), line=lines.get(r["name"], 0),
-                running_advice=_running_advice(r.get("running_advice")),
-                element_param_format=r.get("element_param_format"),
-            )
-        )
-    reserved = tuple(
-        Reserved(
-            x["start"], x["end"], x.get("readable"), x.get("writable", False),
-            Page(x["page"]["selector"], x["page"]["value"]) if x.get("page") else None,
-            x["source"], x.get("notes"), kind=x.get("kind", "reserved"),
-        )
-        for x in data.get("reserved", ())
-    )
-    issues = tuple(
-        KnownIssue(k["title"], k["source"], k["printed"], k.get("corrected"), k["chosen"], k["reason"], tuple(k.get("affects", ())))
-        for k in data.get("known_issues", ())
-    )
-    examples = []
-    for e in data["examples"]:
-        m = e["meaning"]
-        err = e.get("erratum") or {}
-        examples.append(
-            Example(
-                name=e["name"], title=e.get("title"), source=e["source"], mode=e["mode"],
-                request=e.get("request"), response=e.get("response"),
-                meaning=Meaning(
-                    unit=m["unit"], operation=m["operation"], address=m.get("address"), quantity=m.get("quantity"),
-                    values=tuple(m.get("values", {}).items()), raw=tuple(m.get("raw", ())),
-                    loopback=tuple(m.get("loopback", ())), exception=m.get("exception"),
-                    broadcast=m.get("broadcast", False),
-                ),
-                preset=tuple((e.get("preset") or {}).items()),
-                inject_exception=e.get("inject_exception"),
-                corrected_request=err.get("request"), corrected_response=err.get("response"),
-                erratum=err.get("reason"), illegible=e.get("illegible"), notes=e.get("notes"),
-                status=statuses[e["name"]],
-            )
-        )
-    model = Model(
-        path=path, device=device, protocol=protocol, enums=enums, groups=groups, registers=tuple(registers),
-        reserved=reserved, known_issues=issues, examples=tuple(examples),
-    )
-    model._by_name.update({r.name: r for r in registers})
-    return model
-
-
-def _broadcast_writable(protocol: dict[str, Any], reg: dict[str, Any]) -> bool:
-    """A register may be broadcast when the function code used to write it allows broadcast."""
-    if protocol.get("broadcast_address") is None:
-        return False
-    words = 2 if reg.get("type") in ("u32", "s32") else 1
-    codes = {f["code"]: f.get("broadcast") for f in protocol["function_codes"]}
-    if words == 1 and codes.get(6) is True:
-        return True
-    return codes.get(16) is True
-
-
-def _running_state(item: dict[str, Any] | None) -> RunningState | None:
-    if not item:
-        return None
-    return RunningState(item["register"], tuple(item["values"]), item["source"], item.get("notes"))
-
-
-def _running_advice(item: dict[str, Any] | None) -> RunningAdvice | None:
-    if not item:
-        return None
-    return RunningAdvice(item["advice"], item.get("instead"), item["source"])

@@ -664,7 +664,7 @@ class Client(ClientBase[Snapshot]):
         self.operation_signal: ReadWrite[OperationSignal] = ReadWrite(self, _codec_operation_signal)
         """Operation Signal
 
-        Address 0x00E6; u16, access rw.
+        Address 0x00E6 (Modicon 40231); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.1.
@@ -672,7 +672,7 @@ class Client(ClientBase[Snapshot]):
         self.frequency_command: ReadWrite[float] = ReadWrite(self, _codec_frequency_command)
         """Frequency Command
 
-        Address 0x00E7; u16, access rw.
+        Address 0x00E7 (Modicon 40232); u16, access rw.
         Unit: Hz; scale 0.01; range — .. — Hz.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.1.
@@ -680,7 +680,7 @@ class Client(ClientBase[Snapshot]):
         self.remote_keypad_used: ReadWrite[int] = ReadWrite(self, _codec_remote_keypad_used)
         """Remote Keypad Used
 
-        Address 0x00E8; u16, access rw.
+        Address 0x00E8 (Modicon 40233); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.1.
@@ -688,7 +688,7 @@ class Client(ClientBase[Snapshot]):
         self.status: ReadOnly[Status] = ReadOnly(self, _codec_status)
         """Operation state (status bits)
 
-        Address 0x00EF; u16, access r.
+        Address 0x00EF (Modicon 40240); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -696,7 +696,7 @@ class Client(ClientBase[Snapshot]):
         self.fault_code: ReadOnly[FaultCode] = ReadOnly(self, _codec_fault_code)
         """Fault Description
 
-        Address 0x00F0; u16, access r.
+        Address 0x00F0 (Modicon 40241); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -704,7 +704,7 @@ class Client(ClientBase[Snapshot]):
         self.io_status: ReadOnly[IoStatus] = ReadOnly(self, _codec_io_status)
         """Sequence input status / Contact output
 
-        Address 0x00F1; u16, access r.
+        Address 0x00F1 (Modicon 40242); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -712,7 +712,7 @@ class Client(ClientBase[Snapshot]):
         self.frequency_command_monitor: ReadOnly[float] = ReadOnly(self, _codec_frequency_command_monitor)
         """Frequency command
 
-        Address 0x00F2; u16, access r.
+        Address 0x00F2 (Modicon 40243); u16, access r.
         Unit: Hz; scale 0.01; range — .. — Hz.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -720,7 +720,7 @@ class Client(ClientBase[Snapshot]):
         self.output_frequency: ReadOnly[int] = ReadOnly(self, _codec_output_frequency)
         """Output frequency
 
-        Address 0x00F3; u16, access r.
+        Address 0x00F3 (Modicon 40244); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -728,7 +728,7 @@ class Client(ClientBase[Snapshot]):
         self.output_voltage_command: ReadOnly[int] = ReadOnly(self, _codec_output_voltage_command)
         """Output voltage command (1/1V)
 
-        Address 0x00F4; u16, access r.
+        Address 0x00F4 (Modicon 40245); u16, access r.
         Unit: V; scale 1; range — .. — V.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -736,7 +736,7 @@ class Client(ClientBase[Snapshot]):
         self.dc_voltage_command: ReadOnly[int] = ReadOnly(self, _codec_dc_voltage_command)
         """Output DC voltage command (1/1V)
 
-        Address 0x00F5; u16, access r.
+        Address 0x00F5 (Modicon 40246); u16, access r.
         Unit: V; scale 1; range — .. — V.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -744,7 +744,7 @@ class Client(ClientBase[Snapshot]):
         self.output_current: ReadOnly[float] = ReadOnly(self, _codec_output_current)
         """Output current (10/1A)
 
-        Address 0x00F6; u16, access r.
+        Address 0x00F6 (Modicon 40247); u16, access r.
         Unit: A; scale 0.1; range — .. — A.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -752,7 +752,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_feedback: ReadOnly[float] = ReadOnly(self, _codec_pid_feedback)
         """PID Feedback value (100% / Max output frequency, 10/1%)
 
-        Address 0x00F7; u16, access r.
+        Address 0x00F7 (Modicon 40248); u16, access r.
         Unit: %; scale 0.1; range — .. — %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -760,7 +760,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_input: ReadOnly[float] = ReadOnly(self, _codec_pid_input)
         """PID input value (100% / Max output frequency, 10/1%, sign attached)
 
-        Address 0x00F8; s16, access r.
+        Address 0x00F8 (Modicon 40249); s16, access r.
         Unit: %; scale 0.1; range — .. — %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -768,7 +768,7 @@ class Client(ClientBase[Snapshot]):
         self.tm2_ain_input: ReadOnly[int] = ReadOnly(self, _codec_tm2_ain_input)
         """TM2 AIN input value (1024 / 10V) *1
 
-        Address 0x00F9; u16, access r.
+        Address 0x00F9 (Modicon 40250); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -776,7 +776,7 @@ class Client(ClientBase[Snapshot]):
         self.keypad_ain_input: ReadOnly[int] = ReadOnly(self, _codec_keypad_ain_input)
         """Keypad AIN input value (1024 / 10V) *1
 
-        Address 0x00FA; u16, access r.
+        Address 0x00FA (Modicon 40251); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -784,7 +784,7 @@ class Client(ClientBase[Snapshot]):
         self.remote_keypad_used_fb: ReadOnly[int] = ReadOnly(self, _codec_remote_keypad_used_fb)
         """Remote keypad used
 
-        Address 0x00FB; u16, access r.
+        Address 0x00FB (Modicon 40252); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -792,7 +792,7 @@ class Client(ClientBase[Snapshot]):
         self.remote_keypad_used_fc: ReadOnly[int] = ReadOnly(self, _codec_remote_keypad_used_fc)
         """Remote keypad used
 
-        Address 0x00FC; u16, access r.
+        Address 0x00FC (Modicon 40253); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §4.2.
@@ -800,7 +800,7 @@ class Client(ClientBase[Snapshot]):
         self.f00: ReadWrite[int] = ReadWrite(self, _codec_f00)
         """f00
 
-        Address 0x0000; parameter F00; u16, access rw.
+        Address 0x0000 (Modicon 40001); parameter F00; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -808,7 +808,7 @@ class Client(ClientBase[Snapshot]):
         self.f01: ReadWrite[int] = ReadWrite(self, _codec_f01)
         """f01
 
-        Address 0x0001; parameter F01; u16, access rw.
+        Address 0x0001 (Modicon 40002); parameter F01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -816,7 +816,7 @@ class Client(ClientBase[Snapshot]):
         self.f02: ReadWrite[int] = ReadWrite(self, _codec_f02)
         """f02
 
-        Address 0x0002; parameter F02; u16, access rw.
+        Address 0x0002 (Modicon 40003); parameter F02; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -824,7 +824,7 @@ class Client(ClientBase[Snapshot]):
         self.f03: ReadWrite[int] = ReadWrite(self, _codec_f03)
         """f03
 
-        Address 0x0003; parameter F03; u16, access rw.
+        Address 0x0003 (Modicon 40004); parameter F03; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -832,7 +832,7 @@ class Client(ClientBase[Snapshot]):
         self.f04: ReadWrite[int] = ReadWrite(self, _codec_f04)
         """f04
 
-        Address 0x0004; parameter F04; u16, access rw.
+        Address 0x0004 (Modicon 40005); parameter F04; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -840,7 +840,7 @@ class Client(ClientBase[Snapshot]):
         self.f05: ReadWrite[int] = ReadWrite(self, _codec_f05)
         """f05
 
-        Address 0x0005; parameter F05; u16, access rw.
+        Address 0x0005 (Modicon 40006); parameter F05; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -848,7 +848,7 @@ class Client(ClientBase[Snapshot]):
         self.f06: ReadWrite[int] = ReadWrite(self, _codec_f06)
         """f06
 
-        Address 0x0006; parameter F06; u16, access rw.
+        Address 0x0006 (Modicon 40007); parameter F06; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -856,7 +856,7 @@ class Client(ClientBase[Snapshot]):
         self.f07: ReadWrite[int] = ReadWrite(self, _codec_f07)
         """f07
 
-        Address 0x0008; parameter F07; u16, access rw.
+        Address 0x0008 (Modicon 40009); parameter F07; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -864,7 +864,7 @@ class Client(ClientBase[Snapshot]):
         self.f08: ReadWrite[int] = ReadWrite(self, _codec_f08)
         """f08
 
-        Address 0x0009; parameter F08; u16, access rw.
+        Address 0x0009 (Modicon 40010); parameter F08; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -872,7 +872,7 @@ class Client(ClientBase[Snapshot]):
         self.f09: ReadWrite[int] = ReadWrite(self, _codec_f09)
         """f09
 
-        Address 0x000A; parameter F09; u16, access rw.
+        Address 0x000A (Modicon 40011); parameter F09; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -880,7 +880,7 @@ class Client(ClientBase[Snapshot]):
         self.f10: ReadWrite[int] = ReadWrite(self, _codec_f10)
         """f10
 
-        Address 0x000B; parameter F10; u16, access rw.
+        Address 0x000B (Modicon 40012); parameter F10; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -888,7 +888,7 @@ class Client(ClientBase[Snapshot]):
         self.f11: ReadWrite[int] = ReadWrite(self, _codec_f11)
         """f11
 
-        Address 0x000E; parameter F11; u16, access rw.
+        Address 0x000E (Modicon 40015); parameter F11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -896,7 +896,7 @@ class Client(ClientBase[Snapshot]):
         self.f12: ReadWrite[int] = ReadWrite(self, _codec_f12)
         """f12
 
-        Address 0x000F; parameter F12; u16, access rw.
+        Address 0x000F (Modicon 40016); parameter F12; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -904,7 +904,7 @@ class Client(ClientBase[Snapshot]):
         self.f13: ReadWrite[int] = ReadWrite(self, _codec_f13)
         """f13
 
-        Address 0x0010; parameter F13; u16, access rw.
+        Address 0x0010 (Modicon 40017); parameter F13; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -912,7 +912,7 @@ class Client(ClientBase[Snapshot]):
         self.f14: ReadWrite[int] = ReadWrite(self, _codec_f14)
         """f14
 
-        Address 0x0011; parameter F14; u16, access rw.
+        Address 0x0011 (Modicon 40018); parameter F14; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -920,7 +920,7 @@ class Client(ClientBase[Snapshot]):
         self.f15: ReadWrite[int] = ReadWrite(self, _codec_f15)
         """f15
 
-        Address 0x0012; parameter F15; u16, access rw.
+        Address 0x0012 (Modicon 40019); parameter F15; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -928,7 +928,7 @@ class Client(ClientBase[Snapshot]):
         self.f16: ReadWrite[int] = ReadWrite(self, _codec_f16)
         """f16
 
-        Address 0x0092; parameter F16; u16, access rw.
+        Address 0x0092 (Modicon 40147); parameter F16; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -936,7 +936,7 @@ class Client(ClientBase[Snapshot]):
         self.f17: ReadWrite[int] = ReadWrite(self, _codec_f17)
         """f17
 
-        Address 0x0013; parameter F17; u16, access rw.
+        Address 0x0013 (Modicon 40020); parameter F17; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -944,7 +944,7 @@ class Client(ClientBase[Snapshot]):
         self.f18: ReadWrite[int] = ReadWrite(self, _codec_f18)
         """f18
 
-        Address 0x0014; parameter F18; u16, access rw.
+        Address 0x0014 (Modicon 40021); parameter F18; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -952,7 +952,7 @@ class Client(ClientBase[Snapshot]):
         self.f19: ReadWrite[int] = ReadWrite(self, _codec_f19)
         """f19
 
-        Address 0x0076; parameter F19; u16, access rw.
+        Address 0x0076 (Modicon 40119); parameter F19; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -960,7 +960,7 @@ class Client(ClientBase[Snapshot]):
         self.f20: ReadWrite[int] = ReadWrite(self, _codec_f20)
         """f20
 
-        Address 0x0077; parameter F20; u16, access rw.
+        Address 0x0077 (Modicon 40120); parameter F20; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -968,7 +968,7 @@ class Client(ClientBase[Snapshot]):
         self.f21: ReadWrite[int] = ReadWrite(self, _codec_f21)
         """f21
 
-        Address 0x0015; parameter F21; u16, access rw.
+        Address 0x0015 (Modicon 40022); parameter F21; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -976,7 +976,7 @@ class Client(ClientBase[Snapshot]):
         self.f22: ReadWrite[int] = ReadWrite(self, _codec_f22)
         """f22
 
-        Address 0x0016; parameter F22; u16, access rw.
+        Address 0x0016 (Modicon 40023); parameter F22; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -984,7 +984,7 @@ class Client(ClientBase[Snapshot]):
         self.f23: ReadWrite[int] = ReadWrite(self, _codec_f23)
         """f23
 
-        Address 0x0017; parameter F23; u16, access rw.
+        Address 0x0017 (Modicon 40024); parameter F23; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -992,7 +992,7 @@ class Client(ClientBase[Snapshot]):
         self.f24: ReadWrite[int] = ReadWrite(self, _codec_f24)
         """f24
 
-        Address 0x009F; parameter F24; u16, access rw.
+        Address 0x009F (Modicon 40160); parameter F24; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1000,7 +1000,7 @@ class Client(ClientBase[Snapshot]):
         self.f25: ReadWrite[int] = ReadWrite(self, _codec_f25)
         """f25
 
-        Address 0x00A0; parameter F25; u16, access rw.
+        Address 0x00A0 (Modicon 40161); parameter F25; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1008,7 +1008,7 @@ class Client(ClientBase[Snapshot]):
         self.f26: ReadWrite[int] = ReadWrite(self, _codec_f26)
         """f26
 
-        Address 0x0018; parameter F26; u16, access rw.
+        Address 0x0018 (Modicon 40025); parameter F26; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1016,7 +1016,7 @@ class Client(ClientBase[Snapshot]):
         self.f27: ReadWrite[int] = ReadWrite(self, _codec_f27)
         """f27
 
-        Address 0x0019; parameter F27; u16, access rw.
+        Address 0x0019 (Modicon 40026); parameter F27; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1024,7 +1024,7 @@ class Client(ClientBase[Snapshot]):
         self.f28: ReadWrite[int] = ReadWrite(self, _codec_f28)
         """f28
 
-        Address 0x001A; parameter F28; u16, access rw.
+        Address 0x001A (Modicon 40027); parameter F28; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1032,7 +1032,7 @@ class Client(ClientBase[Snapshot]):
         self.f29: ReadWrite[int] = ReadWrite(self, _codec_f29)
         """f29
 
-        Address 0x001B; parameter F29; u16, access rw.
+        Address 0x001B (Modicon 40028); parameter F29; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1040,7 +1040,7 @@ class Client(ClientBase[Snapshot]):
         self.f30: ReadWrite[int] = ReadWrite(self, _codec_f30)
         """f30
 
-        Address 0x001C; parameter F30; u16, access rw.
+        Address 0x001C (Modicon 40029); parameter F30; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1048,7 +1048,7 @@ class Client(ClientBase[Snapshot]):
         self.f31: ReadWrite[int] = ReadWrite(self, _codec_f31)
         """f31
 
-        Address 0x001D; parameter F31; u16, access rw.
+        Address 0x001D (Modicon 40030); parameter F31; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1056,7 +1056,7 @@ class Client(ClientBase[Snapshot]):
         self.f32: ReadWrite[int] = ReadWrite(self, _codec_f32)
         """f32
 
-        Address 0x001E; parameter F32; u16, access rw.
+        Address 0x001E (Modicon 40031); parameter F32; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1064,7 +1064,7 @@ class Client(ClientBase[Snapshot]):
         self.f33: ReadWrite[int] = ReadWrite(self, _codec_f33)
         """f33
 
-        Address 0x001F; parameter F33; u16, access rw.
+        Address 0x001F (Modicon 40032); parameter F33; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1072,7 +1072,7 @@ class Client(ClientBase[Snapshot]):
         self.f34: ReadWrite[int] = ReadWrite(self, _codec_f34)
         """f34
 
-        Address 0x0020; parameter F34; u16, access rw.
+        Address 0x0020 (Modicon 40033); parameter F34; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1080,7 +1080,7 @@ class Client(ClientBase[Snapshot]):
         self.f35: ReadWrite[int] = ReadWrite(self, _codec_f35)
         """f35
 
-        Address 0x0021; parameter F35; u16, access rw.
+        Address 0x0021 (Modicon 40034); parameter F35; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1088,7 +1088,7 @@ class Client(ClientBase[Snapshot]):
         self.f36: ReadWrite[int] = ReadWrite(self, _codec_f36)
         """f36
 
-        Address 0x0022; parameter F36; u16, access rw.
+        Address 0x0022 (Modicon 40035); parameter F36; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1096,7 +1096,7 @@ class Client(ClientBase[Snapshot]):
         self.f37: ReadWrite[int] = ReadWrite(self, _codec_f37)
         """f37
 
-        Address 0x0023; parameter F37; u16, access rw.
+        Address 0x0023 (Modicon 40036); parameter F37; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1104,7 +1104,7 @@ class Client(ClientBase[Snapshot]):
         self.f38: ReadWrite[int] = ReadWrite(self, _codec_f38)
         """f38
 
-        Address 0x0024; parameter F38; u16, access rw.
+        Address 0x0024 (Modicon 40037); parameter F38; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1112,7 +1112,7 @@ class Client(ClientBase[Snapshot]):
         self.f39: ReadWrite[int] = ReadWrite(self, _codec_f39)
         """f39
 
-        Address 0x0025; parameter F39; u16, access rw.
+        Address 0x0025 (Modicon 40038); parameter F39; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1120,7 +1120,7 @@ class Client(ClientBase[Snapshot]):
         self.f40: ReadWrite[int] = ReadWrite(self, _codec_f40)
         """f40
 
-        Address 0x0026; parameter F40; u16, access rw.
+        Address 0x0026 (Modicon 40039); parameter F40; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1128,7 +1128,7 @@ class Client(ClientBase[Snapshot]):
         self.f41: ReadWrite[int] = ReadWrite(self, _codec_f41)
         """f41
 
-        Address 0x0027; parameter F41; u16, access rw.
+        Address 0x0027 (Modicon 40040); parameter F41; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1136,7 +1136,7 @@ class Client(ClientBase[Snapshot]):
         self.f42: ReadWrite[int] = ReadWrite(self, _codec_f42)
         """f42
 
-        Address 0x0028; parameter F42; u16, access rw.
+        Address 0x0028 (Modicon 40041); parameter F42; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1144,7 +1144,7 @@ class Client(ClientBase[Snapshot]):
         self.f43: ReadWrite[int] = ReadWrite(self, _codec_f43)
         """f43
 
-        Address 0x0095; parameter F43; u16, access rw.
+        Address 0x0095 (Modicon 40150); parameter F43; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1152,7 +1152,7 @@ class Client(ClientBase[Snapshot]):
         self.f44: ReadWrite[int] = ReadWrite(self, _codec_f44)
         """f44
 
-        Address 0x0096; parameter F44; u16, access rw.
+        Address 0x0096 (Modicon 40151); parameter F44; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1160,7 +1160,7 @@ class Client(ClientBase[Snapshot]):
         self.f45: ReadWrite[int] = ReadWrite(self, _codec_f45)
         """f45
 
-        Address 0x0099; parameter F45; u16, access rw.
+        Address 0x0099 (Modicon 40154); parameter F45; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1168,7 +1168,7 @@ class Client(ClientBase[Snapshot]):
         self.f46: ReadWrite[int] = ReadWrite(self, _codec_f46)
         """f46
 
-        Address 0x0097; parameter F46; u16, access rw.
+        Address 0x0097 (Modicon 40152); parameter F46; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1176,7 +1176,7 @@ class Client(ClientBase[Snapshot]):
         self.f47: ReadWrite[int] = ReadWrite(self, _codec_f47)
         """f47
 
-        Address 0x0098; parameter F47; u16, access rw.
+        Address 0x0098 (Modicon 40153); parameter F47; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1184,7 +1184,7 @@ class Client(ClientBase[Snapshot]):
         self.f48: ReadWrite[int] = ReadWrite(self, _codec_f48)
         """f48
 
-        Address 0x00DC; parameter F48; u16, access rw.
+        Address 0x00DC (Modicon 40221); parameter F48; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1192,7 +1192,7 @@ class Client(ClientBase[Snapshot]):
         self.f49: ReadWrite[int] = ReadWrite(self, _codec_f49)
         """f49
 
-        Address 0x00DD; parameter F49; u16, access rw.
+        Address 0x00DD (Modicon 40222); parameter F49; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1200,7 +1200,7 @@ class Client(ClientBase[Snapshot]):
         self.f50: ReadWrite[int] = ReadWrite(self, _codec_f50)
         """f50
 
-        Address 0x00DF; parameter F50; u16, access rw.
+        Address 0x00DF (Modicon 40224); parameter F50; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1208,7 +1208,7 @@ class Client(ClientBase[Snapshot]):
         self.f51: ReadWrite[int] = ReadWrite(self, _codec_f51)
         """f51
 
-        Address 0x002A; parameter F51; u16, access rw.
+        Address 0x002A (Modicon 40043); parameter F51; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1216,7 +1216,7 @@ class Client(ClientBase[Snapshot]):
         self.f52: ReadWrite[int] = ReadWrite(self, _codec_f52)
         """f52
 
-        Address 0x002B; parameter F52; u16, access rw.
+        Address 0x002B (Modicon 40044); parameter F52; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1224,7 +1224,7 @@ class Client(ClientBase[Snapshot]):
         self.f53: ReadWrite[int] = ReadWrite(self, _codec_f53)
         """f53
 
-        Address 0x002C; parameter F53; u16, access rw.
+        Address 0x002C (Modicon 40045); parameter F53; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1232,7 +1232,7 @@ class Client(ClientBase[Snapshot]):
         self.f54: ReadWriteArray[int] = ReadWriteArray(self, _codec_f54)
         """f54
 
-        Address 0x002D, 3 elements, stride 1; parameter F54 (F54, F54, F54); u16, access rw.
+        Address 0x002D (Modicon 40046), 3 elements, stride 1; parameter F54 (F54, F54, F54); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1240,7 +1240,7 @@ class Client(ClientBase[Snapshot]):
         self.c00: ReadWrite[int] = ReadWrite(self, _codec_c00)
         """c00
 
-        Address 0x0064; parameter C00; u16, access rw.
+        Address 0x0064 (Modicon 40101); parameter C00; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1248,7 +1248,7 @@ class Client(ClientBase[Snapshot]):
         self.c01: ReadWrite[int] = ReadWrite(self, _codec_c01)
         """c01
 
-        Address 0x0065; parameter C01; u16, access rw.
+        Address 0x0065 (Modicon 40102); parameter C01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1256,7 +1256,7 @@ class Client(ClientBase[Snapshot]):
         self.c02: ReadWrite[int] = ReadWrite(self, _codec_c02)
         """c02
 
-        Address 0x0066; parameter C02; u16, access rw.
+        Address 0x0066 (Modicon 40103); parameter C02; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1264,7 +1264,7 @@ class Client(ClientBase[Snapshot]):
         self.c03: ReadWrite[int] = ReadWrite(self, _codec_c03)
         """c03
 
-        Address 0x0067; parameter C03; u16, access rw.
+        Address 0x0067 (Modicon 40104); parameter C03; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1272,7 +1272,7 @@ class Client(ClientBase[Snapshot]):
         self.c04: ReadWrite[int] = ReadWrite(self, _codec_c04)
         """c04
 
-        Address 0x0068; parameter C04; u16, access rw.
+        Address 0x0068 (Modicon 40105); parameter C04; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1280,7 +1280,7 @@ class Client(ClientBase[Snapshot]):
         self.c05: ReadWrite[int] = ReadWrite(self, _codec_c05)
         """c05
 
-        Address 0x0069; parameter C05; u16, access rw.
+        Address 0x0069 (Modicon 40106); parameter C05; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1288,7 +1288,7 @@ class Client(ClientBase[Snapshot]):
         self.c06: ReadWrite[int] = ReadWrite(self, _codec_c06)
         """c06
 
-        Address 0x006A; parameter C06; u16, access rw.
+        Address 0x006A (Modicon 40107); parameter C06; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1296,7 +1296,7 @@ class Client(ClientBase[Snapshot]):
         self.c07: ReadWrite[int] = ReadWrite(self, _codec_c07)
         """c07
 
-        Address 0x006B; parameter C07; u16, access rw.
+        Address 0x006B (Modicon 40108); parameter C07; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1304,7 +1304,7 @@ class Client(ClientBase[Snapshot]):
         self.c08: ReadWrite[int] = ReadWrite(self, _codec_c08)
         """c08
 
-        Address 0x006C; parameter C08; u16, access rw.
+        Address 0x006C (Modicon 40109); parameter C08; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1312,7 +1312,7 @@ class Client(ClientBase[Snapshot]):
         self.c09: ReadWrite[int] = ReadWrite(self, _codec_c09)
         """c09
 
-        Address 0x006D; parameter C09; u16, access rw.
+        Address 0x006D (Modicon 40110); parameter C09; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1320,7 +1320,7 @@ class Client(ClientBase[Snapshot]):
         self.c10: ReadWrite[int] = ReadWrite(self, _codec_c10)
         """c10
 
-        Address 0x006E; parameter C10; u16, access rw.
+        Address 0x006E (Modicon 40111); parameter C10; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1328,7 +1328,7 @@ class Client(ClientBase[Snapshot]):
         self.c11: ReadWrite[int] = ReadWrite(self, _codec_c11)
         """c11
 
-        Address 0x006F; parameter C11; u16, access rw.
+        Address 0x006F (Modicon 40112); parameter C11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1336,7 +1336,7 @@ class Client(ClientBase[Snapshot]):
         self.c12: ReadWrite[int] = ReadWrite(self, _codec_c12)
         """c12
 
-        Address 0x0070; parameter C12; u16, access rw.
+        Address 0x0070 (Modicon 40113); parameter C12; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1344,7 +1344,7 @@ class Client(ClientBase[Snapshot]):
         self.c13: ReadWrite[int] = ReadWrite(self, _codec_c13)
         """c13
 
-        Address 0x0071; parameter C13; u16, access rw.
+        Address 0x0071 (Modicon 40114); parameter C13; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1352,7 +1352,7 @@ class Client(ClientBase[Snapshot]):
         self.c14: ReadWrite[int] = ReadWrite(self, _codec_c14)
         """c14
 
-        Address 0x009A; parameter C14; u16, access rw.
+        Address 0x009A (Modicon 40155); parameter C14; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1360,7 +1360,7 @@ class Client(ClientBase[Snapshot]):
         self.c15: ReadWrite[int] = ReadWrite(self, _codec_c15)
         """c15
 
-        Address 0x0007; parameter C15; u16, access rw.
+        Address 0x0007 (Modicon 40008); parameter C15; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1368,7 +1368,7 @@ class Client(ClientBase[Snapshot]):
         self.c16: ReadWrite[int] = ReadWrite(self, _codec_c16)
         """c16
 
-        Address 0x009E; parameter C16; u16, access rw.
+        Address 0x009E (Modicon 40159); parameter C16; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1376,7 +1376,7 @@ class Client(ClientBase[Snapshot]):
         self.c17: ReadWrite[int] = ReadWrite(self, _codec_c17)
         """c17
 
-        Address 0x007A; parameter C17; u16, access rw.
+        Address 0x007A (Modicon 40123); parameter C17; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1384,7 +1384,7 @@ class Client(ClientBase[Snapshot]):
         self.c18: ReadWrite[int] = ReadWrite(self, _codec_c18)
         """c18
 
-        Address 0x007B; parameter C18; u16, access rw.
+        Address 0x007B (Modicon 40124); parameter C18; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1392,7 +1392,7 @@ class Client(ClientBase[Snapshot]):
         self.c19: ReadWrite[int] = ReadWrite(self, _codec_c19)
         """c19
 
-        Address 0x007C; parameter C19; u16, access rw.
+        Address 0x007C (Modicon 40125); parameter C19; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1400,7 +1400,7 @@ class Client(ClientBase[Snapshot]):
         self.c20: ReadWrite[int] = ReadWrite(self, _codec_c20)
         """c20
 
-        Address 0x007D; parameter C20; u16, access rw.
+        Address 0x007D (Modicon 40126); parameter C20; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1408,7 +1408,7 @@ class Client(ClientBase[Snapshot]):
         self.c21: ReadWrite[int] = ReadWrite(self, _codec_c21)
         """c21
 
-        Address 0x007E; parameter C21; u16, access rw.
+        Address 0x007E (Modicon 40127); parameter C21; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1416,7 +1416,7 @@ class Client(ClientBase[Snapshot]):
         self.c22: ReadWrite[int] = ReadWrite(self, _codec_c22)
         """c22
 
-        Address 0x007F; parameter C22; u16, access rw.
+        Address 0x007F (Modicon 40128); parameter C22; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1424,7 +1424,7 @@ class Client(ClientBase[Snapshot]):
         self.c23: ReadWrite[int] = ReadWrite(self, _codec_c23)
         """c23
 
-        Address 0x000C; parameter C23; u16, access rw.
+        Address 0x000C (Modicon 40013); parameter C23; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1432,7 +1432,7 @@ class Client(ClientBase[Snapshot]):
         self.c24: ReadWrite[int] = ReadWrite(self, _codec_c24)
         """c24
 
-        Address 0x000D; parameter C24; u16, access rw.
+        Address 0x000D (Modicon 40014); parameter C24; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1440,7 +1440,7 @@ class Client(ClientBase[Snapshot]):
         self.c25: ReadWrite[int] = ReadWrite(self, _codec_c25)
         """c25
 
-        Address 0x0029; parameter C25; u16, access rw.
+        Address 0x0029 (Modicon 40042); parameter C25; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1448,7 +1448,7 @@ class Client(ClientBase[Snapshot]):
         self.c26: ReadWrite[int] = ReadWrite(self, _codec_c26)
         """c26
 
-        Address 0x0080; parameter C26; u16, access rw.
+        Address 0x0080 (Modicon 40129); parameter C26; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1456,7 +1456,7 @@ class Client(ClientBase[Snapshot]):
         self.c27: ReadWrite[int] = ReadWrite(self, _codec_c27)
         """c27
 
-        Address 0x0081; parameter C27; u16, access rw.
+        Address 0x0081 (Modicon 40130); parameter C27; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1464,7 +1464,7 @@ class Client(ClientBase[Snapshot]):
         self.c28: ReadWrite[int] = ReadWrite(self, _codec_c28)
         """c28
 
-        Address 0x0082; parameter C28; u16, access rw.
+        Address 0x0082 (Modicon 40131); parameter C28; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1472,7 +1472,7 @@ class Client(ClientBase[Snapshot]):
         self.c29: ReadWrite[int] = ReadWrite(self, _codec_c29)
         """c29
 
-        Address 0x0083; parameter C29; u16, access rw.
+        Address 0x0083 (Modicon 40132); parameter C29; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1480,7 +1480,7 @@ class Client(ClientBase[Snapshot]):
         self.c30: ReadWrite[int] = ReadWrite(self, _codec_c30)
         """c30
 
-        Address 0x008A; parameter C30; u16, access rw.
+        Address 0x008A (Modicon 40139); parameter C30; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1488,7 +1488,7 @@ class Client(ClientBase[Snapshot]):
         self.c31: ReadWrite[int] = ReadWrite(self, _codec_c31)
         """c31
 
-        Address 0x008B; parameter C31; u16, access rw.
+        Address 0x008B (Modicon 40140); parameter C31; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1496,7 +1496,7 @@ class Client(ClientBase[Snapshot]):
         self.c32: ReadWrite[int] = ReadWrite(self, _codec_c32)
         """c32
 
-        Address 0x008C; parameter C32; u16, access rw.
+        Address 0x008C (Modicon 40141); parameter C32; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1504,7 +1504,7 @@ class Client(ClientBase[Snapshot]):
         self.c33: ReadWrite[int] = ReadWrite(self, _codec_c33)
         """c33
 
-        Address 0x008D; parameter C33; u16, access rw.
+        Address 0x008D (Modicon 40142); parameter C33; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1512,7 +1512,7 @@ class Client(ClientBase[Snapshot]):
         self.c34: ReadWrite[int] = ReadWrite(self, _codec_c34)
         """c34
 
-        Address 0x008E; parameter C34; u16, access rw.
+        Address 0x008E (Modicon 40143); parameter C34; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1520,7 +1520,7 @@ class Client(ClientBase[Snapshot]):
         self.c35: ReadWrite[int] = ReadWrite(self, _codec_c35)
         """c35
 
-        Address 0x008F; parameter C35; u16, access rw.
+        Address 0x008F (Modicon 40144); parameter C35; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1528,7 +1528,7 @@ class Client(ClientBase[Snapshot]):
         self.c36: ReadWrite[int] = ReadWrite(self, _codec_c36)
         """c36
 
-        Address 0x0090; parameter C36; u16, access rw.
+        Address 0x0090 (Modicon 40145); parameter C36; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1536,7 +1536,7 @@ class Client(ClientBase[Snapshot]):
         self.c37: ReadWrite[int] = ReadWrite(self, _codec_c37)
         """c37
 
-        Address 0x0091; parameter C37; u16, access rw.
+        Address 0x0091 (Modicon 40146); parameter C37; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1544,7 +1544,7 @@ class Client(ClientBase[Snapshot]):
         self.c38: ReadWrite[int] = ReadWrite(self, _codec_c38)
         """c38
 
-        Address 0x0093; parameter C38; u16, access rw.
+        Address 0x0093 (Modicon 40148); parameter C38; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1552,7 +1552,7 @@ class Client(ClientBase[Snapshot]):
         self.c39: ReadWrite[int] = ReadWrite(self, _codec_c39)
         """c39
 
-        Address 0x0094; parameter C39; u16, access rw.
+        Address 0x0094 (Modicon 40149); parameter C39; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1560,7 +1560,7 @@ class Client(ClientBase[Snapshot]):
         self.c40: ReadWrite[int] = ReadWrite(self, _codec_c40)
         """c40
 
-        Address 0x0072; parameter C40; u16, access rw.
+        Address 0x0072 (Modicon 40115); parameter C40; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1568,7 +1568,7 @@ class Client(ClientBase[Snapshot]):
         self.c41: ReadWrite[int] = ReadWrite(self, _codec_c41)
         """c41
 
-        Address 0x009D; parameter C41; u16, access rw.
+        Address 0x009D (Modicon 40158); parameter C41; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1576,7 +1576,7 @@ class Client(ClientBase[Snapshot]):
         self.c42: ReadWrite[int] = ReadWrite(self, _codec_c42)
         """c42
 
-        Address 0x0073; parameter C42; u16, access rw.
+        Address 0x0073 (Modicon 40116); parameter C42; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1584,7 +1584,7 @@ class Client(ClientBase[Snapshot]):
         self.c43: ReadWrite[int] = ReadWrite(self, _codec_c43)
         """c43
 
-        Address 0x0074; parameter C43; u16, access rw.
+        Address 0x0074 (Modicon 40117); parameter C43; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1592,7 +1592,7 @@ class Client(ClientBase[Snapshot]):
         self.c44: ReadWrite[int] = ReadWrite(self, _codec_c44)
         """c44
 
-        Address 0x0075; parameter C44; u16, access rw.
+        Address 0x0075 (Modicon 40118); parameter C44; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1600,7 +1600,7 @@ class Client(ClientBase[Snapshot]):
         self.c45: ReadWrite[int] = ReadWrite(self, _codec_c45)
         """c45
 
-        Address 0x0078; parameter C45; u16, access rw.
+        Address 0x0078 (Modicon 40121); parameter C45; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1608,7 +1608,7 @@ class Client(ClientBase[Snapshot]):
         self.c46: ReadWrite[int] = ReadWrite(self, _codec_c46)
         """c46
 
-        Address 0x0079; parameter C46; u16, access rw.
+        Address 0x0079 (Modicon 40122); parameter C46; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1616,7 +1616,7 @@ class Client(ClientBase[Snapshot]):
         self.c47: ReadWrite[int] = ReadWrite(self, _codec_c47)
         """c47
 
-        Address 0x0030; parameter C47; u16, access rw.
+        Address 0x0030 (Modicon 40049); parameter C47; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1624,7 +1624,7 @@ class Client(ClientBase[Snapshot]):
         self.c48: ReadWrite[int] = ReadWrite(self, _codec_c48)
         """c48
 
-        Address 0x0084; parameter C48; u16, access rw.
+        Address 0x0084 (Modicon 40133); parameter C48; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1632,7 +1632,7 @@ class Client(ClientBase[Snapshot]):
         self.c49: ReadWrite[int] = ReadWrite(self, _codec_c49)
         """c49
 
-        Address 0x0085; parameter C49; u16, access rw.
+        Address 0x0085 (Modicon 40134); parameter C49; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1640,7 +1640,7 @@ class Client(ClientBase[Snapshot]):
         self.c50: ReadWrite[int] = ReadWrite(self, _codec_c50)
         """c50
 
-        Address 0x0086; parameter C50; u16, access rw.
+        Address 0x0086 (Modicon 40135); parameter C50; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1648,7 +1648,7 @@ class Client(ClientBase[Snapshot]):
         self.c51: ReadWrite[int] = ReadWrite(self, _codec_c51)
         """c51
 
-        Address 0x0087; parameter C51; u16, access rw.
+        Address 0x0087 (Modicon 40136); parameter C51; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1656,7 +1656,7 @@ class Client(ClientBase[Snapshot]):
         self.c52: ReadWrite[int] = ReadWrite(self, _codec_c52)
         """c52
 
-        Address 0x0088; parameter C52; u16, access rw.
+        Address 0x0088 (Modicon 40137); parameter C52; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1664,7 +1664,7 @@ class Client(ClientBase[Snapshot]):
         self.c53: ReadWrite[int] = ReadWrite(self, _codec_c53)
         """c53
 
-        Address 0x0089; parameter C53; u16, access rw.
+        Address 0x0089 (Modicon 40138); parameter C53; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1672,7 +1672,7 @@ class Client(ClientBase[Snapshot]):
         self.c54: ReadWrite[int] = ReadWrite(self, _codec_c54)
         """c54
 
-        Address 0x009B; parameter C54; u16, access rw.
+        Address 0x009B (Modicon 40156); parameter C54; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.
@@ -1680,7 +1680,7 @@ class Client(ClientBase[Snapshot]):
         self.c55: ReadWrite[int] = ReadWrite(self, _codec_c55)
         """c55
 
-        Address 0x009C; parameter C55; u16, access rw.
+        Address 0x009C (Modicon 40157); parameter C55; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 004 §6.

@@ -469,7 +469,7 @@ class Client(ClientBase[Snapshot]):
         """NET-X0 ~ NET-X7 輸入功能
 
         Remote digital input (NET-IN) function of NET-X0..NET-X7, i.e. which input signal function bit i of net_in (1400h) performs.
-        Address 0x0900, 8 elements, stride 1; parameter 09-01 (09-01, 09-02, 09-03, 09-04, 09-05, 09-06, 09-07, 09-08); u16, access rw.
+        Address 0x0900 (Modicon 42305), 8 elements, stride 1; parameter 09-01 (09-01, 09-02, 09-03, 09-04, 09-05, 09-06, 09-07, 09-08); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: 1, 2, 8, 6, 10, 11, 0, 0; reflect: configuration; storage: unknown.
         May be written by broadcast.
@@ -479,7 +479,7 @@ class Client(ClientBase[Snapshot]):
         """通訊異常保護行為
 
         Behaviour when a communication error occurs.
-        Address 0x0909; parameter 09-10; u16, access rw.
+        Address 0x0909 (Modicon 42314); parameter 09-10; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -489,7 +489,7 @@ class Client(ClientBase[Snapshot]):
         """WatchData 選擇
 
         Selects which monitor page (Dynamic Data) registers 0008h-000Fh show.
-        Address 0x090A; parameter 09-11; u16, access rw.
+        Address 0x090A (Modicon 42315); parameter 09-11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -499,7 +499,7 @@ class Client(ClientBase[Snapshot]):
         """RS-485 通訊逾時
 
         RS-485 communication timeout (Tb1): if no query arrives within this time the drive raises a communication timeout alarm. 0 = disabled (無效).
-        Address 0x090B; parameter 09-12; u16, access rw.
+        Address 0x090B (Modicon 42316); parameter 09-12; u16, access rw.
         Unit: ms; scale 1; range 0 .. 1000 ms.
         Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -509,7 +509,7 @@ class Client(ClientBase[Snapshot]):
         """RS-485 通訊異常次數
 
         The drive raises an alarm when RS-485 communication errors exceed this count (次).
-        Address 0x090C; parameter 09-13; u16, access rw.
+        Address 0x090C (Modicon 42317); parameter 09-13; u16, access rw.
         Unit: none; scale 1; range 1 .. 10.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -519,7 +519,7 @@ class Client(ClientBase[Snapshot]):
         """RS-232 通訊逾時
 
         RS-232 communication timeout. 0 = disabled (無效).
-        Address 0x090D; parameter 09-14; u16, access rw.
+        Address 0x090D (Modicon 42318); parameter 09-14; u16, access rw.
         Unit: ms; scale 1; range 0 .. 10000 ms.
         Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -529,7 +529,7 @@ class Client(ClientBase[Snapshot]):
         """RS-232 通訊異常次數
 
         The drive raises an alarm when RS-232 communication errors exceed this count (次).
-        Address 0x090E; parameter 09-15; u16, access rw.
+        Address 0x090E (Modicon 42319); parameter 09-15; u16, access rw.
         Unit: none; scale 1; range 1 .. 10.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -539,7 +539,7 @@ class Client(ClientBase[Snapshot]):
         """RS-485 通訊設定
 
         RS-485 signal and protocol settings (physical layer), a bit field.
-        Address 0x090F; parameter 09-16; u16, access rw.
+        Address 0x090F (Modicon 42320); parameter 09-16; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -549,7 +549,7 @@ class Client(ClientBase[Snapshot]):
         """遠端數位輸入(NET-IN)指令
 
         NET-IO state as a bit field; bit = 1 means the function assigned to that NET-X input (09-01..09-08) is ON.
-        Address 0x1400; u16, access rw.
+        Address 0x1400 (Modicon 45121); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: immediate; storage: volatile.
         May be written by broadcast.
@@ -559,7 +559,7 @@ class Client(ClientBase[Snapshot]):
         """SC/CC 模式
 
         IO mode selection. SC mode uses START/STOP, CCW/CW; CC mode uses FWD, REV.
-        Address 0x0200; parameter 02-01; u16, access rw.
+        Address 0x0200 (Modicon 40513); parameter 02-01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: 0; reflect: configuration; storage: unknown.
         May be written by broadcast.
@@ -569,7 +569,7 @@ class Client(ClientBase[Snapshot]):
         """解除 Alarm (Alarm Reset)
 
         Write 1 to reset the alarm. Some alarms may not be resettable.
-        Address 0x0A00; u16, access rw.
+        Address 0x0A00 (Modicon 42561); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: immediate; storage: volatile.
         Command: writing 1 executes it.
@@ -580,7 +580,7 @@ class Client(ClientBase[Snapshot]):
         """Alarm 履歷清除
 
         Write 1 to clear the alarm history.
-        Address 0x0A22; u16, access rw.
+        Address 0x0A22 (Modicon 42595); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: immediate; storage: volatile.
         Command: writing 1 executes it.
@@ -591,7 +591,7 @@ class Client(ClientBase[Snapshot]):
         """通訊錯誤履歷清除
 
         Write 1 to clear the communication error history.
-        Address 0x0A26; u16, access rw.
+        Address 0x0A26 (Modicon 42599); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: immediate; storage: volatile.
         Command: writing 1 executes it.
@@ -602,7 +602,7 @@ class Client(ClientBase[Snapshot]):
         """Configuration
 
         Write 1 to execute the Configuration command: parameters are recalculated and set. Parameters with reflect C take effect after it.
-        Address 0x0A27; u16, access rw.
+        Address 0x0A27 (Modicon 42600); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: immediate; storage: volatile.
         Command: writing 1 executes it.
@@ -613,7 +613,7 @@ class Client(ClientBase[Snapshot]):
         """馬達狀態
 
         Current motor state (ID 01).
-        Address 0x0000; u16, access r.
+        Address 0x0000 (Modicon 40001); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.3.
@@ -622,7 +622,7 @@ class Client(ClientBase[Snapshot]):
         """馬達轉速
 
         Current motor speed (ID 03).
-        Address 0x0002; u16, access r.
+        Address 0x0002 (Modicon 40003); u16, access r.
         Unit: r/min; scale 1; range 0 .. 65535 r/min.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.3.
@@ -631,7 +631,7 @@ class Client(ClientBase[Snapshot]):
         """Alarm No.
 
         Code of the alarm (protection error) currently active (ID 04).
-        Address 0x0003; u16, access r.
+        Address 0x0003 (Modicon 40004); u16, access r.
         Unit: none; scale 1; range 0 .. 21.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.3.
@@ -640,7 +640,7 @@ class Client(ClientBase[Snapshot]):
         """馬達轉向
 
         Current direction of rotation (ID 05).
-        Address 0x0004; u16, access r.
+        Address 0x0004 (Modicon 40005); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.3.
@@ -649,7 +649,7 @@ class Client(ClientBase[Snapshot]):
         """命令轉速
 
         Speed set by the current command (ID 06).
-        Address 0x0005; u16, access r.
+        Address 0x0005 (Modicon 40006); u16, access r.
         Unit: r/min; scale 1; range 0 .. 65535 r/min.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.3.
@@ -658,7 +658,7 @@ class Client(ClientBase[Snapshot]):
         """數位輸入點狀態
 
         Digital input states (ID 09, page 0). Each digit is one input: the 1st digit X1, 2nd X2, 3rd X3, 4th X4, 5th X5 (XH); digit 0 = OFF, 1 = ON. Printed example: 01011 = X1 ON, X2 ON, X3 OFF, X4 ON, X5 OFF (so the 1st digit is the rightmost).
-        Address 0x0008; u16, access r.
+        Address 0x0008 (Modicon 40009); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 0.
@@ -668,7 +668,7 @@ class Client(ClientBase[Snapshot]):
         """Bus V
 
         DC bus voltage (input supply voltage) (ID 10, page 0).
-        Address 0x0009; u16, access r.
+        Address 0x0009 (Modicon 40010); u16, access r.
         Unit: V; scale 0.01; range 0 .. 655.35 V.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 0.
@@ -678,7 +678,7 @@ class Client(ClientBase[Snapshot]):
         """輸出%
 
         Output % (ID 12, page 0).
-        Address 0x000B; u16, access r.
+        Address 0x000B (Modicon 40012); u16, access r.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 0.
@@ -688,7 +688,7 @@ class Client(ClientBase[Snapshot]):
         """輸出電流
 
         Output current (ID 13, page 0).
-        Address 0x000C; u16, access r.
+        Address 0x000C (Modicon 40013); u16, access r.
         Unit: A; scale 0.01; range 0 .. 655.35 A.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 0.
@@ -698,7 +698,7 @@ class Client(ClientBase[Snapshot]):
         """數位輸出點狀態
 
         Digital output states (ID 09, page 1). Each digit is one output: the 1st digit Y1, 2nd Y2, 3rd YH, 4th OUT1, 5th OUT2; digit 0 = OFF, 1 = ON. Printed example: 01011 = Y1 ON, Y2 ON, YH OFF, OUT1 ON, OUT2 OFF.
-        Address 0x0008; u16, access r.
+        Address 0x0008 (Modicon 40009); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -708,7 +708,7 @@ class Client(ClientBase[Snapshot]):
         """加速時間
 
         Acceleration time currently set (ID 10, page 1).
-        Address 0x0009; u16, access r.
+        Address 0x0009 (Modicon 40010); u16, access r.
         Unit: s; scale 0.1; range 0 .. 6553.5 s.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -718,7 +718,7 @@ class Client(ClientBase[Snapshot]):
         """減速時間
 
         Deceleration time currently set (ID 11, page 1).
-        Address 0x000A; u16, access r.
+        Address 0x000A (Modicon 40011); u16, access r.
         Unit: s; scale 0.1; range 0 .. 6553.5 s.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -728,7 +728,7 @@ class Client(ClientBase[Snapshot]):
         """INT-VR
 
         Internal setter (VR) current setting (ID 12, page 1).
-        Address 0x000B; u16, access r.
+        Address 0x000B (Modicon 40012); u16, access r.
         Unit: V; scale 0.01; range 0 .. 10 V.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -738,7 +738,7 @@ class Client(ClientBase[Snapshot]):
         """A1
 
         External analog input A1 voltage (ID 13, page 1).
-        Address 0x000C; u16, access r.
+        Address 0x000C (Modicon 40013); u16, access r.
         Unit: V; scale 0.01; range 0 .. 10 V.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -748,7 +748,7 @@ class Client(ClientBase[Snapshot]):
         """A2
 
         External analog input A2 voltage (ID 14, page 1).
-        Address 0x000D; u16, access r.
+        Address 0x000D (Modicon 40014); u16, access r.
         Unit: V; scale 0.01; range 0 .. 10 V.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -758,7 +758,7 @@ class Client(ClientBase[Snapshot]):
         """XH Duty
 
         PWM duty of the signal received on XH (ID 15, page 1).
-        Address 0x000E; u16, access r.
+        Address 0x000E (Modicon 40015); u16, access r.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -768,7 +768,7 @@ class Client(ClientBase[Snapshot]):
         """XH Frequency
 
         Frequency of the signal received on XH (ID 16, page 1).
-        Address 0x000F; u16, access r.
+        Address 0x000F (Modicon 40016); u16, access r.
         Unit: Hz; scale 1; range 0 .. 10000 Hz.
         Default: —; reflect: unknown; storage: unknown.
         Page: valid while watch_data_select = 1.
@@ -778,7 +778,7 @@ class Client(ClientBase[Snapshot]):
         """Alarm 履歷 1 ~ 10
 
         Last 10 alarms; element 0 (3300h, history 1) is the most recent, elements 1-9 (3301h-3309h) are history 2-10.
-        Address 0x3300, 10 elements, stride 1; u16, access r.
+        Address 0x3300 (Modicon 413057), 10 elements, stride 1; u16, access r.
         Unit: none; scale 1; range 0 .. 22.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 001 §4.4.
@@ -787,7 +787,7 @@ class Client(ClientBase[Snapshot]):
         """通訊錯誤碼履歷 1 ~ 10
 
         Last 10 communication error codes; element 0 (4800h, history 1) is the most recent, elements 1-9 (4801h-4809h) are history 2-10.
-        Address 0x4800, 10 elements, stride 1; u16, access r.
+        Address 0x4800 (Modicon 418433), 10 elements, stride 1; u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: volatile.
         Manual: 001 §4.5.
@@ -796,7 +796,7 @@ class Client(ClientBase[Snapshot]):
         """數位轉速 No.0 ~ No.7
 
         Digital speed setting of operation data No.0-7 (EEPROM).
-        Address 0x0308, 8 elements, stride 1; parameter 03-09 (03-09, 03-10, 03-11, 03-12, 03-13, 03-14, 03-15, 03-16); u16, access rw.
+        Address 0x0308 (Modicon 40777), 8 elements, stride 1; parameter 03-09 (03-09, 03-10, 03-11, 03-12, 03-13, 03-14, 03-15, 03-16); u16, access rw.
         Unit: r/min; scale 1; range 60 .. 10000 r/min.
         Default: 3000; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
@@ -807,7 +807,7 @@ class Client(ClientBase[Snapshot]):
         """數位加速時間 No.0 ~ No.7
 
         Digital acceleration time of operation data No.0-7 (EEPROM): in speed or position control the time from 0 to 3000 r/min; in duty control the time from duty 0 to 100 %.
-        Address 0x0400, 8 elements, stride 1; parameter 04-01 (04-01, 04-02, 04-03, 04-04, 04-05, 04-06, 04-07, 04-08); u16, access rw.
+        Address 0x0400 (Modicon 41025), 8 elements, stride 1; parameter 04-01 (04-01, 04-02, 04-03, 04-04, 04-05, 04-06, 04-07, 04-08); u16, access rw.
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: 1; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
@@ -818,7 +818,7 @@ class Client(ClientBase[Snapshot]):
         """數位減速時間 No.0 ~ No.7
 
         Digital deceleration time of operation data No.0-7 (EEPROM): in speed or position control the time from 3000 to 0 r/min; in duty control the time from duty 100 to 0 %.
-        Address 0x0408, 8 elements, stride 1; parameter 04-09 (04-09, 04-10, 04-11, 04-12, 04-13, 04-14, 04-15, 04-16); u16, access rw.
+        Address 0x0408 (Modicon 41033), 8 elements, stride 1; parameter 04-09 (04-09, 04-10, 04-11, 04-12, 04-13, 04-14, 04-15, 04-16); u16, access rw.
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: 1; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
@@ -829,7 +829,7 @@ class Client(ClientBase[Snapshot]):
         """數位轉矩限制 No.0 ~ No.7
 
         Digital torque limit of operation data No.0-7 (EEPROM).
-        Address 0x0700, 8 elements, stride 1; parameter 07-01 (07-01, 07-02, 07-03, 07-04, 07-05, 07-06, 07-07, 07-08); u16, access rw.
+        Address 0x0700 (Modicon 41793), 8 elements, stride 1; parameter 07-01 (07-01, 07-02, 07-03, 07-04, 07-05, 07-06, 07-07, 07-08); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 200 %.
         Default: 200; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
@@ -840,7 +840,7 @@ class Client(ClientBase[Snapshot]):
         """數位 Duty No.0 ~ No.7
 
         Digital duty setting of operation data No.0-7 (EEPROM).
-        Address 0x0708, 8 elements, stride 1; parameter 07-09 (07-09, 07-10, 07-11, 07-12, 07-13, 07-14, 07-15, 07-16); u16, access rw.
+        Address 0x0708 (Modicon 41801), 8 elements, stride 1; parameter 07-09 (07-09, 07-10, 07-11, 07-12, 07-13, 07-14, 07-15, 07-16); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: 10, 20, 30, 40, 50, 60, 80, 100; reflect: immediate; storage: eeprom (write delay 20 ms).
         May be written by broadcast.
@@ -851,7 +851,7 @@ class Client(ClientBase[Snapshot]):
         """數位轉速 No.0 ~ No.7 (RAM)
 
         RAM twin of digital_speed (not written to EEPROM, no wait needed).
-        Address 0x3F08, 8 elements, stride 1; u16, access rw.
+        Address 0x3F08 (Modicon 416137), 8 elements, stride 1; u16, access rw.
         Unit: r/min; scale 1; range 60 .. 10000 r/min.
         Default: —; reflect: immediate; storage: ram.
         May be written by broadcast.
@@ -861,7 +861,7 @@ class Client(ClientBase[Snapshot]):
         """數位加速時間 No.0 ~ No.7 (RAM)
 
         RAM twin of digital_accel_time.
-        Address 0x4000, 8 elements, stride 1; u16, access rw.
+        Address 0x4000 (Modicon 416385), 8 elements, stride 1; u16, access rw.
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: —; reflect: immediate; storage: ram.
         May be written by broadcast.
@@ -871,7 +871,7 @@ class Client(ClientBase[Snapshot]):
         """數位減速時間 No.0 ~ No.7 (RAM)
 
         RAM twin of digital_decel_time.
-        Address 0x4008, 8 elements, stride 1; u16, access rw.
+        Address 0x4008 (Modicon 416393), 8 elements, stride 1; u16, access rw.
         Unit: s; scale 0.1; range 0.1 .. 10 s.
         Default: —; reflect: immediate; storage: ram.
         May be written by broadcast.
@@ -881,7 +881,7 @@ class Client(ClientBase[Snapshot]):
         """數位轉矩限制 No.0 ~ No.7 (RAM)
 
         RAM twin of digital_torque_limit.
-        Address 0x4300, 8 elements, stride 1; u16, access rw.
+        Address 0x4300 (Modicon 417153), 8 elements, stride 1; u16, access rw.
         Unit: %; scale 0.1; range 0 .. 200 %.
         Default: —; reflect: immediate; storage: ram.
         May be written by broadcast.
@@ -891,7 +891,7 @@ class Client(ClientBase[Snapshot]):
         """數位 Duty No.0 ~ No.7 (RAM)
 
         RAM twin of digital_duty.
-        Address 0x4308, 8 elements, stride 1; u16, access rw.
+        Address 0x4308 (Modicon 417161), 8 elements, stride 1; u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: immediate; storage: ram.
         May be written by broadcast.
@@ -900,7 +900,7 @@ class Client(ClientBase[Snapshot]):
         self.param_01_01: ReadWrite[int] = ReadWrite(self, _codec_param_01_01)
         """Register 0100h, revealed only by the §2.2 exception example (a write of FFFFh answered with exception 04h). Its meaning, range and default are not in this document.
 
-        Address 0x0100; parameter 01-01; u16, access rw.
+        Address 0x0100 (Modicon 40257); parameter 01-01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -910,7 +910,7 @@ class Client(ClientBase[Snapshot]):
         """運轉資料來源(設定)
 
         Operation data source. Set it to 1 to use the digital operation data (§4.6); other values are not described in this document.
-        Address 0x0202; parameter 02-03; u16, access rw.
+        Address 0x0202 (Modicon 40515); parameter 02-03; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -920,7 +920,7 @@ class Client(ClientBase[Snapshot]):
         """Servo-On 模式
 
         Servo-On mode. As far as this document says: with 1 or 2, and Servo-On (IO and command) OFF, the motor state is WAIT/INHIBIT (not excited); in that state the brake is released with 2 and, with 0 or 1, released while Free is ON and locked otherwise.
-        Address 0x020D; parameter 02-14; u16, access rw.
+        Address 0x020D (Modicon 40526); parameter 02-14; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -930,7 +930,7 @@ class Client(ClientBase[Snapshot]):
         """Always ON Input 1
 
         Always ON Input 1. The broadcast setup sets it to 0 on slave 1 and to 10 on slave 2 (which then uses operation data No.1); the value meanings are not given in this document.
-        Address 0x0606; parameter 06-07; u16, access rw.
+        Address 0x0606 (Modicon 41543); parameter 06-07; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -939,7 +939,7 @@ class Client(ClientBase[Snapshot]):
         self.param_08_01: ReadWrite[int] = ReadWrite(self, _codec_param_08_01)
         """Parameter 08-01 (its name is not printed in this document). 2 = position control; 0 or 1 = not position control. Nothing more is said.
 
-        Address 0x0800; parameter 08-01; u16, access rw.
+        Address 0x0800 (Modicon 42049); parameter 08-01; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.
@@ -949,7 +949,7 @@ class Client(ClientBase[Snapshot]):
         """停止時保持力
 
         Holding force at stop: 0 = Free, 1 = short-circuit brake, 2 = slight position keeping (Hall-sensor models).
-        Address 0x080A; parameter 08-11; u16, access rw.
+        Address 0x080A (Modicon 42059); parameter 08-11; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         May be written by broadcast.

@@ -225,7 +225,7 @@ class Client(ClientBase[Snapshot]):
         """运转指令 etc. (0101H bit field)
 
         Run/stop, direction, external fault, fault reset, jog, and remote multi-function inputs/outputs.
-        Address 0x0101; parameter P_257; u16, access rw.
+        Address 0x0101 (Modicon 40258); parameter P_257; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (指令 DATA).
@@ -233,7 +233,7 @@ class Client(ClientBase[Snapshot]):
         self.frequency_command: ReadWrite[float] = ReadWrite(self, _codec_frequency_command)
         """频率指令
 
-        Address 0x0102; parameter P_258; u16, access rw.
+        Address 0x0102 (Modicon 40259); parameter P_258; u16, access rw.
         Unit: Hz; scale 0.01; range — .. — Hz.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §保持暂存器的写入 [06H].
@@ -241,7 +241,7 @@ class Client(ClientBase[Snapshot]):
         self.torque_command: ReadWrite[int] = ReadWrite(self, _codec_torque_command)
         """转矩指令 *1
 
-        Address 0x0103; parameter P_259; u16, access rw.
+        Address 0x0103 (Modicon 40260); parameter P_259; u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (指令 DATA).
@@ -249,7 +249,7 @@ class Client(ClientBase[Snapshot]):
         self.status: ReadOnly[Status] = ReadOnly(self, _codec_status)
         """运转状态 etc. (0120H bit field)
 
-        Address 0x0120; parameter P_288; u16, access r.
+        Address 0x0120 (Modicon 40289); parameter P_288; u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -257,7 +257,7 @@ class Client(ClientBase[Snapshot]):
         self.frequency_command_monitor: ReadOnly[float] = ReadOnly(self, _codec_frequency_command_monitor)
         """频率指令 (0123H, from the 03H example)
 
-        Address 0x0123; parameter P_291; u16, access r.
+        Address 0x0123 (Modicon 40292); parameter P_291; u16, access r.
         Unit: Hz; scale 0.01; range — .. — Hz.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §保持暂存器内容读出 [03H].
@@ -265,7 +265,7 @@ class Client(ClientBase[Snapshot]):
         self.output_current: ReadOnly[float] = ReadOnly(self, _codec_output_current)
         """输出电流 (10/1A)
 
-        Address 0x0127; parameter P_295; u16, access r.
+        Address 0x0127 (Modicon 40296); parameter P_295; u16, access r.
         Unit: A; scale 0.1; range — .. — A.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -273,7 +273,7 @@ class Client(ClientBase[Snapshot]):
         self.torque_command_monitor: ReadOnly[int] = ReadOnly(self, _codec_torque_command_monitor)
         """转矩指令 *1
 
-        Address 0x0128; parameter P_296; u16, access r.
+        Address 0x0128 (Modicon 40297); parameter P_296; u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -281,7 +281,7 @@ class Client(ClientBase[Snapshot]):
         self.output_torque: ReadOnly[int] = ReadOnly(self, _codec_output_torque)
         """输出转矩
 
-        Address 0x0129; parameter P_297; u16, access r.
+        Address 0x0129 (Modicon 40298); parameter P_297; u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -289,7 +289,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_feedback: ReadOnly[float] = ReadOnly(self, _codec_pid_feedback)
         """PID 回授量 (100% / 最大输出频率, 10/1%)
 
-        Address 0x012A; parameter P_298; u16, access r.
+        Address 0x012A (Modicon 40299); parameter P_298; u16, access r.
         Unit: %; scale 0.1; range — .. — %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -297,7 +297,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_input: ReadOnly[float] = ReadOnly(self, _codec_pid_input)
         """PID 输入量 (100% / 最大输出频率, 10/1% 附符号)
 
-        Address 0x012B; parameter P_299; s16, access r.
+        Address 0x012B (Modicon 40300); parameter P_299; s16, access r.
         Unit: %; scale 0.1; range — .. — %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -305,7 +305,7 @@ class Client(ClientBase[Snapshot]):
         self.ain_input: ReadOnly[float] = ReadOnly(self, _codec_ain_input)
         """TM2 之 AIN 输入量 (1024 / 10V) *1
 
-        Address 0x012C; parameter P_300; u16, access r.
+        Address 0x012C (Modicon 40301); parameter P_300; u16, access r.
         Unit: V; scale 0.009765625; range — .. — V.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -313,7 +313,7 @@ class Client(ClientBase[Snapshot]):
         self.av2_input: ReadOnly[float] = ReadOnly(self, _codec_av2_input)
         """TM2 之 AV2 输入量 (1024 / 10V) *1
 
-        Address 0x012D; parameter P_301; u16, access r.
+        Address 0x012D (Modicon 40302); parameter P_301; u16, access r.
         Unit: V; scale 0.009765625; range — .. — V.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (监视数据).
@@ -321,7 +321,7 @@ class Client(ClientBase[Snapshot]):
         self.parameters: ReadWriteArray[int] = ReadWriteArray(self, _codec_parameters)
         """参数 P_0..P_255
 
-        Address 0x0000, 256 elements, stride 1; parameter P_0 (element i: P_0 … P_255); u16, access rw.
+        Address 0x0000 (Modicon 40001), 256 elements, stride 1; parameter P_0 (element i: P_0 … P_255); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 003 §参数与暂存器编号对照表.

@@ -308,7 +308,7 @@ class Client(ClientBase[Snapshot]):
         """data address 0004H
 
         Function parameter at 0004H, read in the 03H example; its meaning is not given.
-        Address 0x0004; u16, access r.
+        Address 0x0004 (Modicon 40005); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Example read 03H.
@@ -317,7 +317,7 @@ class Client(ClientBase[Snapshot]):
         """data address 0005H
 
         Function parameter at 0005H, read in the 03H example; its meaning is not given.
-        Address 0x0005; u16, access r.
+        Address 0x0005 (Modicon 40006); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Example read 03H.
@@ -326,7 +326,7 @@ class Client(ClientBase[Snapshot]):
         """data address 0008H
 
         Function parameter at 0008H, written with 5000 (1388H) in the 06H example; its meaning is not given.
-        Address 0x0008; u16, access rw.
+        Address 0x0008 (Modicon 40009); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Example write 06H.
@@ -335,7 +335,7 @@ class Client(ClientBase[Snapshot]):
         """Communication control command
 
         Run / stop / jog / fault-reset command word.
-        Address 0x1000; u16, access w.
+        Address 0x1000 (Modicon 44097); u16, access w.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 1000H.
@@ -344,7 +344,7 @@ class Client(ClientBase[Snapshot]):
         """Inverter state
 
         Running state of the inverter.
-        Address 0x1001; u16, access r.
+        Address 0x1001 (Modicon 44098); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 1001H.
@@ -353,7 +353,7 @@ class Client(ClientBase[Snapshot]):
         """Communication setting
 
         Communication setting, a relative value in percent. If it is set as the frequency source it is the percentage of the maximum frequency (P0.04); if it is set or fed back as PID it is the percentage of PID.
-        Address 0x2000; s16, access rw.
+        Address 0x2000 (Modicon 48193); s16, access rw.
         Unit: %; scale 0.01; range -100 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2000H.
@@ -362,7 +362,7 @@ class Client(ClientBase[Snapshot]):
         """PID setting
 
         PID setting over communication.
-        Address 0x2001; u16, access rw.
+        Address 0x2001 (Modicon 48194); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2001H.
@@ -371,7 +371,7 @@ class Client(ClientBase[Snapshot]):
         """PID feedback
 
         PID feedback over communication.
-        Address 0x2002; u16, access rw.
+        Address 0x2002 (Modicon 48195); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2002H.
@@ -380,7 +380,7 @@ class Client(ClientBase[Snapshot]):
         """Setting Value of Torque
 
         Torque setting over communication, in percent.
-        Address 0x2003; u16, access rw.
+        Address 0x2003 (Modicon 48196); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2003H.
@@ -389,7 +389,7 @@ class Client(ClientBase[Snapshot]):
         """Setting Value of upper limit frequency (0-Fmax)
 
         Upper limit frequency set over communication, 0 to Fmax.
-        Address 0x2004; u16, access rw.
+        Address 0x2004 (Modicon 48197); u16, access rw.
         Unit: none; scale 1; range 0 .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2004H.
@@ -397,7 +397,7 @@ class Client(ClientBase[Snapshot]):
         self.operating_frequency: ReadOnly[int] = ReadOnly(self, _codec_operating_frequency)
         """Operating frequency
 
-        Address 0x3000; u16, access r.
+        Address 0x3000 (Modicon 412289); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3000H.
@@ -405,7 +405,7 @@ class Client(ClientBase[Snapshot]):
         self.set_frequency: ReadOnly[int] = ReadOnly(self, _codec_set_frequency)
         """Set frequency
 
-        Address 0x3001; u16, access r.
+        Address 0x3001 (Modicon 412290); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3001H.
@@ -413,7 +413,7 @@ class Client(ClientBase[Snapshot]):
         self.dc_bus_voltage: ReadOnly[int] = ReadOnly(self, _codec_dc_bus_voltage)
         """DC Bus voltage
 
-        Address 0x3002; u16, access r.
+        Address 0x3002 (Modicon 412291); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3002H.
@@ -421,7 +421,7 @@ class Client(ClientBase[Snapshot]):
         self.output_voltage: ReadOnly[int] = ReadOnly(self, _codec_output_voltage)
         """Output voltage
 
-        Address 0x3003; u16, access r.
+        Address 0x3003 (Modicon 412292); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3003H.
@@ -429,7 +429,7 @@ class Client(ClientBase[Snapshot]):
         self.output_current: ReadOnly[int] = ReadOnly(self, _codec_output_current)
         """Output current
 
-        Address 0x3004; u16, access r.
+        Address 0x3004 (Modicon 412293); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3004H.
@@ -437,7 +437,7 @@ class Client(ClientBase[Snapshot]):
         self.rotation_speed: ReadOnly[int] = ReadOnly(self, _codec_rotation_speed)
         """Rotation speed upon running
 
-        Address 0x3005; u16, access r.
+        Address 0x3005 (Modicon 412294); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3005H.
@@ -445,7 +445,7 @@ class Client(ClientBase[Snapshot]):
         self.output_power: ReadOnly[int] = ReadOnly(self, _codec_output_power)
         """Output power
 
-        Address 0x3006; u16, access r.
+        Address 0x3006 (Modicon 412295); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3006H.
@@ -453,7 +453,7 @@ class Client(ClientBase[Snapshot]):
         self.output_torque: ReadOnly[int] = ReadOnly(self, _codec_output_torque)
         """Output torque
 
-        Address 0x3007; u16, access r.
+        Address 0x3007 (Modicon 412296); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3007H.
@@ -461,7 +461,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_setting_value: ReadOnly[int] = ReadOnly(self, _codec_pid_setting_value)
         """PID setting value
 
-        Address 0x3008; u16, access r.
+        Address 0x3008 (Modicon 412297); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3008H.
@@ -469,7 +469,7 @@ class Client(ClientBase[Snapshot]):
         self.pid_feedback_value: ReadOnly[int] = ReadOnly(self, _codec_pid_feedback_value)
         """PID feedback value
 
-        Address 0x3009; u16, access r.
+        Address 0x3009 (Modicon 412298); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3009H.
@@ -477,7 +477,7 @@ class Client(ClientBase[Snapshot]):
         self.terminal_input_status: ReadOnly[int] = ReadOnly(self, _codec_terminal_input_status)
         """Terminal input status
 
-        Address 0x300A; u16, access r.
+        Address 0x300A (Modicon 412299); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 300AH.
@@ -485,7 +485,7 @@ class Client(ClientBase[Snapshot]):
         self.terminal_output_status: ReadOnly[int] = ReadOnly(self, _codec_terminal_output_status)
         """Terminal output status
 
-        Address 0x300B; u16, access r.
+        Address 0x300B (Modicon 412300); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 300BH.
@@ -493,7 +493,7 @@ class Client(ClientBase[Snapshot]):
         self.analog_input_ai1: ReadOnly[int] = ReadOnly(self, _codec_analog_input_ai1)
         """Analog input AI1
 
-        Address 0x300C; u16, access r.
+        Address 0x300C (Modicon 412301); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 300CH.
@@ -501,7 +501,7 @@ class Client(ClientBase[Snapshot]):
         self.analog_input_ai2: ReadOnly[int] = ReadOnly(self, _codec_analog_input_ai2)
         """Analog input AI2
 
-        Address 0x300D; u16, access r.
+        Address 0x300D (Modicon 412302); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 300DH.
@@ -509,7 +509,7 @@ class Client(ClientBase[Snapshot]):
         self.high_speed_pulse_frequency: ReadOnly[int] = ReadOnly(self, _codec_high_speed_pulse_frequency)
         """High-speed pulse frequency (HDI)
 
-        Address 0x3010; u16, access r.
+        Address 0x3010 (Modicon 412305); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3010H.
@@ -517,7 +517,7 @@ class Client(ClientBase[Snapshot]):
         self.plc_current_step: ReadOnly[int] = ReadOnly(self, _codec_plc_current_step)
         """Multi-step and current steps of PLC
 
-        Address 0x3012; u16, access r.
+        Address 0x3012 (Modicon 412307); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3012H.
@@ -525,7 +525,7 @@ class Client(ClientBase[Snapshot]):
         self.external_counter_input: ReadOnly[int] = ReadOnly(self, _codec_external_counter_input)
         """External counter input
 
-        Address 0x3014; u16, access r.
+        Address 0x3014 (Modicon 412309); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3014H.
@@ -533,7 +533,7 @@ class Client(ClientBase[Snapshot]):
         self.torque_setting: ReadOnly[int] = ReadOnly(self, _codec_torque_setting)
         """Torque setting
 
-        Address 0x3015; u16, access r.
+        Address 0x3015 (Modicon 412310); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3015H.
@@ -541,7 +541,7 @@ class Client(ClientBase[Snapshot]):
         self.device_code: ReadOnly[int] = ReadOnly(self, _codec_device_code)
         """Device Code
 
-        Address 0x3016; u16, access r.
+        Address 0x3016 (Modicon 412311); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 3016H.
@@ -550,7 +550,7 @@ class Client(ClientBase[Snapshot]):
         """Inverter fault address
 
         Current fault of the inverter.
-        Address 0x5000; u16, access r.
+        Address 0x5000 (Modicon 420481); u16, access r.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Manual: 002 §Fault address table, 5000H.

@@ -93,7 +93,7 @@ class Ev(Behaviour):
     def _data(self, unit: Unit, base: str, no: int, fallback: float) -> float:
         for name in (f"{base}_ram[{no}]", f"{base}[{no}]"):
             if unit.has(name) and unit.raw(name) != 0:
-                return float(unit.get(name))
+                return unit.number(name)
         return fallback
 
     # ---- hooks --------------------------------------------------------------------------

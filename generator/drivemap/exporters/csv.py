@@ -37,6 +37,15 @@ def _text(value: str | None) -> str:
     return "'" + text if text[:1] in ("=", "+", "-", "@") else text
 
 
+def _value(value: float | str | bool | None) -> str:
+    """A default: a number, text (strings) or true/false (coils)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return _text(value)
+    return _num(value)
+
+
 def _num(value: float | None) -> str:
     if value is None:
         return ""
@@ -73,7 +82,7 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "access": reg.access,
         "min": _num(reg.min),
         "max": _num(reg.max),
-        "default": _num(reg.default_at(cell.index)),
+        "default": _value(reg.default_at(cell.index)),
         "reflect": reg.reflect,
         "storage": reg.storage,
         "page": f"{reg.page.selector}={reg.page.value}" if reg.page else "",

@@ -46,7 +46,11 @@ def _raw(reg: Register, index: int, pages: dict[str, int]) -> int:
     if reg.name in pages:
         return pages[reg.name]
     default = reg.default_at(index)
-    return int(round((default - reg.offset) / reg.scale)) if default is not None else 0
+    if isinstance(default, bool):
+        return int(default)
+    if default is None or isinstance(default, str):
+        return 0
+    return int(round((default - reg.offset) / reg.scale))
 
 
 def wire_words(reg: Register, raw: int) -> list[int]:

@@ -119,9 +119,10 @@ def ratio_note(session: Session, reg: Register, index: int, raw: int, results: R
     """A value that is the map's default times a power of ten hints at a wrong scale."""
     default = reg.default_at(index)
     value = raw * reg.scale + reg.offset
-    if default in (None, 0) or value == 0 or reg.enum or reg.bits:
+    if not isinstance(default, (int, float)) or isinstance(default, bool) or default == 0 or value == 0:
         return
-    assert default is not None
+    if reg.enum or reg.bits:
+        return
     exponent = math.log10(abs(value / default))
     if abs(exponent) >= 1 and abs(exponent - round(exponent)) < 1e-9:
         results.add(Finding("value", "note", reg.element_name(index), reg.element_address(index), reg.line,

@@ -17,7 +17,7 @@ from rich.table import Table
 
 from ..model import Register
 from ..runtime.bus import Exchange
-from ..runtime.client import Core, Op
+from ..runtime.core import Core, Op
 from ..runtime.errors import DriveError
 from .connection import Link, add_connection_arguments, resolve_link
 from .errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb

@@ -67,6 +67,14 @@ class DriveTimeout(TransportError, TimeoutError):
     """No valid reply after the last retry."""
 
 
+class ScaleUnavailable(DriveError):
+    """A register scaled by a scale-factor register (``scale_register``) cannot be given a value: its
+    factor reads as one of its not-available values, is not a plausible power of ten, or was not read.
+
+    The client never scales by a remembered or missing factor; it raises this instead.
+    """
+
+
 class PartialWrite(DriveError):
     """A write that needed several requests stopped part-way: what was and was not written.
 
@@ -131,6 +139,7 @@ __all__ = [
     "PartialWrite",
     "ReadOnlyRegister",
     "RunningWriteWarning",
+    "ScaleUnavailable",
     "TransportError",
     "UnknownRegister",
     "UnsupportedFunction",

@@ -5,6 +5,12 @@ Everything here is read from a :class:`~drivemap.runtime.spec.DeviceSpec` (the g
 communication error codes a device records (``comm_error_policy``, ``comm_error_history``), which
 function codes exist and which may be broadcast, register access, ranges, pages and storage.
 
+Tables: holding registers answer 03h/06h/10h, input registers 04h, coils 01h/05h/0Fh, discrete
+inputs 02h, each its own address space. Reserved ranges the map marks readable read as 0, and so do
+undocumented words in a gap of at most the map's ``max_gap`` words between documented ones (the map
+says the device reads across them); a read that covers part of a ``min_read`` block is refused like
+an unknown address.
+
 The core works on PDUs (function code + data) and knows nothing about transports;
 :mod:`drivemap.runtime.simserve` puts it behind a pymodbus server (TCP, RTU, ASCII).
 Behaviour (what a drive does when it is told to run) lives in :mod:`drivemap.behaviours`.
@@ -13,7 +19,8 @@ Error cases and what the simulator answers (the code comes from the map's except
 
 ``illegal_function``  function code not listed in the map (or an 08h sub-function other than 0000h)
 ``illegal_address``   an address that is neither a register nor a readable reserved address;
-                      a write to a reserved address; a write that covers only half of a 32-bit register
+                      a write to a reserved address; a write that covers only part of a multi-word
+                      register; a read that covers only part of a ``min_read`` block
 ``illegal_quantity``  quantity 0 or above the function code's ``max_quantity``
 ``bad_length``        a PDU whose length does not fit its function (10h byte count != 2 x quantity)
 ``out_of_range``      a written value outside the register's type, min/max or enum values
@@ -30,19 +37,19 @@ bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard M
 
 from __future__ import annotations
 
-import contextlib
-import json
 import math
 import os
 import struct
-import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from .codec import raw_bounds
 from .quirks import encode_read_reply
+from .simstate import StateFile
+from .simunit import SimulatorError, SimValue, Unit, to_value, unwire_words
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
 if TYPE_CHECKING:
@@ -51,6 +58,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CASES",
     "STANDARD_CODES",
+    "SimValue",
     "Simulator",
     "SimulatorError",
     "Unit",
@@ -75,14 +83,15 @@ _FALLBACK = {
     "busy": "out_of_range",
 }
 #: Largest quantity a standard Modbus PDU can carry, per function code (when the map gives none).
-_STANDARD_MAX_QUANTITY = {0x03: 125, 0x04: 125, 0x06: 1, 0x10: 123}
-_TYPE_BOUNDS = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF)}
-_STATE_VERSION = 1
-#: Read plans kept per simulator (address, quantity, page state); the cache starts over when full.
+_STANDARD_MAX_QUANTITY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x06: 1, 0x0F: 1968, 0x10: 123}
+#: The table each read function code reads.
+_READ_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input"}
+#: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
 _PACKERS: dict[int, Callable[..., bytes]] = {}
-#: (cells read, per word: (cell or None for a reserved word read as 0, bit shift in the cell's raw value))
-_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int], ...]]
+#: (cells read, per word: (cell or None for a word read as 0, bit shift in the cell's raw value, swap bytes),
+#: whether any word swaps its bytes)
+_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int, bool], ...], bool]
 
 
 def _packer(count: int) -> Callable[..., bytes]:
@@ -91,10 +100,6 @@ def _packer(count: int) -> Callable[..., bytes]:
     if pack is None:
         pack = _PACKERS[count] = struct.Struct(f">{count}H").pack
     return pack
-
-
-class SimulatorError(ValueError):
-    """A bad call of the simulator API (unknown register, value that does not fit, bad unit)."""
 
 
 class _Refused(Exception):
@@ -107,7 +112,7 @@ class _Refused(Exception):
 
 @dataclass(frozen=True)
 class _Slot:
-    """One 16-bit address of one register cell."""
+    """One 16-bit address (one bit in a bit table) of one register cell."""
 
     cell: str
     reg: RegisterSpec
@@ -120,113 +125,33 @@ def _cell_names(reg: RegisterSpec) -> Iterator[tuple[str, int]]:
         yield reg.element_name(i), i
 
 
-def _to_raw(reg: RegisterSpec, value: float) -> int:
-    raw = (value - reg.offset) / reg.scale
-    return int(round(raw))
+def _word_shift(reg: RegisterSpec, word: int) -> int:
+    """Bit shift in the raw value of the ``word``-th word on the wire."""
+    n = reg.words
+    if reg.bit_table or n == 1:
+        return 0
+    canonical = n - 1 - word if reg.word_order == "low_first" else word
+    return 16 * (n - 1 - canonical)
 
 
-def _to_value(reg: RegisterSpec, raw: int) -> float | int:
-    if float(reg.scale).is_integer() and float(reg.offset).is_integer():
-        return int(raw * int(reg.scale) + int(reg.offset))
-    return round(raw * reg.scale + reg.offset, 9)
+def _gap_words(spec: DeviceSpec, documented: frozenset[tuple[str, int]]) -> frozenset[tuple[str, int]]:
+    """Undocumented words between two documented ones at most ``max_gap`` apart (the device reads them)."""
+    if not spec.max_gap:
+        return frozenset()
+    out: set[tuple[str, int]] = set()
+    for table in {t for t, _ in documented}:
+        addresses = sorted(a for t, a in documented if t == table)
+        for low, high in zip(addresses, addresses[1:], strict=False):
+            if 1 < high - low <= spec.max_gap + 1:
+                out.update((table, a) for a in range(low + 1, high))
+    return frozenset(out)
 
 
-def _from_words(reg: RegisterSpec, words: Sequence[int]) -> int:
-    if reg.words == 1:
-        value = words[0]
-        bits = 16
-    else:
-        first, second = words
-        high, low = (second, first) if reg.word_order == "low_first" else (first, second)
-        value = (high << 16) | low
-        bits = 32
-    if reg.signed and value >= 1 << (bits - 1):
-        value -= 1 << bits
-    return value
+def _swapped(word: int, swap: bool) -> int:
+    return ((word & 0xFF) << 8) | (word >> 8) if swap else word
 
 
-class Unit:
-    """The state of one unit id: raw register values, pending configuration, behaviour scratch.
-
-    Behaviours read and change a unit through these methods; names are cell names
-    (``motor_speed``, ``digital_speed[3]``).
-    """
-
-    def __init__(self, sim: Simulator, unit_id: int) -> None:
-        self.sim = sim
-        self.id = unit_id
-        self.values: dict[str, int] = {}
-        #: Values in effect for registers that take effect at Configuration (reflect "configuration").
-        self.applied: dict[str, int] = {}
-        #: Free space for the behaviour (ramps, timers, edge detection).
-        self.scratch: dict[str, Any] = {}
-        self.injected: int | None = None
-        for reg in sim.spec.registers:
-            for name, index in _cell_names(reg):
-                default = reg.default_at(index)
-                raw = _to_raw(reg, default) if default is not None else 0
-                self.values[name] = raw
-                if reg.reflect == "configuration":
-                    self.applied[name] = raw
-
-    # ---- reading -------------------------------------------------------------------------
-    def has(self, name: str) -> bool:
-        return name in self.values
-
-    def raw(self, name: str) -> int:
-        """Raw value (signed for s16/s32) as a read would see it."""
-        return self.values[self.sim._check_cell(name)]
-
-    def get(self, name: str) -> float | int:
-        """Engineering value (raw * scale + offset)."""
-        return _to_value(self.sim._reg_of(name), self.raw(name))
-
-    def effective_raw(self, name: str) -> int:
-        """The value in effect: for configuration-class registers the one applied at Configuration."""
-        self.sim._check_cell(name)
-        return self.applied.get(name, self.values[name])
-
-    def bit(self, name: str, bit: str) -> int:
-        spec = self.sim._bit(name, bit)
-        return (self.raw(name) & spec.mask) >> spec.offset
-
-    # ---- changing (no dialect checks: this is the device itself changing its state) --------
-    def set_raw(self, name: str, raw: int) -> None:
-        reg = self.sim._reg_of(name)
-        low, high = _TYPE_BOUNDS[reg.type]
-        raw = int(raw)
-        if not low <= raw <= high:
-            raise SimulatorError(f"{name}: raw value {raw} does not fit {reg.type}")
-        self.values[name] = raw
-        if reg.storage == "eeprom":
-            self.sim._dirty = True
-
-    def set(self, name: str, value: float) -> None:
-        self.set_raw(name, _to_raw(self.sim._reg_of(name), value))
-
-    def set_bit(self, name: str, bit: str, value: int) -> None:
-        spec = self.sim._bit(name, bit)
-        raw = self.raw(name) & 0xFFFF
-        raw = (raw & ~spec.mask) | ((int(value) << spec.offset) & spec.mask)
-        self.set_raw(name, raw)
-
-    def apply_configuration(self) -> None:
-        """Make every pending configuration-class value take effect."""
-        for name in self.applied:
-            self.applied[name] = self.values[name]
-
-    def record_comm_error(self, code: int) -> None:
-        """Push a communication error code into the history register (newest first)."""
-        name = self.sim.spec.comm_error_history
-        if name is None:
-            return
-        reg = self.sim.spec.register(name)
-        for i in range(reg.count - 1, 0, -1):
-            self.values[reg.element_name(i)] = self.values[reg.element_name(i - 1)]
-        self.values[reg.element_name(0)] = code
-
-
-class Simulator:
+class Simulator(StateFile):
     """A simulated device: one register store per unit id, answering in the device's dialect.
 
     ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
@@ -268,23 +193,28 @@ class Simulator:
         self._dirty = False
         self._regs: dict[str, RegisterSpec] = {}
         self._cells: dict[str, tuple[RegisterSpec, int]] = {}
-        self._by_address: dict[int, list[_Slot]] = {}
+        self._by_address: dict[tuple[str, int], list[_Slot]] = {}
         for reg in spec.registers:
             self._regs[reg.name] = reg
             for name, index in _cell_names(reg):
                 self._cells[name] = (reg, index)
                 start = reg.element_address(index)
                 for word in range(reg.words):
-                    self._by_address.setdefault(start + word, []).append(_Slot(name, reg, index, word))
-        # address -> its slot when the first register there has no page (it always wins _resolve)
-        self._static: dict[int, _Slot] = {a: slots[0] for a, slots in self._by_address.items()
-                                          if slots[0].reg.page is None}
+                    self._by_address.setdefault((reg.table, start + word), []).append(_Slot(name, reg, index, word))
+        # (table, address) -> its slot when the first register there has no page (it always wins _resolve)
+        self._static: dict[tuple[str, int], _Slot] = {a: slots[0] for a, slots in self._by_address.items()
+                                                      if slots[0].reg.page is None}
+        # min_read blocks: (table, start, end); words inside that no register covers read as 0
+        self._blocks = tuple((r.table, r.address, r.address + r.min_read) for r in spec.registers
+                             if r.min_read is not None)
+        self._gap_words = _gap_words(spec, frozenset(self._by_address) | frozenset(
+            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1)))
         # every selector a page depends on: the page state of a unit is their values
         self._selectors: tuple[str, ...] = tuple(sorted(
             {r.page.selector for r in spec.registers if r.page is not None}
             | {r.page.selector for r in spec.reserved if r.page is not None}))
-        # (address, quantity, page state) -> read plan (see _read_plan)
-        self._read_plans: dict[tuple[int, int, tuple[int, ...]], _ReadPlan | str] = {}
+        # (table, address, quantity, page state) -> read plan (see _read_plan)
+        self._read_plans: dict[tuple[str, int, int, tuple[int, ...]], _ReadPlan | str] = {}
         unit_ids = list(dict.fromkeys(int(u) for u in units))
         if not unit_ids:
             raise SimulatorError("a simulator needs at least one unit id")
@@ -315,8 +245,9 @@ class Simulator:
     def _targets(self, unit: int | None) -> list[Unit]:
         return list(self.units.values()) if unit is None else [self.unit(unit)]
 
-    def set(self, name: str, value: float, unit: int | None = None) -> None:
-        """Preset a register (engineering value) on one unit or, by default, on every unit.
+    def set(self, name: str, value: SimValue, unit: int | None = None) -> None:
+        """Preset a register (engineering value: a number, text, true/false, None for the first
+        not-available value) on one unit or, by default, on every unit.
 
         A preset is the device's state, not a Modbus write: no dialect checks, no behaviour hook;
         configuration-class registers are set as already applied.
@@ -337,8 +268,8 @@ class Simulator:
                     target.applied[name] = target.values[name]
             self._save_if_dirty()
 
-    def get(self, name: str, unit: int | None = None) -> float | int:
-        """Engineering value of a register on one unit (the first by default)."""
+    def get(self, name: str, unit: int | None = None) -> SimValue:
+        """Engineering value of a register on one unit (the first by default); None for a not-available value."""
         with self._lock:
             return self.unit(unit).get(name)
 
@@ -444,7 +375,7 @@ class Simulator:
 
     def _broadcast(self, pdu: bytes) -> None:
         fc = self.spec.function(pdu[0])
-        if fc is None or fc.broadcast is not True or pdu[0] not in (0x06, 0x10):
+        if fc is None or fc.broadcast is not True or pdu[0] not in (0x05, 0x06, 0x0F, 0x10):
             return  # the device ignores broadcast requests it cannot execute
         for unit in self.units.values():
             try:
@@ -465,10 +396,16 @@ class Simulator:
             raise _Refused("illegal_function")
         if code in (0x03, 0x04):
             return self._read(unit, fc.code, fc.max_quantity, data)
+        if code in (0x01, 0x02):
+            return self._read_bits(unit, fc.code, fc.max_quantity, data)
         if code == 0x06:
             return self._write_single(unit, data, broadcast)
         if code == 0x10:
             return self._write_multiple(unit, fc.max_quantity, data, broadcast)
+        if code == 0x05:
+            return self._write_coil(unit, data, broadcast)
+        if code == 0x0F:
+            return self._write_coils(unit, fc.max_quantity, data, broadcast)
         if code == 0x08:
             return self._loopback(data)
         raise _Refused("illegal_function")
@@ -476,7 +413,8 @@ class Simulator:
     def _max_quantity(self, code: int, limit: int | None) -> int:
         return limit if limit is not None else _STANDARD_MAX_QUANTITY.get(code, 125)
 
-    def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+    def _read_request(self, code: int, limit: int | None, data: bytes) -> tuple[int, int]:
+        """(address, quantity) of a read request, checked."""
         if len(data) != 4:
             raise _Refused("bad_length")
         address = int.from_bytes(data[0:2], "big")
@@ -485,49 +423,71 @@ class Simulator:
             raise _Refused("illegal_quantity")
         if address + quantity > 0x10000:
             raise _Refused("illegal_address")
+        return address, quantity
+
+    def _plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan:
         selectors = self._selectors
         state = tuple(unit.values.get(sel, 0) for sel in selectors) if selectors else ()
-        plan = self._read_plans.get((address, quantity, state))
+        plan = self._read_plans.get((table, address, quantity, state))
         if plan is None:
-            plan = self._read_plan(unit, address, quantity)
+            plan = self._read_plan(unit, table, address, quantity)
             if len(self._read_plans) >= _MAX_READ_PLANS:
                 self._read_plans.clear()
-            self._read_plans[(address, quantity, state)] = plan
+            self._read_plans[(table, address, quantity, state)] = plan
         if isinstance(plan, str):
             raise _Refused(plan)
-        cells, words = plan
+        return plan
+
+    def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+        address, quantity = self._read_request(code, limit, data)
+        cells, words, swapping = self._plan(unit, _READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
-        body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
-                                       for cell, shift in words])
+        if swapping:
+            body = _packer(quantity)(*[0 if cell is None else _swapped((values[cell] >> shift) & 0xFFFF, swap)
+                                       for cell, shift, swap in words])
+        else:
+            body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
+                                       for cell, shift, _ in words])
         if self.reply_quirks:
             return encode_read_reply(code, body, self.reply_quirks)
         return bytes((code, 2 * quantity)) + body
 
-    def _read_plan(self, unit: Unit, address: int, quantity: int) -> _ReadPlan | str:
-        """What a read of ``quantity`` words at ``address`` returns in the unit's current pages.
+    def _read_bits(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+        address, quantity = self._read_request(code, limit, data)
+        cells, words, _ = self._plan(unit, _READ_TABLES[code], address, quantity)
+        self.behaviour.on_read(unit, list(cells))
+        values = unit.values
+        packed = bytearray((quantity + 7) // 8)
+        for i, (cell, _, _) in enumerate(words):
+            if cell is not None and values[cell]:
+                packed[i // 8] |= 1 << (i % 8)
+        return bytes((code, len(packed))) + bytes(packed)
 
-        Either the refusal case or (cells read, per word (cell or None for a reserved 0, shift)).
+    def _read_plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan | str:
+        """What a read of ``quantity`` words at ``address`` of ``table`` returns in the unit's current pages.
+
+        Either the refusal case or (cells read, per word (cell or None for a 0, shift, swap)).
         Depends only on the spec and the values of the page selectors, so it is cached per page state.
         """
-        words: list[tuple[str | None, int]] = []
-        for addr in range(address, address + quantity):
-            slot = self._resolve(unit, addr)
+        end = address + quantity
+        for btable, start, stop in self._blocks:
+            if btable == table and start < end and address < stop and not (address <= start and stop <= end):
+                return "illegal_address"  # part of a block the device only reads whole
+        words: list[tuple[str | None, int, bool]] = []
+        for addr in range(address, end):
+            slot = self._resolve(unit, table, addr)
             if slot is None:
-                if not self._reserved_readable(unit, addr):
+                if not self._reads_as_zero(unit, table, addr):
                     return "illegal_address"
-                words.append((None, 0))
+                words.append((None, 0, False))
                 continue
             if not slot.reg.readable:
                 return "write_only"
             reg = slot.reg
-            if reg.words == 1:
-                shift = 0
-            else:  # wire order: [high, low], or [low, high] for low_first
-                shift = 16 if (slot.word == 0) != (reg.word_order == "low_first") else 0
-            words.append((slot.cell, shift))
-        cells = tuple(dict.fromkeys(cell for cell, _ in words if cell is not None))
-        return cells, tuple(words)
+            words.append((slot.cell, _word_shift(reg, slot.word), reg.byte_order == "low_first" and not reg.bit_table))
+        cells = tuple(dict.fromkeys(cell for cell, _, _ in words if cell is not None))
+        return cells, tuple(words), any(swap for _, _, swap in words)
 
     def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
         if len(data) != 4:
@@ -553,6 +513,32 @@ class Simulator:
         self._write(unit, address, words, broadcast)
         return bytes([0x10]) + data[0:4]
 
+    def _write_coil(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        value = int.from_bytes(data[2:4], "big")
+        if value not in (0x0000, 0xFF00):
+            raise _Refused("out_of_range")
+        self._write(unit, address, [1 if value else 0], broadcast, "coil")
+        return bytes([0x05]) + data
+
+    def _write_coils(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
+        if len(data) < 5:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        count = data[4]
+        if not 1 <= quantity <= self._max_quantity(0x0F, limit):
+            raise _Refused("illegal_quantity")
+        if count != (quantity + 7) // 8 or len(data) != 5 + count:
+            raise _Refused("bad_length")
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        bits = [(data[5 + i // 8] >> (i % 8)) & 1 for i in range(quantity)]
+        self._write(unit, address, bits, broadcast, "coil")
+        return bytes([0x0F]) + data[0:4]
+
     def _loopback(self, data: bytes) -> bytes:
         if len(data) < 2:
             raise _Refused("bad_length")
@@ -560,27 +546,28 @@ class Simulator:
             raise _Refused("illegal_function")
         return bytes([0x08]) + data
 
-    def _write(self, unit: Unit, address: int, words: list[int], broadcast: bool) -> None:
-        """Validate every word, then apply all of them (a refused request changes nothing)."""
+    def _write(self, unit: Unit, address: int, words: list[int], broadcast: bool, table: str = "holding") -> None:
+        """Validate every word (coil), then apply all of them (a refused request changes nothing)."""
         changes: list[tuple[str, RegisterSpec, int]] = []
         i = 0
         while i < len(words):
-            slot = self._resolve(unit, address + i)
+            slot = self._resolve(unit, table, address + i)
             if slot is None:
                 raise _Refused("illegal_address")
             reg = slot.reg
             if slot.word != 0 or i + reg.words > len(words):
-                raise _Refused("illegal_address")  # half of a 32-bit register
+                raise _Refused("illegal_address")  # part of a multi-word register
             if broadcast and not reg.broadcast:
                 raise _Refused("illegal_address")
             if not reg.writable:
                 raise _Refused("read_only")
-            changes.append((slot.cell, reg, _from_words(reg, words[i : i + reg.words])))
+            raw = words[i] if reg.bit_table else unwire_words(reg, words[i : i + reg.words])
+            changes.append((slot.cell, reg, raw))
             i += reg.words
         if any(self._refused_while_running(reg) for _, reg, _ in changes) and self.behaviour.is_running(unit):
             raise _Refused("busy")
         for _, reg, raw in changes:
-            if not self._in_range(reg, raw):
+            if not self._in_range(unit, reg, raw):
                 raise _Refused("out_of_range")
         for cell, reg, raw in changes:
             unit.values[cell] = raw
@@ -598,14 +585,22 @@ class Simulator:
         """Documented refusals always; the manual's mere advice only when the option asks for it."""
         return reg.refuse_while_running or (self.refuse_advised_while_running and reg.running_advice is not None)
 
-    def _in_range(self, reg: RegisterSpec, raw: int) -> bool:
-        low, high = _TYPE_BOUNDS[reg.type]
+    def _in_range(self, unit: Unit, reg: RegisterSpec, raw: int) -> bool:
+        low, high = raw_bounds(reg)
         if not low <= raw <= high:
             return False
+        if raw in reg.not_available or reg.type in ("string", "bool"):
+            return True
         if reg.enum_values and raw not in reg.enum_values:
             return False
-        value = raw * reg.scale + reg.offset
-        tolerance = abs(reg.scale) / 2
+        factor = unit._factor(reg)
+        value = to_value(reg, raw, factor)
+        if not isinstance(value, (int, float)):
+            return True
+        if value != value:  # NaN: only where the map sets no range
+            return reg.min is None and reg.max is None
+        step = abs(reg.scale) * (10.0 ** factor if factor is not None else 1.0)
+        tolerance = 0.0 if reg.type in ("f32", "f64") else step / 2
         if reg.min is not None and value < reg.min - tolerance:
             return False
         if reg.max is not None and value > reg.max + tolerance:
@@ -618,21 +613,25 @@ class Simulator:
             return True
         return bool(unit.values.get(page.selector, 0) == page.value)
 
-    def _resolve(self, unit: Unit, address: int) -> _Slot | None:
-        static = self._static.get(address)
+    def _resolve(self, unit: Unit, table: str, address: int) -> _Slot | None:
+        static = self._static.get((table, address))
         if static is not None:
             return static
-        for slot in self._by_address.get(address, ()):
+        for slot in self._by_address.get((table, address), ()):
             if self._page_ok(unit, slot.reg.page):
                 return slot
         return None
 
-    def _reserved_readable(self, unit: Unit, address: int) -> bool:
-        """Reserved addresses the map marks readable answer 0; unknown or unreadable ones are refused."""
-        return any(
-            r.start <= address <= r.end and r.readable is True and self._page_ok(unit, r.page)
-            for r in self.spec.reserved
-        )
+    def _reads_as_zero(self, unit: Unit, table: str, address: int) -> bool:
+        """Reserved addresses the map marks readable answer 0, as do undocumented ones in a gap the
+        map's max_gap lets the client read across or in a min_read block; other unknown or unreadable
+        ones are refused."""
+        if any(r.table == table and r.start <= address <= r.end and r.readable is True and self._page_ok(unit, r.page)
+               for r in self.spec.reserved):
+            return True
+        if (table, address) in self._gap_words:
+            return True
+        return any(t == table and s <= address < e for t, s, e in self._blocks)
 
     # ==== names ===============================================================================
     def _check_cell(self, name: str) -> str:
@@ -650,56 +649,3 @@ class Simulator:
             if spec.name == bit:
                 return spec
         raise SimulatorError(f"{name} has no bit {bit!r}")
-
-    # ==== persistence ===========================================================================
-    def _eeprom_cells(self) -> list[str]:
-        return [name for name, (reg, _) in self._cells.items() if reg.storage == "eeprom"]
-
-    def _save_if_dirty(self) -> None:
-        if self._dirty and self.state_file is not None:
-            self._write_state(self.state_file)
-        self._dirty = False
-
-    def _write_state(self, path: Path) -> None:
-        cells = self._eeprom_cells()
-        data = {
-            "model": self.spec.model,
-            "version": _STATE_VERSION,
-            "units": {str(uid): {name: unit.values[name] for name in cells} for uid, unit in self.units.items()},
-        }
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as handle:
-                json.dump(data, handle, indent=2, sort_keys=True)
-                handle.write("\n")
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
-
-    def _load_state(self, path: Path) -> None:
-        try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise SimulatorError(f"{path}: cannot read simulator state: {exc}") from exc
-        if not isinstance(data, dict) or data.get("model") != self.spec.model:
-            raise SimulatorError(f"{path}: state file is not for model {self.spec.model!r}")
-        units = data.get("units", {})
-        if not isinstance(units, dict):
-            raise SimulatorError(f"{path}: 'units' must be a mapping")
-        eeprom = set(self._eeprom_cells())
-        for uid, values in units.items():
-            unit = self.units.get(int(uid))
-            if unit is None or not isinstance(values, dict):
-                continue
-            for name, raw in values.items():
-                if name in eeprom and isinstance(raw, int):
-                    reg = self._cells[name][0]
-                    low, high = _TYPE_BOUNDS[reg.type]
-                    if low <= raw <= high:
-                        unit.values[name] = raw
-

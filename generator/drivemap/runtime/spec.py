@@ -8,6 +8,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+#: Words (registers) of each fixed-size type; strings have ``length`` words; a coil or discrete input is one bit.
+TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
+                              "f64": 4}
+SIGNED_TYPES = frozenset({"s16", "s32", "s64"})
+FLOAT_TYPES = frozenset({"f32", "f64"})
+BIT_TABLES = frozenset({"coil", "discrete"})
+#: The read function code of each table.
+READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
+
 
 @dataclass(frozen=True)
 class BitSpec:
@@ -30,7 +39,13 @@ class PageSpec:
 
 @dataclass(frozen=True)
 class RegisterSpec:
-    """One register or array; engineering value = raw * scale + offset."""
+    """One register or array; engineering value = raw * scale (* 10**scale factor) + offset.
+
+    ``table`` is its address space (holding, input, coil, discrete). The raw value is an int for
+    every type: the integer (signed for s16/s32/s64), the IEEE-754 bit pattern of a float, the text
+    bytes of a string as one unsigned big-endian number, 0/1 for a coil. ``words`` is the number of
+    16-bit words (bits for coils and discrete inputs) on the wire.
+    """
 
     name: str
     address: int
@@ -44,7 +59,8 @@ class RegisterSpec:
     unit: str | None = None
     min: float | None = None
     max: float | None = None
-    defaults: tuple[float | None, ...] = (None,)
+    defaults: tuple[float | str | None, ...] = (None,)
+    """Factory default per element (engineering units; text for strings, True/False for bools)."""
     reflect: str = "unknown"
     storage: str = "unknown"
     write_delay_ms: float | None = None
@@ -59,14 +75,25 @@ class RegisterSpec:
     source: str = ""
     #: the manual's advice for writes while the drive runs (the client warns; nothing is refused)
     running_advice: str | None = None
+    table: str = "holding"
+    byte_order: str = "high_first"
+    length: int = 1
+    """Words of a string (1 for other types)."""
+    encoding: str = "ascii"
+    scale_register: str | None = None
+    not_available: tuple[int, ...] = ()
+    """Raw values that read as None."""
+    min_read: int | None = None
+    words: int = field(init=False, compare=False, repr=False)
+    signed: bool = field(init=False, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "words", self.length if self.type == "string" else TYPE_WORDS[self.type])
+        object.__setattr__(self, "signed", self.type in SIGNED_TYPES)
 
     @property
-    def words(self) -> int:
-        return 2 if self.type in ("u32", "s32") else 1
-
-    @property
-    def signed(self) -> bool:
-        return self.type in ("s16", "s32")
+    def bit_table(self) -> bool:
+        return self.table in BIT_TABLES
 
     @property
     def readable(self) -> bool:
@@ -86,7 +113,7 @@ class RegisterSpec:
     def element_name(self, index: int) -> str:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
-    def default_at(self, index: int) -> float | None:
+    def default_at(self, index: int) -> float | str | None:
         return self.defaults[0] if len(self.defaults) == 1 else self.defaults[index]
 
 
@@ -96,6 +123,7 @@ class ReservedSpec:
     end: int
     readable: bool | None
     page: PageSpec | None = None
+    table: str = "holding"
 
 
 @dataclass(frozen=True)
@@ -178,6 +206,8 @@ class DeviceSpec:
     running_state: tuple[str, tuple[int, ...]] | None = None
     #: non-standard reply forms the client accepts besides the standard ones (runtime.quirks)
     reply_quirks: tuple[str, ...] = ()
+    #: undocumented words the read planner may read across (0: none)
+    max_gap: int = 0
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

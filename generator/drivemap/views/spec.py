@@ -15,6 +15,13 @@ def _num(value: float | None) -> int | float | None:
     return int(value) if float(value).is_integer() else float(value)
 
 
+def _default(value: float | str | None) -> int | float | str | bool | None:
+    """A default as a literal: text and true/false as they are, numbers as :func:`_num`."""
+    if isinstance(value, (str, bool)):
+        return value
+    return _num(value)
+
+
 def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
     """(keyword, python literal) pairs for RegisterSpec, omitting defaults."""
     args: list[tuple[str, str]] = [("name", repr(reg.name)), ("address", f"0x{reg.address:04X}")]
@@ -24,6 +31,7 @@ def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
             args.append((key, repr(value)))
 
     add("type", reg.type, "u16")
+    add("table", reg.table, "holding")
     add("access", reg.access, "rw")
     add("count", reg.count, 1)
     add("stride", reg.stride, 1)
@@ -33,7 +41,7 @@ def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
     add("unit", reg.unit, None)
     add("min", _num(reg.min), None)
     add("max", _num(reg.max), None)
-    add("defaults", tuple(_num(d) for d in reg.defaults), (None,))
+    add("defaults", tuple(_default(d) for d in reg.defaults), (None,))
     add("reflect", reg.reflect, "unknown")
     add("storage", reg.storage, "unknown")
     add("write_delay_ms", _num(reg.write_delay_ms), None)
@@ -53,7 +61,20 @@ def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
     add("param", reg.param, None)
     args.append(("source", repr(reg.source)))
     add("running_advice", reg.running_advice.text() if reg.running_advice else None, None)
+    add("byte_order", reg.byte_order, "high_first")
+    add("length", reg.length, 1)
+    if reg.type == "string":
+        add("encoding", reg.encoding, "ascii")
+    add("scale_register", reg.scale_register, None)
+    if reg.not_available:
+        args.append(("not_available", "(" + ", ".join(_raw_literal(reg, v) for v in reg.not_available) + ",)"))
+    add("min_read", reg.min_read, None)
     return args
+
+
+def _raw_literal(reg: Register, value: int) -> str:
+    """A raw value as the map writes it: hex for unsigned patterns, decimal for negative values."""
+    return str(value) if value < 0 else f"0x{value:0{4 * reg.words}X}"
 
 
 def context(model: Model, options: Options) -> dict[str, Any]:
@@ -85,6 +106,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "configuration": (p.configuration.register, p.configuration.value) if p.configuration else None,
         "fixed_units": tuple(sorted({x.fixed_unit for x in p.ports if x.fixed_unit is not None
                                      and not p.unit_min <= x.fixed_unit <= p.unit_max})),
+        "max_gap": p.max_gap,
         "imports": _imports(model),
         "running_state": ((p.running_state.register, p.running_state.values) if p.running_state else None),
         "reply_quirks": tuple(q.quirk for q in p.reply_quirks),
