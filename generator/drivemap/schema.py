@@ -97,7 +97,7 @@ def _message(error: ValidationError) -> tuple[PathT, str, bool]:
 
             extra = [k for k in extra if not any(re.search(p, k) for p in pattern)]
         key = extra[0] if extra else "?"
-        hint = f" (allowed: {', '.join(allowed)})" if allowed and len(allowed) <= 40 else ""
+        hint = f" (allowed: {', '.join(allowed)})" if allowed and len(allowed) <= 60 else ""
         return path + (key,), f"unknown key {key!r} in {where}{hint}", True
     if kind == "required":
         missing = error.message.split("'")[1] if "'" in error.message else "?"
