@@ -57,7 +57,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.framer import FramerType
 from pymodbus.pdu import ModbusPDU
 
-from .errors import DriveTimeout, TransportError
+from .errors import DriveTimeout, InvalidArgument, TransportError
 from .spec import SerialSpec, TimingSpec
 
 log = logging.getLogger("drivemap")
@@ -275,13 +275,21 @@ def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[
     if baudrate is None:
         log.warning("the map gives no default baud rate; using %d (pass baudrate= to choose)", DEFAULT_BAUDRATE)
         baudrate = DEFAULT_BAUDRATE
-    parity = _PARITY[overrides.pop("parity", serial.parity)]
+    parity_setting = overrides.pop("parity", serial.parity)
+    parity = _PARITY.get(parity_setting) if isinstance(parity_setting, (str, type(None))) else None
     stopbits = overrides.pop("stopbits", overrides.pop("stop_bits", serial.stop_bits)) or 1
     bytesize = overrides.pop("bytesize", overrides.pop("data_bits", serial.data_bits))
     if overrides:
-        raise TypeError(f"unknown serial settings: {', '.join(sorted(overrides))}")
+        raise InvalidArgument(f"unknown serial settings: {', '.join(sorted(overrides))}")
     if mode not in ("rtu", "ascii"):
-        raise ValueError(f"serial mode must be 'rtu' or 'ascii', not {mode!r}")
+        raise InvalidArgument(f"serial mode must be 'rtu' or 'ascii', not {mode!r}")
+    if parity is None:
+        raise InvalidArgument(f"parity must be one of 'none', 'even', 'odd', not {parity_setting!r}")
+    for what, value, allowed in (("stop bits", stopbits, (1, 1.5, 2)), ("data bits", bytesize, (7, 8))):
+        if isinstance(value, bool) or value not in allowed:
+            raise InvalidArgument(f"{what} must be one of {allowed}, not {value!r}")
+    if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
+        raise InvalidArgument(f"baud rate must be a positive int, not {baudrate!r}")
     kwargs = {
         "framer": FramerType.RTU if mode == "rtu" else FramerType.ASCII,
         "baudrate": baudrate, "parity": parity, "stopbits": stopbits, "bytesize": bytesize,
@@ -391,6 +399,9 @@ class Bus(_BusBase):
                         continue
                     except ModbusException as exc:
                         raise TransportError(f"{self.name}: {exc}") from exc
+                    except OSError as exc:  # e.g. ConnectionResetError from the socket: reconnect next time
+                        client.close()
+                        raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
                     if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                         time.sleep(self._rejected(ex, reply, problem, started))
                         self._mark_done(quiet)
@@ -443,6 +454,11 @@ class AsyncBus(_BusBase):
     @classmethod
     def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
               timeout: float | None, retries: int | None, name: str) -> AsyncBus:
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:
+            raise TransportError(f"{name}: an asyncio bus is made inside a running event loop "
+                                 "(in a coroutine); use Bus for synchronous code") from None
         bus = cls.__new__(cls)
         client = factory(
             **kwargs, timeout=timeout if timeout is not None else DEFAULT_RESPONSE_TIMEOUT_S, retries=0,
@@ -504,6 +520,9 @@ class AsyncBus(_BusBase):
                     continue
                 except ModbusException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
+                except OSError as exc:  # e.g. ConnectionResetError from the transport: reconnect next time
+                    client.close()
+                    raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
                 if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)

@@ -34,6 +34,8 @@ from .errors import (
     BroadcastRead,
     DeviceException,
     DriveError,
+    IndexOutOfRange,
+    InvalidArgument,
     InvalidValue,
     NotBroadcastable,
     PartialWrite,
@@ -41,6 +43,7 @@ from .errors import (
     TransportError,
     UnknownRegister,
     UnsupportedFunction,
+    ValueOutOfRange,
     WriteOnlyRegister,
     WrongPage,
 )
@@ -138,8 +141,8 @@ class Core:
 
     def __init__(self, spec: DeviceSpec, unit: int, exceptions: Mapping[int, type[DeviceException]],
                  page_policy: PagePolicy, broadcast: bool) -> None:
-        if page_policy not in ("raise", "switch"):
-            raise ValueError("page_policy must be 'raise' or 'switch'")
+        if not isinstance(page_policy, str) or page_policy not in ("raise", "switch"):
+            raise InvalidArgument(f"page_policy must be 'raise' or 'switch', not {page_policy!r}")
         self.spec = spec
         self.unit = unit
         self.exceptions = exceptions
@@ -272,6 +275,12 @@ class Core:
             raise NotBroadcastable(f"{reg.element_name(key[1])} may not be written by broadcast")
         return reg
 
+    @staticmethod
+    def not_the_command(reg: RegisterSpec, key: Key, raw: object) -> ValueOutOfRange:
+        """A command register written with another value than the map's command value."""
+        return ValueOutOfRange(f"{reg.element_name(key[1])} is a command: only {reg.command_value} may be written "
+                               f"(use .execute()), not {raw!r}")
+
     def write_raw(self, items: Sequence[tuple[Key, int]]) -> Op[None]:
         """Write raw values, contiguous runs in one 10h request where the map allows it.
 
@@ -285,6 +294,8 @@ class Core:
         if len(items) == 1:  # one element: one request, all or nothing (the common case, kept lean)
             key, raw = items[0]
             reg = self.check_write(key)
+            if reg.command_value is not None and raw != reg.command_value:
+                raise self.not_the_command(reg, key, raw)
             words = raw_to_words(reg, raw)
             if len(words) > 1 and limit == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no 10h for a multi-word write")
@@ -297,6 +308,9 @@ class Core:
             self._after_write(reg, key, int(raw))  # raw fits its type (raw_to_words checked): the words' value
             return
         regs = [(reg, key, raw_to_words(reg, raw)) for key, raw in items for reg in (self.check_write(key),)]
+        for (key, raw), (reg, _, _) in zip(items, regs, strict=True):
+            if reg.command_value is not None and raw != reg.command_value:
+                raise self.not_the_command(reg, key, raw)
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
         for item in sorted(regs, key=lambda r: r[0].element_address(r[1][1])):
             reg, key, words = item
@@ -464,6 +478,25 @@ class ReadWrite(ReadOnly[T], WriteOnly[T]):
         return self._owner.read_modify_write(self, update)  # type: ignore[no-any-return]
 
 
+class Command(WriteOnly[T]):
+    """A command register (the map's ``command``): ``execute()`` writes the map's command value;
+    ``write`` / ``write_raw`` refuse any other value before sending."""
+
+    def execute(self) -> None:
+        """Send the command (write the map's command value)."""
+        self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+
+
+class ReadWriteCommand(ReadWrite[T], Command[T]):
+    """A readable command register: :class:`Command` plus ``read``."""
+
+
+def _command_value(spec: RegisterSpec) -> int:
+    if spec.command_value is None:
+        raise UnsupportedFunction(f"{spec.name} is not a command register")
+    return spec.command_value
+
+
 E_co = TypeVar("E_co", bound=_Element[Any])
 
 
@@ -480,7 +513,20 @@ class _Array(Generic[T, E_co]):
         self._keys: tuple[Key, ...] = tuple((codec.spec.name, i) for i in range(codec.spec.count))
 
     def __getitem__(self, index: int) -> E_co:
-        return self._elements[index]  # type: ignore[return-value]
+        try:
+            if index >= 0:
+                return self._elements[index]  # type: ignore[return-value]
+        except (IndexError, TypeError):
+            pass
+        raise self._bad_index(index)
+
+    def _bad_index(self, index: object) -> DriveError:
+        """The error for ``self[index]`` when ``index`` is not an element (Python's negative indexing is not)."""
+        if isinstance(index, bool) or not isinstance(index, int):
+            return InvalidValue(f"{self.name}: an element index is an int, not {type(index).__name__}")
+        count = len(self._elements)
+        return IndexOutOfRange(f"{self.name}[{index}]: no such element; {self.name} has {count} elements "
+                               f"(index 0..{count - 1})")
 
     def __len__(self) -> int:
         return len(self._elements)
@@ -551,6 +597,18 @@ class AsyncReadWrite(AsyncReadOnly[T], AsyncWriteOnly[T]):
 
     async def modify(self, update: Callable[[T], T]) -> T:
         return await self._owner.read_modify_write(self, update)  # type: ignore[no-any-return]
+
+
+class AsyncCommand(AsyncWriteOnly[T]):
+    """Async form of :class:`Command`."""
+
+    async def execute(self) -> None:
+        """Send the command (write the map's command value)."""
+        await self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+
+
+class AsyncReadWriteCommand(AsyncReadWrite[T], AsyncCommand[T]):
+    """Async form of :class:`ReadWriteCommand`."""
 
 
 class _AsyncReadArrayMixin(_Array[T, E_co]):
@@ -1017,14 +1075,17 @@ def broadcast_unit(spec: DeviceSpec) -> int:
 __all__ = [
     "AsyncBus",
     "AsyncClientBase",
+    "AsyncCommand",
     "AsyncReadOnly",
     "AsyncReadOnlyArray",
     "AsyncReadWrite",
     "AsyncReadWriteArray",
+    "AsyncReadWriteCommand",
     "AsyncWriteOnly",
     "AsyncWriteOnlyArray",
     "Bus",
     "ClientBase",
+    "Command",
     "Core",
     "DriveError",
     "PagePolicy",
@@ -1033,6 +1094,7 @@ __all__ = [
     "ReadOnlyArray",
     "ReadWrite",
     "ReadWriteArray",
+    "ReadWriteCommand",
     "SnapshotBase",
     "Stats",
     "WriteOnly",

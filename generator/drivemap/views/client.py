@@ -115,6 +115,8 @@ def _codec(model: Model, reg: Register) -> tuple[str, str]:
 
 def _access_class(reg: Register, asynchronous: bool) -> str:
     base = {"r": "ReadOnly", "w": "WriteOnly", "rw": "ReadWrite"}[reg.access]
+    if reg.command_value is not None and not reg.is_array:  # .execute(); writes of other values refused
+        base = {"w": "Command", "rw": "ReadWriteCommand"}.get(reg.access, base)
     return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
 
 
@@ -203,8 +205,10 @@ def context(model: Model, options: Options) -> dict[str, Any]:
 
     has_broadcast = model.protocol.broadcast_address is not None
     bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
-    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
-    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]
+    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "Command" if "Command" in a.sync_class else "WriteOnly")
+                      for a in bcast]
+    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncCommand" if "Command" in a.sync_class
+                        else "AsyncWriteOnly") for a in bcast]
 
     runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
     for a in accessors:
@@ -245,6 +249,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
             "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
             "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
             "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
+            "IndexOutOfRange", "InvalidArgument",
         }, key=lambda n: (n.lower(), n)),
         "client_exports": sorted(all_names, key=_isort_key),
         "loopback": model.protocol.function(0x08) is not None,
