@@ -49,7 +49,7 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from .bus import sleep_until
-from .simulator import Simulator, SimulatorError
+from .simulator import Simulator, SimulatorError, StateFileError
 
 __all__ = [
     "SimServer",
@@ -443,6 +443,9 @@ def serve_cli(args: argparse.Namespace) -> int:
     """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0."""
     try:
         return run(args.factory, args)
+    except StateFileError as exc:  # already located: path:line:col: error: ...
+        print(exc, file=sys.stderr)
+        return 2
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"drivemap simulate: error: {exc}", file=sys.stderr)
         return 2
@@ -503,6 +506,9 @@ def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = Non
     args.model = model
     try:
         return run(factory, args)
+    except StateFileError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"{model} simulator: error: {exc}", file=sys.stderr)
         return 2

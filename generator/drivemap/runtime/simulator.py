@@ -28,18 +28,16 @@ bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard M
 
 from __future__ import annotations
 
-import contextlib
-import json
 import math
 import os
 import struct
-import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from . import simstate
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
 if TYPE_CHECKING:
@@ -50,6 +48,7 @@ __all__ = [
     "STANDARD_CODES",
     "Simulator",
     "SimulatorError",
+    "StateFileError",
     "Unit",
 ]
 
@@ -74,7 +73,6 @@ _FALLBACK = {
 #: Largest quantity a standard Modbus PDU can carry, per function code (when the map gives none).
 _STANDARD_MAX_QUANTITY = {0x03: 125, 0x04: 125, 0x06: 1, 0x10: 123}
 _TYPE_BOUNDS = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF)}
-_STATE_VERSION = 1
 #: Read plans kept per simulator (address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
 _PACKERS: dict[int, Callable[..., bytes]] = {}
@@ -92,6 +90,12 @@ def _packer(count: int) -> Callable[..., bytes]:
 
 class SimulatorError(ValueError):
     """A bad call of the simulator API (unknown register, value that does not fit, bad unit)."""
+
+
+class StateFileError(SimulatorError):
+    """A ``--state`` file that cannot be read fully; ``str()`` is ``path:line:col: error: message``.
+
+    The file is left untouched (see :mod:`drivemap.runtime.simstate`)."""
 
 
 class _Refused(Exception):
@@ -276,7 +280,8 @@ class Simulator:
             if not spec.valid_unit(uid):
                 raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
         self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
-        if self.state_file is not None and self.state_file.exists():
+        self._state: simstate.StateFile | None = None
+        if self.state_file is not None:
             self._load_state(self.state_file)
         for unit in self.units.values():
             self.behaviour.on_start(unit)
@@ -636,45 +641,27 @@ class Simulator:
         self._dirty = False
 
     def _write_state(self, path: Path) -> None:
+        """Save the EEPROM cells of the simulated units over the loaded file (see :mod:`.simstate`)."""
+        if self._state is None:
+            self._state = self._state_file(path)
         cells = self._eeprom_cells()
-        data = {
-            "model": self.spec.model,
-            "version": _STATE_VERSION,
-            "units": {str(uid): {name: unit.values[name] for name in cells} for uid, unit in self.units.items()},
-        }
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as handle:
-                json.dump(data, handle, indent=2, sort_keys=True)
-                handle.write("\n")
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
+        self._state.save({uid: {name: unit.values[name] for name in cells} for uid, unit in self.units.items()})
+
+    def _state_file(self, path: Path) -> simstate.StateFile:
+        bounds = {name: _TYPE_BOUNDS[self._cells[name][0].type] for name in self._eeprom_cells()}
+        return simstate.StateFile(path, self.spec.model, bounds, self.spec.valid_unit)
 
     def _load_state(self, path: Path) -> None:
+        """Load the file completely (units not simulated now and unknown cells are kept for the next write)
+        or refuse it with :class:`StateFileError`, leaving it untouched."""
+        state = self._state_file(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise SimulatorError(f"{path}: cannot read simulator state: {exc}") from exc
-        if not isinstance(data, dict) or data.get("model") != self.spec.model:
-            raise SimulatorError(f"{path}: state file is not for model {self.spec.model!r}")
-        units = data.get("units", {})
-        if not isinstance(units, dict):
-            raise SimulatorError(f"{path}: 'units' must be a mapping")
-        eeprom = set(self._eeprom_cells())
-        for uid, values in units.items():
-            unit = self.units.get(int(uid))
-            if unit is None or not isinstance(values, dict):
-                continue
-            for name, raw in values.items():
-                if name in eeprom and isinstance(raw, int):
-                    reg = self._cells[name][0]
-                    low, high = _TYPE_BOUNDS[reg.type]
-                    if low <= raw <= high:
-                        unit.values[name] = raw
+            values = state.load()
+        except simstate.StateProblem as exc:
+            raise StateFileError(str(exc)) from None
+        self._state = state
+        for uid, cells in values.items():
+            unit = self.units.get(uid)
+            if unit is not None:
+                unit.values.update(cells)
 
