@@ -401,8 +401,13 @@ class Simulator:
         return STANDARD_CODES[case]
 
     # ==== request handling ====================================================================
-    def handle(self, unit_id: int, pdu: bytes) -> bytes | None:
-        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply)."""
+    def handle(self, unit_id: int, pdu: bytes, *, always_answer: bool = False) -> bytes | None:
+        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply).
+
+        ``always_answer`` (Modbus TCP): an error case the map leaves unanswered (code null: right on
+        a serial line) gets the Modbus standard code instead of silence. Other units and broadcasts
+        still get no reply.
+        """
         if not pdu:
             return None
         with self._lock:
@@ -424,6 +429,8 @@ class Simulator:
                 except _Refused as refused:
                     self._record(unit, refused.case)
                     answer = self.exception_code(refused.case)
+                    if answer is None and always_answer:
+                        answer = STANDARD_CODES[refused.case]
                     return None if answer is None else bytes([pdu[0] | 0x80, answer])
             finally:
                 self._save_if_dirty()
