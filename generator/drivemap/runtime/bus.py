@@ -16,6 +16,10 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
   request) is never returned: it is logged, counted in :attr:`Stats.rejected`, and the attempt
   counts as unanswered (the bus waits out its response timeout, so a real reply still on its way
   is discarded before the retry);
+* on a serial line, a reply that began before the request could have been answered (a copy
+  delivered again by the line, a late reply) is dropped and counted in :attr:`Stats.stale`, and
+  the bus waits on for the real one (:mod:`drivemap.runtime.staleguard`; ``stale_guard=`` of
+  :meth:`Bus.serial`);
 * on a serial line (RTU/ASCII) and on RTU over TCP, after every transaction the line stays quiet
   for ``inter_frame_gap_ms`` plus the silent interval (``silent_interval_chars`` at the line's baud
   rate, or the map's floor; on RTU over TCP, where the baud rate is unknown, the floor);
@@ -57,6 +61,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.framer import FramerType
 from pymodbus.pdu import ModbusPDU
 
+from . import staleguard
 from .errors import DriveTimeout, InvalidArgument, TransportError
 from .spec import SerialSpec, TimingSpec
 
@@ -86,6 +91,9 @@ class Stats:
     exceptions: int = 0
     rejected: int = 0
     """Replies that did not answer the request sent (see :func:`reply_mismatch`), never returned."""
+    stale: int = 0
+    """Serial lines: replies that began before the request could have been answered (a duplicate, an
+    echo, a late reply) or arrived between transactions; dropped unread (see :mod:`.staleguard`)."""
     bytes_sent: int = 0
     bytes_received: int = 0
     by_function: dict[int, int] = field(default_factory=dict)
@@ -236,6 +244,23 @@ class _BusBase:
                     ex.pdu.function_code, problem)
         return max(0.0, started + self.timeout_for(ex.timing) - time.monotonic())
 
+    def _stale_guard(self, mode: bool | None) -> staleguard.StaleGuard:
+        """The guard that drops replies arriving too early on this serial line (see :mod:`.staleguard`)."""
+        if mode is not None and not isinstance(mode, bool):
+            raise InvalidArgument(f"stale_guard must be True, False or None, not {mode!r}")
+        char_s = self.bits_per_char / float(self.baudrate or DEFAULT_BAUDRATE)
+        return staleguard.StaleGuard(char_s, self._stale, mode)
+
+    def _stale(self, data: bytes, first: bool) -> None:
+        """Count and log bytes the guard dropped (once per transaction in :attr:`Stats.stale`)."""
+        self.stats.bytes_received += len(data)
+        if first:
+            self.stats.stale += 1
+            log.warning("%s stale reply dropped (it began before the request could be answered): %s",
+                        self.name, data.hex(" "))
+        elif log.isEnabledFor(logging.DEBUG):
+            log.debug("%s stale bytes dropped: %s", self.name, data.hex(" "))
+
     def _mark_done(self, quiet: float, replied: bool = False) -> None:
         """The transaction is over: keep the line quiet for ``quiet`` seconds (:meth:`quiet_after`),
         counted from the end of the reply when ``replied`` (see the module docstring), else from now."""
@@ -325,12 +350,15 @@ class Bus(_BusBase):
 
     @classmethod
     def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
-               retries: int | None = None, **overrides: Any) -> Bus:
+               retries: int | None = None, stale_guard: bool | None = None, **overrides: Any) -> Bus:
         """A serial line; ``serial`` gives the map's defaults, ``overrides`` (mode, baudrate, parity,
-        stopbits, bytesize) win over them."""
+        stopbits, bytesize) win over them. ``stale_guard``: drop replies that began before the request
+        could be answered (None: when the port shows it carries real characters; see :mod:`.staleguard`)."""
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
-        return cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
-                         timeout, retries, f"{mode}:{port}")
+        bus = cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                        timeout, retries, f"{mode}:{port}")
+        staleguard.guard_sync_client(bus.client, bus._stale_guard(stale_guard))
+        return bus
 
     @classmethod
     def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
@@ -445,11 +473,13 @@ class AsyncBus(_BusBase):
 
     @classmethod
     def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
-               retries: int | None = None, **overrides: Any) -> AsyncBus:
+               retries: int | None = None, stale_guard: bool | None = None, **overrides: Any) -> AsyncBus:
         """A serial line; see :meth:`Bus.serial`."""
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
-        return cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
-                         timeout, retries, f"{mode}:{port}")
+        bus = cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                        timeout, retries, f"{mode}:{port}")
+        staleguard.guard_async_client(bus.client, bus._stale_guard(stale_guard))
+        return bus
 
     @classmethod
     def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
