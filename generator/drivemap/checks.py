@@ -9,10 +9,11 @@ import math
 from pathlib import Path
 from typing import Any
 
-from . import frames
+from . import frames, namecheck
 from .diagnostics import Diagnostic
 from .load import Document, PathT
 from .model import TYPE_BOUNDS, camel, is_keyword
+from .names import FIXED_NAMES
 
 #: Attribute names of the generated clients that a register may not take.
 CLIENT_ATTRIBUTES = frozenset(
@@ -23,14 +24,6 @@ CLIENT_ATTRIBUTES = frozenset(
         "connect", "plan", "loopback", "write_many", "self", "cls",
     }
 )
-
-#: Names every generated package defines itself; map enums, bit fields and exceptions may not reuse them.
-FIXED_NAMES = frozenset({
-    "Client", "AsyncClient", "BroadcastClient", "AsyncBroadcastClient", "Snapshot", "Bus", "AsyncBus", "SPEC",
-    "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
-    "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
-    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
-})
 
 STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
 OPERATION_CODES = {"read": (3, 4), "write": (6,), "write_multiple": (16,), "loopback": (8,)}
@@ -58,7 +51,13 @@ class Checker:
         self.check_reserved()
         self.check_known_issues()
         self.check_examples()
+        self.check_generated_names()
         return self.diagnostics
+
+    def check_generated_names(self) -> None:
+        """Generated names against each other and against what the generated code holds (:mod:`.namecheck`)."""
+        for where, message, options in namecheck.problems(self.data, CLIENT_ATTRIBUTES):
+            self.error(where, message, **options)
 
     def check_device(self) -> None:
         model = self.data["device"]["model"]

@@ -12,16 +12,11 @@ import keyword
 from dataclasses import dataclass
 from typing import Any
 
-from ..checks import FIXED_NAMES
 from ..exporters.base import Options
 from ..model import Bit, Model, Register, camel
+from ..names import FIXED_NAMES, exception_classes
+from ..names import bit_attribute as _attr
 from .common import header
-
-
-def _attr(name: str) -> str:
-    """A snake_case attribute for an UPPER_CASE bit name (keywords get a trailing underscore)."""
-    low = name.lower()
-    return low + "_" if keyword.iskeyword(low) or keyword.issoftkeyword(low) else low
 
 
 def _num(value: float | None) -> str:
@@ -120,13 +115,6 @@ def _access_class(reg: Register, asynchronous: bool) -> str:
     return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
 
 
-def _exception_class(name: str) -> str:
-    cls = camel(name)
-    if not cls[:1].isalpha():
-        cls = "Code" + cls
-    return cls if cls.endswith("Error") else cls + "Error"
-
-
 def _check_names(model: Model, names: list[tuple[str, str]]) -> None:
     seen: dict[str, str] = {}
     for name, what in names:
@@ -175,12 +163,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
             raise ValueError(f"{model.path}: bit names of {rec['name']} collide once lower-cased")
 
     exceptions = []
-    used: set[str] = set()
-    for ex in model.protocol.exceptions:
-        cls = _exception_class(ex.name)
-        if cls in used or cls in FIXED_NAMES:
-            cls = f"{cls[:-5]}{ex.code:02X}Error"
-        used.add(cls)
+    classes = exception_classes([(ex.name, ex.code) for ex in model.protocol.exceptions])
+    for ex, cls in zip(model.protocol.exceptions, classes, strict=True):
         exceptions.append({"name": cls, "code": f"0x{ex.code:02X}", "code_name": ex.name, "meaning": ex.meaning,
                            "source": ex.source})
 
