@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from . import frames, namecheck
+from . import examplevalues, frames, namecheck
 from .diagnostics import Diagnostic
 from .load import Document, PathT
 from .model import TYPE_BOUNDS, camel, is_keyword
@@ -52,7 +52,21 @@ class Checker:
         self.check_known_issues()
         self.check_examples()
         self.check_generated_names()
+        self.check_reserved_pages()
+        self.check_example_values()
         return self.diagnostics
+
+    def check_reserved_pages(self) -> None:
+        """A reserved range's page selector is a register, as a register's is."""
+        for i, item in enumerate(self.data.get("reserved", [])):
+            page = item.get("page")
+            if page and page["selector"] not in self.register_names:
+                self.error(("reserved", i, "page", "selector"), f"page selector {page['selector']!r} is not a register")
+
+    def check_example_values(self) -> None:
+        """``meaning.values`` and ``preset`` against what the example's frames carry (:mod:`.examplevalues`)."""
+        for where, message, options in examplevalues.problems(self.data):
+            self.error(where, message, **options)
 
     def check_generated_names(self) -> None:
         """Generated names against each other and against what the generated code holds (:mod:`.namecheck`)."""
