@@ -99,15 +99,15 @@ def _annotation_builtins(tree: ast.Module) -> set[str]:
 
 
 def _self_attributes(tree: ast.AST) -> set[str]:
-    """Names assigned as ``self.NAME`` anywhere in ``tree``."""
+    """Names assigned as ``self.NAME`` or ``cls.NAME`` anywhere in ``tree``."""
     return {t.attr for n in ast.walk(tree) if isinstance(n, (ast.Assign, ast.AnnAssign))
             for t in (n.targets if isinstance(n, ast.Assign) else [n.target])
-            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id == "self"}
+            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id in ("self", "cls")}
 
 
 def _client_attributes(client_tree: ast.Module) -> set[str]:
     """Attributes of generated client objects: what their classes and bases define, and what their
-    ``__init__`` and the runtime's methods assign to ``self``."""
+    ``__init__`` and the runtime's methods assign to ``self`` or ``cls``."""
     from pathlib import Path
 
     from .runtime import client as runtime
