@@ -8,11 +8,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from . import frames
+from . import examplevalues, frames, namecheck
 from .checks_registers import RegisterChecks, table_name
 from .diagnostics import Diagnostic
 from .load import Document, PathT
 from .model import camel, is_keyword
+from .names import FIXED_NAMES
 
 #: Attribute names of the generated clients that a register may not take.
 CLIENT_ATTRIBUTES = frozenset(
@@ -23,15 +24,6 @@ CLIENT_ATTRIBUTES = frozenset(
         "connect", "plan", "loopback", "write_many", "self", "cls", "holes",
     }
 )
-
-#: Names every generated package defines itself; map enums, bit fields and exceptions may not reuse them.
-FIXED_NAMES = frozenset({
-    "Client", "AsyncClient", "BroadcastClient", "AsyncBroadcastClient", "Snapshot", "Bus", "AsyncBus", "SPEC",
-    "EXCEPTIONS", "CODECS", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange", "ReadOnlyRegister",
-    "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead", "InvalidValue", "UnknownRegister",
-    "UnsupportedFunction", "TransportError", "AccessError", "Stats", "PagePolicy", "DriveEnum", "PartialWrite",
-    "ScaleUnavailable",
-})
 
 STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
 OPERATION_CODES = {"read": (1, 2, 3, 4), "write": (5, 6), "write_multiple": (15, 16), "loopback": (8,)}
@@ -55,7 +47,27 @@ class Checker(RegisterChecks):
         self.check_known_issues()
         self.check_examples()
         self.check_running()
+        self.check_generated_names()
+        self.check_reserved_pages()
+        self.check_example_values()
         return self.diagnostics
+
+    def check_reserved_pages(self) -> None:
+        """A reserved range's page selector is a register, as a register's is."""
+        for i, item in enumerate(self.data.get("reserved", [])):
+            page = item.get("page")
+            if page and page["selector"] not in self.register_names:
+                self.error(("reserved", i, "page", "selector"), f"page selector {page['selector']!r} is not a register")
+
+    def check_example_values(self) -> None:
+        """``meaning.values`` and ``preset`` against what the example's frames carry (:mod:`.examplevalues`)."""
+        for where, message, options in examplevalues.problems(self.data):
+            self.error(where, message, **options)
+
+    def check_generated_names(self) -> None:
+        """Generated names against each other and against what the generated code holds (:mod:`.namecheck`)."""
+        for where, message, options in namecheck.problems(self.data, CLIENT_ATTRIBUTES):
+            self.error(where, message, **options)
 
     def check_device(self) -> None:
         model = self.data["device"]["model"]

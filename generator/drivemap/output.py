@@ -111,7 +111,12 @@ def plan(root: Path, outputs: Mapping[str, str], *, prune: bool, force: bool = F
             change.errors.append(_error(root / rel, "output path leaves the output folder"))
             continue
         path = root / rel
-        new = digest(text)
+        try:
+            new = digest(text)
+        except UnicodeEncodeError as exc:  # nothing is written: checked for every file before any is staged
+            change.errors.append(_error(path, f"cannot be stored as UTF-8: character U+{ord(text[exc.start]):04X} "
+                                              f"at offset {exc.start} (a lone surrogate)"))
+            continue
         try:
             old = _content(path)
         except IsADirectoryError:

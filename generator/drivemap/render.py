@@ -8,12 +8,14 @@ from typing import Any
 
 import jinja2
 
+from . import escape
+
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 
 
 def _py(value: Any) -> str:
-    """A Python literal for any map value: text from a map can never become code."""
-    return repr(value)
+    """A Python literal for any map value: text from a map can never become code (:mod:`.escape`)."""
+    return escape.py_literal(value)
 
 
 def _hex(value: int, width: int = 4) -> str:
@@ -21,20 +23,13 @@ def _hex(value: int, width: int = 4) -> str:
 
 
 def _md(value: Any) -> str:
-    """Text for a Markdown table cell: pipes, newlines and HTML are neutralised."""
-    if value is None:
-        return "—"
-    text = str(value)
-    for old, new in (("&", "&amp;"), ("\\", "\\\\"), ("|", "\\|"), ("<", "&lt;"), (">", "&gt;"), ("\r", " "), ("\n", " "),
-                     ("`", "\\`"), ("*", "\\*"), ("_", "\\_"), ("[", "\\["), ("]", "\\]")):
-        text = text.replace(old, new)
-    return text
+    """Text for Markdown inline text and table cells (:func:`.escape.md_text`)."""
+    return escape.md_text(value)
 
 
 def _doc(value: Any) -> str:
-    """Text safe inside a triple-quoted docstring (rendered with repr-escapes, no quotes)."""
-    text = str(value)
-    return repr(text)[1:-1].replace('"""', '\\"\\"\\"')
+    """Text safe inside a triple-quoted docstring (:func:`.escape.py_docstring`)."""
+    return escape.py_docstring(value)
 
 
 def environment() -> jinja2.Environment:
@@ -50,6 +45,7 @@ def environment() -> jinja2.Environment:
     env.filters["hex"] = _hex
     env.filters["md"] = _md
     env.filters["doc"] = _doc
+    env.filters["mdcomment"] = escape.md_comment
     return env
 
 

@@ -13,19 +13,23 @@ from typing import Any
 from drivemap.runtime.client import (
     AsyncBus,
     AsyncClientBase,
+    AsyncCommand,
     AsyncReadOnly,
     AsyncReadOnlyArray,
     AsyncReadWrite,
     AsyncReadWriteArray,
+    AsyncReadWriteCommand,
     AsyncWriteOnly,
     AsyncWriteOnlyArray,
     Bus,
     ClientBase,
+    Command,
     PagePolicy,
     ReadOnly,
     ReadOnlyArray,
     ReadWrite,
     ReadWriteArray,
+    ReadWriteCommand,
     SnapshotBase,
     WriteOnly,
     WriteOnlyArray,
@@ -565,7 +569,7 @@ class Client(ClientBase[Snapshot]):
         May be written by broadcast.
         Manual: 001 §4.1.
         """
-        self.alarm_reset: ReadWrite[int] = ReadWrite(self, _codec_alarm_reset)
+        self.alarm_reset: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_alarm_reset)
         """解除 Alarm (Alarm Reset)
 
         Write 1 to reset the alarm. Some alarms may not be resettable.
@@ -576,7 +580,7 @@ class Client(ClientBase[Snapshot]):
         May be written by broadcast.
         Manual: 001 §4.2.
         """
-        self.alarm_history_clear: ReadWrite[int] = ReadWrite(self, _codec_alarm_history_clear)
+        self.alarm_history_clear: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_alarm_history_clear)
         """Alarm 履歷清除
 
         Write 1 to clear the alarm history.
@@ -587,7 +591,7 @@ class Client(ClientBase[Snapshot]):
         May be written by broadcast.
         Manual: 001 §4.2.
         """
-        self.comm_error_history_clear: ReadWrite[int] = ReadWrite(self, _codec_comm_error_history_clear)
+        self.comm_error_history_clear: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_comm_error_history_clear)
         """通訊錯誤履歷清除
 
         Write 1 to clear the communication error history.
@@ -598,7 +602,7 @@ class Client(ClientBase[Snapshot]):
         May be written by broadcast.
         Manual: 001 §4.2.
         """
-        self.configuration: ReadWrite[int] = ReadWrite(self, _codec_configuration)
+        self.configuration: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_configuration)
         """Configuration
 
         Write 1 to execute the Configuration command: parameters are recalculated and set. Parameters with reflect C take effect after it.
@@ -994,13 +998,13 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         """遠端數位輸入(NET-IN)指令 (see :attr:`Client.net_in`)."""
         self.sc_cc_mode: AsyncReadWrite[ScCcMode] = AsyncReadWrite(self, _codec_sc_cc_mode)
         """SC/CC 模式 (see :attr:`Client.sc_cc_mode`)."""
-        self.alarm_reset: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_alarm_reset)
+        self.alarm_reset: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_alarm_reset)
         """解除 Alarm (Alarm Reset) (see :attr:`Client.alarm_reset`)."""
-        self.alarm_history_clear: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_alarm_history_clear)
+        self.alarm_history_clear: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_alarm_history_clear)
         """Alarm 履歷清除 (see :attr:`Client.alarm_history_clear`)."""
-        self.comm_error_history_clear: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_comm_error_history_clear)
+        self.comm_error_history_clear: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_comm_error_history_clear)
         """通訊錯誤履歷清除 (see :attr:`Client.comm_error_history_clear`)."""
-        self.configuration: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_configuration)
+        self.configuration: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_configuration)
         """Configuration (see :attr:`Client.configuration`)."""
         self.motor_state: AsyncReadOnly[MotorState] = AsyncReadOnly(self, _codec_motor_state)
         """馬達狀態 (see :attr:`Client.motor_state`)."""
@@ -1110,13 +1114,13 @@ class BroadcastClient(ClientBase[SnapshotBase]):
         """遠端數位輸入(NET-IN)指令 (see :attr:`Client.net_in`)."""
         self.sc_cc_mode: WriteOnly[ScCcMode] = WriteOnly(self, _codec_sc_cc_mode)
         """SC/CC 模式 (see :attr:`Client.sc_cc_mode`)."""
-        self.alarm_reset: WriteOnly[int] = WriteOnly(self, _codec_alarm_reset)
+        self.alarm_reset: Command[int] = Command(self, _codec_alarm_reset)
         """解除 Alarm (Alarm Reset) (see :attr:`Client.alarm_reset`)."""
-        self.alarm_history_clear: WriteOnly[int] = WriteOnly(self, _codec_alarm_history_clear)
+        self.alarm_history_clear: Command[int] = Command(self, _codec_alarm_history_clear)
         """Alarm 履歷清除 (see :attr:`Client.alarm_history_clear`)."""
-        self.comm_error_history_clear: WriteOnly[int] = WriteOnly(self, _codec_comm_error_history_clear)
+        self.comm_error_history_clear: Command[int] = Command(self, _codec_comm_error_history_clear)
         """通訊錯誤履歷清除 (see :attr:`Client.comm_error_history_clear`)."""
-        self.configuration: WriteOnly[int] = WriteOnly(self, _codec_configuration)
+        self.configuration: Command[int] = Command(self, _codec_configuration)
         """Configuration (see :attr:`Client.configuration`)."""
         self.digital_speed: WriteOnlyArray[int] = WriteOnlyArray(self, _codec_digital_speed)
         """數位轉速 No.0 ~ No.7 (see :attr:`Client.digital_speed`)."""
@@ -1183,13 +1187,13 @@ class AsyncBroadcastClient(AsyncClientBase[SnapshotBase]):
         """遠端數位輸入(NET-IN)指令 (see :attr:`Client.net_in`)."""
         self.sc_cc_mode: AsyncWriteOnly[ScCcMode] = AsyncWriteOnly(self, _codec_sc_cc_mode)
         """SC/CC 模式 (see :attr:`Client.sc_cc_mode`)."""
-        self.alarm_reset: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_alarm_reset)
+        self.alarm_reset: AsyncCommand[int] = AsyncCommand(self, _codec_alarm_reset)
         """解除 Alarm (Alarm Reset) (see :attr:`Client.alarm_reset`)."""
-        self.alarm_history_clear: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_alarm_history_clear)
+        self.alarm_history_clear: AsyncCommand[int] = AsyncCommand(self, _codec_alarm_history_clear)
         """Alarm 履歷清除 (see :attr:`Client.alarm_history_clear`)."""
-        self.comm_error_history_clear: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_comm_error_history_clear)
+        self.comm_error_history_clear: AsyncCommand[int] = AsyncCommand(self, _codec_comm_error_history_clear)
         """通訊錯誤履歷清除 (see :attr:`Client.comm_error_history_clear`)."""
-        self.configuration: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_configuration)
+        self.configuration: AsyncCommand[int] = AsyncCommand(self, _codec_configuration)
         """Configuration (see :attr:`Client.configuration`)."""
         self.digital_speed: AsyncWriteOnlyArray[int] = AsyncWriteOnlyArray(self, _codec_digital_speed)
         """數位轉速 No.0 ~ No.7 (see :attr:`Client.digital_speed`)."""

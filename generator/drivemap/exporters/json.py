@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import re
 
 from ..export import export
 from ..model import Model
 from .base import Exporter, Options
 
 __all__ = ["JsonExporter"]
+
+_LONE_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 class JsonExporter(Exporter):
@@ -17,4 +20,6 @@ class JsonExporter(Exporter):
     suffix = ".json"
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
-        return {f"{model.name}.json": json.dumps(export(model), indent=2, ensure_ascii=False) + "\n"}
+        text = json.dumps(export(model), indent=2, ensure_ascii=False) + "\n"
+        # a lone surrogate (a map may hold one, as "\ud800") cannot be stored as UTF-8: JSON escapes it
+        return {f"{model.name}.json": _LONE_SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", text)}

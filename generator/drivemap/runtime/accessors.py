@@ -14,8 +14,9 @@ from typing import Any, ClassVar, Generic, TypeVar, overload
 
 from .codec import Codec, RawCodec
 from .core import Deferred
-from .errors import InvalidValue
+from .errors import DriveError, IndexOutOfRange, InvalidValue, UnsupportedFunction
 from .planner import Key
+from .spec import RegisterSpec
 
 T = TypeVar("T")
 
@@ -126,6 +127,25 @@ class ReadWrite(ReadOnly[T], WriteOnly[T]):
         return self._owner.read_modify_write(self, update)  # type: ignore[no-any-return]
 
 
+class Command(WriteOnly[T]):
+    """A command register (the map's ``command``): ``execute()`` writes the map's command value;
+    ``write`` / ``write_raw`` refuse any other value before sending."""
+
+    def execute(self) -> None:
+        """Send the command (write the map's command value)."""
+        self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+
+
+class ReadWriteCommand(ReadWrite[T], Command[T]):
+    """A readable command register: :class:`Command` plus ``read``."""
+
+
+def _command_value(spec: RegisterSpec) -> int:
+    if spec.command_value is None:
+        raise UnsupportedFunction(f"{spec.name} is not a command register")
+    return spec.command_value
+
+
 E_co = TypeVar("E_co", bound=_Element[Any])
 
 
@@ -144,7 +164,20 @@ class _Array(Generic[T, E_co]):
         self._read_keys = self._keys if self._scale is None else self._keys + (self._scale,)
 
     def __getitem__(self, index: int) -> E_co:
-        return self._elements[index]  # type: ignore[return-value]
+        try:
+            if index >= 0:
+                return self._elements[index]  # type: ignore[return-value]
+        except (IndexError, TypeError):
+            pass
+        raise self._bad_index(index)
+
+    def _bad_index(self, index: object) -> DriveError:
+        """The error for ``self[index]`` when ``index`` is not an element (Python's negative indexing is not)."""
+        if isinstance(index, bool) or not isinstance(index, int):
+            return InvalidValue(f"{self.name}: an element index is an int, not {type(index).__name__}")
+        count = len(self._elements)
+        return IndexOutOfRange(f"{self.name}[{index}]: no such element; {self.name} has {count} elements "
+                               f"(index 0..{count - 1})")
 
     def __len__(self) -> int:
         return len(self._elements)
@@ -228,6 +261,18 @@ class AsyncReadWrite(AsyncReadOnly[T], AsyncWriteOnly[T]):
 
     async def modify(self, update: Callable[[T], T]) -> T:
         return await self._owner.read_modify_write(self, update)  # type: ignore[no-any-return]
+
+
+class AsyncCommand(AsyncWriteOnly[T]):
+    """Async form of :class:`Command`."""
+
+    async def execute(self) -> None:
+        """Send the command (write the map's command value)."""
+        await self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+
+
+class AsyncReadWriteCommand(AsyncReadWrite[T], AsyncCommand[T]):
+    """Async form of :class:`ReadWriteCommand`."""
 
 
 class _AsyncReadArrayMixin(_Array[T, E_co]):

@@ -16,6 +16,10 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
   request) is never returned: it is logged, counted in :attr:`Stats.rejected`, and the attempt
   counts as unanswered (the bus waits out its response timeout, so a real reply still on its way
   is discarded before the retry);
+* on a serial line, a reply that began before the request could have been answered (a copy
+  delivered again by the line, a late reply) is dropped and counted in :attr:`Stats.stale`, and
+  the bus waits on for the real one (:mod:`drivemap.runtime.staleguard`; ``stale_guard=`` of
+  :meth:`Bus.serial`);
 * on a serial line (RTU/ASCII) and on RTU over TCP, after every transaction the line stays quiet
   for ``inter_frame_gap_ms`` plus the silent interval (``silent_interval_chars`` at the line's baud
   rate, or the map's floor; on RTU over TCP, where the baud rate is unknown, the floor);
@@ -57,7 +61,8 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.framer import FramerType
 from pymodbus.pdu import ModbusPDU
 
-from .errors import DriveTimeout, TransportError
+from . import staleguard
+from .errors import DriveTimeout, InvalidArgument, TransportError
 from .spec import SerialSpec, TimingSpec
 
 log = logging.getLogger("drivemap")
@@ -86,6 +91,9 @@ class Stats:
     exceptions: int = 0
     rejected: int = 0
     """Replies that did not answer the request sent (see :func:`reply_mismatch`), never returned."""
+    stale: int = 0
+    """Serial lines: replies that began before the request could have been answered (a duplicate, an
+    echo, a late reply) or arrived between transactions; dropped unread (see :mod:`.staleguard`)."""
     bytes_sent: int = 0
     bytes_received: int = 0
     bytes_garbled: int = 0
@@ -249,6 +257,23 @@ class _BusBase:
                     ex.pdu.function_code, problem)
         return max(0.0, started + self.timeout_for(ex.timing) - time.monotonic())
 
+    def _stale_guard(self, mode: bool | None) -> staleguard.StaleGuard:
+        """The guard that drops replies arriving too early on this serial line (see :mod:`.staleguard`)."""
+        if mode is not None and not isinstance(mode, bool):
+            raise InvalidArgument(f"stale_guard must be True, False or None, not {mode!r}")
+        char_s = self.bits_per_char / float(self.baudrate or DEFAULT_BAUDRATE)
+        return staleguard.StaleGuard(char_s, self._stale, mode)
+
+    def _stale(self, data: bytes, first: bool) -> None:
+        """Count and log bytes the guard dropped (once per transaction in :attr:`Stats.stale`)."""
+        self.stats.bytes_received += len(data)
+        if first:
+            self.stats.stale += 1
+            log.warning("%s stale reply dropped (it began before the request could be answered): %s",
+                        self.name, data.hex(" "))
+        elif log.isEnabledFor(logging.DEBUG):
+            log.debug("%s stale bytes dropped: %s", self.name, data.hex(" "))
+
     def _mark_done(self, quiet: float, replied: bool = False) -> None:
         """The transaction is over: keep the line quiet for ``quiet`` seconds (:meth:`quiet_after`),
         counted from the end of the reply when ``replied`` (see the module docstring), else from now."""
@@ -288,13 +313,21 @@ def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[
     if baudrate is None:
         log.warning("the map gives no default baud rate; using %d (pass baudrate= to choose)", DEFAULT_BAUDRATE)
         baudrate = DEFAULT_BAUDRATE
-    parity = _PARITY[overrides.pop("parity", serial.parity)]
+    parity_setting = overrides.pop("parity", serial.parity)
+    parity = _PARITY.get(parity_setting) if isinstance(parity_setting, (str, type(None))) else None
     stopbits = overrides.pop("stopbits", overrides.pop("stop_bits", serial.stop_bits)) or 1
     bytesize = overrides.pop("bytesize", overrides.pop("data_bits", serial.data_bits))
     if overrides:
-        raise TypeError(f"unknown serial settings: {', '.join(sorted(overrides))}")
+        raise InvalidArgument(f"unknown serial settings: {', '.join(sorted(overrides))}")
     if mode not in ("rtu", "ascii"):
-        raise ValueError(f"serial mode must be 'rtu' or 'ascii', not {mode!r}")
+        raise InvalidArgument(f"serial mode must be 'rtu' or 'ascii', not {mode!r}")
+    if parity is None:
+        raise InvalidArgument(f"parity must be one of 'none', 'even', 'odd', not {parity_setting!r}")
+    for what, value, allowed in (("stop bits", stopbits, (1, 1.5, 2)), ("data bits", bytesize, (7, 8))):
+        if isinstance(value, bool) or value not in allowed:
+            raise InvalidArgument(f"{what} must be one of {allowed}, not {value!r}")
+    if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
+        raise InvalidArgument(f"baud rate must be a positive int, not {baudrate!r}")
     kwargs = {
         "framer": FramerType.RTU if mode == "rtu" else FramerType.ASCII,
         "baudrate": baudrate, "parity": parity, "stopbits": stopbits, "bytesize": bytesize,
@@ -330,12 +363,15 @@ class Bus(_BusBase):
 
     @classmethod
     def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
-               retries: int | None = None, **overrides: Any) -> Bus:
+               retries: int | None = None, stale_guard: bool | None = None, **overrides: Any) -> Bus:
         """A serial line; ``serial`` gives the map's defaults, ``overrides`` (mode, baudrate, parity,
-        stopbits, bytesize) win over them."""
+        stopbits, bytesize) win over them. ``stale_guard``: drop replies that began before the request
+        could be answered (None: when the port shows it carries real characters; see :mod:`.staleguard`)."""
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
-        return cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
-                         timeout, retries, f"{mode}:{port}")
+        bus = cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                        timeout, retries, f"{mode}:{port}")
+        staleguard.guard_sync_client(bus.client, bus._stale_guard(stale_guard))
+        return bus
 
     @classmethod
     def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
@@ -405,6 +441,9 @@ class Bus(_BusBase):
                         continue
                     except ModbusException as exc:
                         raise TransportError(f"{self.name}: {exc}") from exc
+                    except OSError as exc:  # e.g. ConnectionResetError from the socket: reconnect next time
+                        client.close()
+                        raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
                     if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                         time.sleep(self._rejected(ex, reply, problem, started))
                         self._mark_done(quiet)
@@ -448,15 +487,22 @@ class AsyncBus(_BusBase):
 
     @classmethod
     def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
-               retries: int | None = None, **overrides: Any) -> AsyncBus:
+               retries: int | None = None, stale_guard: bool | None = None, **overrides: Any) -> AsyncBus:
         """A serial line; see :meth:`Bus.serial`."""
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
-        return cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
-                         timeout, retries, f"{mode}:{port}")
+        bus = cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
+                        timeout, retries, f"{mode}:{port}")
+        staleguard.guard_async_client(bus.client, bus._stale_guard(stale_guard))
+        return bus
 
     @classmethod
     def _make(cls, factory: Any, kwargs: dict[str, Any], serial: bool, baudrate: int | None, bits: int,
               timeout: float | None, retries: int | None, name: str) -> AsyncBus:
+        try:
+            asyncio.get_running_loop()
+        except RuntimeError:
+            raise TransportError(f"{name}: an asyncio bus is made inside a running event loop "
+                                 "(in a coroutine); use Bus for synchronous code") from None
         bus = cls.__new__(cls)
         client = factory(
             **kwargs, timeout=timeout if timeout is not None else DEFAULT_RESPONSE_TIMEOUT_S, retries=0,
@@ -519,6 +565,9 @@ class AsyncBus(_BusBase):
                     continue
                 except ModbusException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
+                except OSError as exc:  # e.g. ConnectionResetError from the transport: reconnect next time
+                    client.close()
+                    raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
                 if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)

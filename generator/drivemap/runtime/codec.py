@@ -104,11 +104,21 @@ class Codec(Generic[T]):
 
     def _check_range(self, value: float) -> None:
         spec = self.spec
-        tol = _EPS * max(1.0, abs(value)) if math.isfinite(value) else 0.0
+        try:
+            tol = _EPS * max(1.0, abs(value)) if math.isfinite(value) else 0.0
+        except OverflowError:  # an int too large for a float (10**400): outside every range
+            raise ValueOutOfRange(f"{spec.name}: {_short(value)} is not representable") from None
         if spec.min is not None and value < spec.min - tol:
             raise ValueOutOfRange(f"{spec.name}: {value} is below the minimum {spec.min}{_unit(spec)}")
         if spec.max is not None and value > spec.max + tol:
             raise ValueOutOfRange(f"{spec.name}: {value} is above the maximum {spec.max}{_unit(spec)}")
+
+
+def _short(value: object) -> str:
+    """``value`` for a message: a huge int (``10**400``) is named by its size, never converted to text."""
+    if isinstance(value, int) and value.bit_length() > 96:
+        return f"an integer of {value.bit_length()} bits"
+    return repr(value)
 
 
 def _unit(spec: RegisterSpec) -> str:
@@ -165,8 +175,12 @@ class FloatCodec(Codec[float]):
     def encode(self, value: float) -> int:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InvalidValue(f"{self.spec.name}: expected a number, got {type(value).__name__}")
-        if not math.isfinite(value):
-            raise ValueOutOfRange(f"{self.spec.name}: {value} is not finite")
+        try:
+            finite = math.isfinite(value)
+        except OverflowError:  # an int too large for a float
+            finite = False
+        if not finite:
+            raise ValueOutOfRange(f"{self.spec.name}: {_short(value)} is not finite")
         self._check_range(float(value))
         raw = _round_half_away((value - self.spec.offset) / self.spec.scale)
         return _fits(self.spec, raw, value)
@@ -175,7 +189,7 @@ class FloatCodec(Codec[float]):
 def _fits(spec: RegisterSpec, raw: int, value: float) -> int:
     lo, hi = raw_bounds(spec)
     if not lo <= raw <= hi:
-        raise ValueOutOfRange(f"{spec.name}: {value}{_unit(spec)} is not representable ({spec.type} raw {raw})")
+        raise ValueOutOfRange(f"{spec.name}: {_short(value)}{_unit(spec)} is not representable ({spec.type} raw {_short(raw)})")
     return raw
 
 
@@ -380,6 +394,11 @@ class FlagCodec(Codec[F]):
         self.flag_type = flag_type
         self._members: dict[Any, Any] = flag_type._value2member_map_
         self._mask = (1 << (16 * spec.words)) - 1
+        defined = 0
+        for member in flag_type.__members__.values():
+            defined |= int(member)
+        #: The bits the map defines; a write with any other bit set is refused.
+        self.defined = defined
 
     def decode(self, raw: int) -> F:
         value = raw & self._mask
@@ -391,7 +410,10 @@ class FlagCodec(Codec[F]):
             raise InvalidValue(f"{self.spec.name}: expected {self.flag_type.__name__}, got {type(value).__name__}")
         raw = int(value)
         if not 0 <= raw < 1 << (16 * self.spec.words):
-            raise ValueOutOfRange(f"{self.spec.name}: {raw:#x} does not fit the register")
+            raise ValueOutOfRange(f"{self.spec.name}: {_short(raw)} does not fit the register")
+        if raw & ~self.defined:
+            raise ValueOutOfRange(f"{self.spec.name}: bit(s) {raw & ~self.defined:#x} are not defined by the map "
+                                  f"({self.flag_type.__name__} defines {self.defined:#x})")
         if self.spec.signed and raw >= 1 << (16 * self.spec.words - 1):
             raw -= 1 << (16 * self.spec.words)
         return raw

@@ -44,12 +44,14 @@ from .errors import (
     BroadcastRead,
     DeviceException,
     DriveError,
+    InvalidArgument,
     InvalidValue,
     NotBroadcastable,
     PartialWrite,
     ReadOnlyRegister,
     TransportError,
     UnsupportedFunction,
+    ValueOutOfRange,
     WriteOnlyRegister,
     WrongPage,
 )
@@ -142,8 +144,8 @@ class Core:
 
     def __init__(self, spec: DeviceSpec, unit: int, exceptions: Mapping[int, type[DeviceException]],
                  page_policy: PagePolicy, broadcast: bool, stats: Stats | None = None) -> None:
-        if page_policy not in ("raise", "switch"):
-            raise ValueError("page_policy must be 'raise' or 'switch'")
+        if not isinstance(page_policy, str) or page_policy not in ("raise", "switch"):
+            raise InvalidArgument(f"page_policy must be 'raise' or 'switch', not {page_policy!r}")
         self.spec = spec
         self.unit = unit
         self.exceptions = exceptions
@@ -373,6 +375,12 @@ class Core:
         return False
 
     # -- writes
+    @staticmethod
+    def not_the_command(reg: RegisterSpec, key: Key, raw: object) -> ValueOutOfRange:
+        """A command register written with another value than the map's command value."""
+        return ValueOutOfRange(f"{reg.element_name(key[1])} is a command: only {reg.command_value} may be written "
+                               f"(use .execute()), not {raw!r}")
+
     def check_write(self, key: Key) -> RegisterSpec:
         reg = self.spec.register(key[0])
         if not reg.writable:
@@ -412,6 +420,8 @@ class Core:
             else:
                 raw = item
             reg = self.check_write(key)
+            if reg.command_value is not None and raw != reg.command_value:
+                raise self.not_the_command(reg, key, raw)
             words = raw_to_words(reg, raw)
             if len(words) > 1 and self._limit(reg.table) == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no multiple write for a multi-word value")
@@ -457,6 +467,9 @@ class Core:
     def _groups(self, items: Sequence[tuple[Key, int]]) -> list[list[tuple[RegisterSpec, Key, list[int]]]]:
         """Items in address order, contiguous runs of one table and page within the write limit together."""
         regs = [(reg, key, raw_to_words(reg, raw)) for key, raw in items for reg in (self.check_write(key),)]
+        for (key, raw), (reg, _, _) in zip(items, regs, strict=True):
+            if reg.command_value is not None and raw != reg.command_value:
+                raise self.not_the_command(reg, key, raw)
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
         for item in sorted(regs, key=lambda r: (r[0].table, r[0].element_address(r[1][1]))):
             reg, key, words = item

@@ -1,9 +1,9 @@
 """Every error a drivemap client raises: one hierarchy under :class:`DriveError`.
 
 Errors about the caller's input (:class:`InvalidValue`, :class:`ValueOutOfRange`,
-:class:`ReadOnlyRegister`, :class:`WriteOnlyRegister`, :class:`NotBroadcastable`,
-:class:`BroadcastRead`, :class:`WrongPage`, :class:`UnknownRegister`) are raised *before* any
-byte is sent. :class:`DeviceException` carries an exception reply of the device; generated
+:class:`InvalidArgument`, :class:`IndexOutOfRange`, :class:`ReadOnlyRegister`,
+:class:`WriteOnlyRegister`, :class:`NotBroadcastable`, :class:`BroadcastRead`, :class:`WrongPage`,
+:class:`UnknownRegister`) are raised *before* any byte is sent. :class:`DeviceException` carries an exception reply of the device; generated
 packages subclass it once per exception code of their map.
 """
 
@@ -22,6 +22,14 @@ class InvalidValue(DriveError, TypeError):
 
 class ValueOutOfRange(DriveError, ValueError):
     """The value lies outside the register's documented range or its raw type."""
+
+
+class InvalidArgument(DriveError, ValueError):
+    """An argument that is none of the values the call accepts (e.g. ``page_policy``, a serial setting)."""
+
+
+class IndexOutOfRange(DriveError, IndexError):
+    """An array element index outside ``0 .. count - 1`` (negative indexes included)."""
 
 
 class AccessError(DriveError):
@@ -134,6 +142,8 @@ __all__ = [
     "DeviceException",
     "DriveError",
     "DriveTimeout",
+    "IndexOutOfRange",
+    "InvalidArgument",
     "InvalidValue",
     "NotBroadcastable",
     "PartialWrite",

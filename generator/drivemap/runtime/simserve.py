@@ -44,12 +44,13 @@ from typing import Any, ClassVar
 
 from pymodbus.exceptions import NoSuchIdException
 from pymodbus.framer import FramerAscii, FramerRTU, FramerType
-from pymodbus.pdu import ModbusPDU
+from pymodbus.pdu import DecodePDU, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from .bus import sleep_until
-from .simulator import Simulator, SimulatorError
+from .simtcp import SimTcpServer
+from .simulator import Simulator, SimulatorError, StateFileError
 
 __all__ = [
     "SimServer",
@@ -146,19 +147,61 @@ class _SimRequest(ModbusPDU):
 
 
 def _request_classes(sim: Simulator, arrival: _Arrival | None = None) -> list[type[ModbusPDU]]:
-    """One request class per function code 01h-7Fh, bound to ``sim`` (registered per server).
+    """One request class per function code 01h-FFh, bound to ``sim`` (registered per server).
 
     ``arrival`` is shared with the server's serial framer (without one: delays count from handling).
+    Codes 80h-FFh are requests too (a device answers them with its illegal-function exception);
+    only :class:`_SimDecoder` hands them over, pymodbus's own decoder takes them for replies.
     """
     arrival = arrival or _Arrival()
     return [
         type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim, "arrival": arrival})
-        for code in range(0x01, 0x80)
+        for code in range(0x01, 0x100)
     ]
 
 
+class _SimDecoder(DecodePDU):
+    """The server's PDU decoder: function codes 01h-FFh are all requests for the simulator.
+
+    pymodbus decodes a frame with a code of 80h or more as an exception *reply* (a server then
+    answers 04h, device failure); a device answers such a request with its illegal-function
+    exception (Modbus Application Protocol v1.1b3, 7: codes 128-255 are no request codes).
+    """
+
+    def __init__(self, classes: list[type[ModbusPDU]]) -> None:
+        super().__init__(True)
+        for cls in classes:
+            self.register(cls)
+        self._high = {cls.function_code: cls for cls in classes if cls.function_code >= 0x80}
+
+    def lookupPduClass(self, data: bytes) -> type[ModbusPDU] | None:  # noqa: N802 (pymodbus API)
+        high = self._high.get(data[1]) if len(data) > 1 else None
+        return high if high is not None else super().lookupPduClass(data)
+
+    def decode(self, frame: bytes) -> ModbusPDU | None:
+        high = self._high.get(frame[0]) if frame else None
+        if high is None:
+            return super().decode(frame)
+        pdu = high()
+        pdu.decode(frame[1:])
+        return pdu
+
+
+def request_decoder(sim: Simulator, arrival: _Arrival | None = None) -> _SimDecoder:
+    """The decoder a serial server of ``sim`` uses (its request classes, 80h-FFh included)."""
+    return _SimDecoder(_request_classes(sim, arrival))
+
+
 class _WatchRTU(FramerRTU):
-    """pymodbus's RTU framer, plus: report bad CRCs; drop stale partial frames after a silence."""
+    """pymodbus's RTU framer, plus: report bad CRCs; drop stale partial frames after the silent interval;
+    find a request that follows noise without that silence.
+
+    A frame whose CRC is wrong makes pymodbus drop everything received. When the silence before a
+    request was shorter than the interval the framer measures (the host decides when bytes are seen
+    here, give or take a few milliseconds), the noise and the request arrive together: the framer
+    then looks behind the broken frame for a request to one of the simulated units (or the broadcast
+    address) and takes it when its CRC is right, or keeps its bytes while it is still incomplete.
+    """
 
     simulator: ClassVar[Simulator]
     silence: ClassVar[float]
@@ -172,13 +215,26 @@ class _WatchRTU(FramerRTU):
     def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
         now = time.monotonic()
         stale = 0
+        whole: tuple[int, int, int, bytes] | None = None
         if self._waiting and len(data) > self._waiting and now - self._since > self.silence:
-            stale = self._waiting  # these bytes never became a frame before the line went quiet
-        used, dev_id, tid, frame = super().decode(data[stale:])
-        if frame and not 0x01 <= frame[0] <= 0x7F:
-            frame = self.EMPTY  # 00h / 80h-FFh are no request codes: no reply, a frame error
+            # these bytes never became a frame before the line went quiet: a new frame starts after
+            # them, unless old and new bytes are one frame that the host delivered in two pieces
+            whole = super().decode(data)
+            if not whole[3]:
+                whole = None
+                stale = self._waiting
+        used, dev_id, tid, frame = whole if whole is not None else super().decode(data[stale:])
+        if frame and not frame[0]:
+            frame = self.EMPTY  # 00h is no function code: no reply, a frame error
         if used and not frame:
             self.simulator.frame_error(data[stale] if len(data) > stale else None)
+            skip, found = self._behind_noise(data[stale:])
+            if found is not None:
+                used, dev_id, tid, frame = skip + found[0], found[1], found[2], found[3]
+            elif skip:  # an unfinished request behind the noise: keep its bytes, wait for the rest
+                self._waiting = len(data) - stale - skip
+                self._since = now
+                return stale + skip, 0, 0, self.EMPTY
         if frame:
             self.arrival.at = now
         if used or frame:
@@ -187,6 +243,23 @@ class _WatchRTU(FramerRTU):
         self._waiting = len(data) - stale
         self._since = now
         return stale, dev_id, tid, frame
+
+    def _behind_noise(self, data: bytes) -> tuple[int, tuple[int, int, int, bytes] | None]:
+        """After a broken frame at the start of ``data``: (offset, decoded request) of the first request to a
+        simulated unit with a right CRC, or (offset, None) of the first one still incomplete, or (0, None)."""
+        sim = self.simulator
+        units = set(sim.unit_ids)
+        if sim.spec.broadcast_address is not None:
+            units.add(sim.spec.broadcast_address)
+        for start in range(1, len(data) - 1):
+            if data[start] not in units:
+                continue
+            found = super().decode(data[start:])
+            if found[3] and found[3][0]:
+                return start, found
+            if not found[0]:
+                return start, None  # not complete yet
+        return 0, None
 
 
 class _WatchAscii(FramerAscii):
@@ -225,7 +298,7 @@ class _WatchAscii(FramerAscii):
             _, dev_id, tid, frame = super().decode(candidate)
         except ValueError:  # pymodbus parses the unit id outside its try block: non-hex raises
             dev_id, tid, frame = 0, 0, self.EMPTY
-        if not frame or not 0x01 <= frame[0] <= 0x7F:  # bad hex/LRC, too short, or 00h / 80h-FFh
+        if not frame or not frame[0]:  # bad hex/LRC, too short, or 00h
             try:
                 unit: int | None = bytes.fromhex(candidate[1:3].decode("ascii"))[0]
             except (ValueError, UnicodeDecodeError, IndexError):
@@ -236,12 +309,20 @@ class _WatchAscii(FramerAscii):
 
 
 def _silence_seconds(sim: Simulator, baudrate: int) -> float:
-    """How long the line must be quiet before unfinished bytes are dropped (>= 3.5 characters).
+    """How long the line must be quiet before unfinished bytes are dropped: the map's silent interval
+    (3.5 characters at ``baudrate``, or its floor above the baud rate the map names; Modbus over
+    Serial Line v1.02, 2.5.1.1).
 
-    Never below 50 ms: the host's scheduling, not the line, decides when bytes are seen here.
+    When the host delivers one frame in two pieces further apart than this, the framer keeps them
+    together because together they form a frame with a right CRC (see :class:`_WatchRTU`).
     """
-    chars = sim.spec.timing.silent_interval_chars or 3.5
-    return max(chars * 11 / baudrate, 0.05)
+    timing = sim.spec.timing
+    floor_above = timing.silent_interval_floor_above_bps
+    if floor_above is not None and baudrate > floor_above and timing.silent_interval_floor_ms:
+        return timing.silent_interval_floor_ms / 1000.0
+    chars = timing.silent_interval_chars or 3.5
+    floor = 0.00175 if baudrate > 19200 else 0.0  # the standard's fixed 1.75 ms above 19200 Bd
+    return max(chars * 11 / baudrate, floor)
 
 
 class SimServer:
@@ -303,8 +384,9 @@ class SimServer:
         custom = _request_classes(self.sim, arrival)
         server: ModbusTcpServer | ModbusSerialServer
         if self.tcp is not None:
-            server = ModbusTcpServer(
-                context, framer=FramerType.SOCKET, address=self.tcp, ignore_missing_devices=True, custom_pdu=custom
+            server = SimTcpServer(
+                self.sim, context, framer=FramerType.SOCKET, address=self.tcp, ignore_missing_devices=True,
+                custom_pdu=custom,
             )
         else:
             server = ModbusSerialServer(
@@ -318,6 +400,7 @@ class SimServer:
                 ignore_missing_devices=True,
                 custom_pdu=custom,
             )
+            server.decoder = _SimDecoder(custom)
             watch: type[FramerRTU] | type[FramerAscii]
             if self.mode == "rtu":
                 watch = type("SimFramerRTU", (_WatchRTU,), {
@@ -443,6 +526,9 @@ def serve_cli(args: argparse.Namespace) -> int:
     """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0."""
     try:
         return run(args.factory, args)
+    except StateFileError as exc:  # already located: path:line:col: error: ...
+        print(exc, file=sys.stderr)
+        return 2
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"drivemap simulate: error: {exc}", file=sys.stderr)
         return 2
@@ -511,6 +597,9 @@ def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = Non
     args.model = model
     try:
         return run(factory, args)
+    except StateFileError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"{model} simulator: error: {exc}", file=sys.stderr)
         return 2

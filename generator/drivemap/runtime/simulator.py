@@ -46,9 +46,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from . import simstate
 from .codec import raw_bounds
 from .quirks import encode_read_reply
-from .simstate import StateFile
+from .simpersist import Persistence, StateFileError
 from .simunit import SimulatorError, SimValue, Unit, to_value, unwire_words
 from .spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
@@ -61,6 +62,7 @@ __all__ = [
     "SimValue",
     "Simulator",
     "SimulatorError",
+    "StateFileError",
     "Unit",
 ]
 
@@ -151,7 +153,7 @@ def _swapped(word: int, swap: bool) -> int:
     return ((word & 0xFF) << 8) | (word >> 8) if swap else word
 
 
-class Simulator(StateFile):
+class Simulator(Persistence):
     """A simulated device: one register store per unit id, answering in the device's dialect.
 
     ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
@@ -222,7 +224,8 @@ class Simulator(StateFile):
             if not spec.valid_unit(uid):
                 raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
         self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
-        if self.state_file is not None and self.state_file.exists():
+        self._state: simstate.StateFile | None = None
+        if self.state_file is not None:
             self._load_state(self.state_file)
         for unit in self.units.values():
             self.behaviour.on_start(unit)
@@ -343,8 +346,13 @@ class Simulator(StateFile):
         return STANDARD_CODES[case]
 
     # ==== request handling ====================================================================
-    def handle(self, unit_id: int, pdu: bytes) -> bytes | None:
-        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply)."""
+    def handle(self, unit_id: int, pdu: bytes, *, always_answer: bool = False) -> bytes | None:
+        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply).
+
+        ``always_answer`` (Modbus TCP): an error case the map leaves unanswered (code null: right on
+        a serial line) gets the Modbus standard code instead of silence. Other units and broadcasts
+        still get no reply.
+        """
         if not pdu:
             return None
         with self._lock:
@@ -369,6 +377,8 @@ class Simulator(StateFile):
                 except _Refused as refused:
                     self._record(unit, refused.case)
                     answer = self.exception_code(refused.case)
+                    if answer is None and always_answer:
+                        answer = STANDARD_CODES[refused.case]
                     return None if answer is None else bytes([pdu[0] | 0x80, answer])
             finally:
                 self._save_if_dirty()

@@ -90,7 +90,8 @@ def check_raw(spec: RegisterSpec, raw: object) -> int:
         raise InvalidValue(f"{spec.name}: raw value must be int, not {type(raw).__name__}")
     lo, hi = raw_bounds(spec)
     if not lo <= raw <= hi:
-        raise ValueOutOfRange(f"{spec.name}: raw value {raw} does not fit {spec.type} ({lo}..{hi})")
+        shown = str(raw) if raw.bit_length() <= 128 else f"an integer of {raw.bit_length()} bits"
+        raise ValueOutOfRange(f"{spec.name}: raw value {shown} does not fit {spec.type} ({lo}..{hi})")
     return raw
 
 

@@ -12,16 +12,11 @@ import keyword
 from dataclasses import dataclass
 from typing import Any
 
-from ..checks import FIXED_NAMES
 from ..exporters.base import Options
 from ..model import Bit, Model, Register, camel
+from ..names import FIXED_NAMES, exception_classes
+from ..names import bit_attribute as _attr
 from .common import header
-
-
-def _attr(name: str) -> str:
-    """A snake_case attribute for an UPPER_CASE bit name (keywords get a trailing underscore)."""
-    low = name.lower()
-    return low + "_" if keyword.iskeyword(low) or keyword.issoftkeyword(low) else low
 
 
 def _num(value: float | None) -> str:
@@ -182,14 +177,9 @@ def _plain_codec(reg: Register) -> tuple[set[str], str]:
 
 def _access_class(reg: Register, asynchronous: bool) -> str:
     base = {"r": "ReadOnly", "w": "WriteOnly", "rw": "ReadWrite"}[reg.access]
+    if reg.command_value is not None and not reg.is_array:  # .execute(); writes of other values refused
+        base = {"w": "Command", "rw": "ReadWriteCommand"}.get(reg.access, base)
     return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
-
-
-def _exception_class(name: str) -> str:
-    cls = camel(name)
-    if not cls[:1].isalpha():
-        cls = "Code" + cls
-    return cls if cls.endswith("Error") else cls + "Error"
 
 
 def _check_names(model: Model, names: list[tuple[str, str]]) -> None:
@@ -239,12 +229,8 @@ def _bit_classes(model: Model) -> tuple[list[dict[str, Any]], list[dict[str, Any
 
 def _exceptions(model: Model) -> list[dict[str, str]]:
     exceptions = []
-    used: set[str] = set()
-    for ex in model.protocol.exceptions:
-        cls = _exception_class(ex.name)
-        if cls in used or cls in FIXED_NAMES:
-            cls = f"{cls[:-5]}{ex.code:02X}Error"
-        used.add(cls)
+    classes = exception_classes([(ex.name, ex.code) for ex in model.protocol.exceptions])
+    for ex, cls in zip(model.protocol.exceptions, classes, strict=True):
         exceptions.append({"name": cls, "code": f"0x{ex.code:02X}", "code_name": ex.name, "meaning": ex.meaning,
                            "source": ex.source})
     return exceptions
@@ -273,7 +259,7 @@ PACKAGE_NAMES = frozenset({
     "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
     "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
     "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
-    "ScaleUnavailable",
+    "ScaleUnavailable", "IndexOutOfRange", "InvalidArgument",
 })
 
 
@@ -295,8 +281,10 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     # ClientBase.broadcast refuses with the map's reason (broadcast_refusal)
     has_broadcast = model.protocol.broadcast_address is not None and any(a.broadcast for a in accessors)
     bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
-    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "WriteOnly") for a in bcast]
-    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncWriteOnly") for a in bcast]
+    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "Command" if "Command" in a.sync_class else "WriteOnly")
+                      for a in bcast]
+    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncCommand" if "Command" in a.sync_class
+                        else "AsyncWriteOnly") for a in bcast]
 
     runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
     for a in accessors:
