@@ -149,7 +149,7 @@ class _Build:
         keys = sorted({(p.reg.name, p.index) for p in readable
                        if any(i.polled and i.address == p.address and i.table == p.reg.table for i in self.items)})
         plan = plan_reads(load_spec(model), keys) if keys else ()
-        skips = {(p.reg.table, p.address): max(0, round(p.interval / self.base) - 1) for p in readable}
+        skips: dict[tuple[str, int], int] = {(p.reg.table, p.address): max(0, round(p.interval / self.base) - 1) for p in readable}
         if self.raw:
             self.notes.append("text_sensor with the wire bytes as hex (ESPHome has no value_type for them): "
                               + "; ".join(self.raw))

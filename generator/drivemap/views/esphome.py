@@ -59,7 +59,7 @@ class Layout:
     notes: list[str] = field(default_factory=list)
 
 
-def align(items: list[Item], plan: tuple[ReadRequest, ...], skips: dict[int, int],
+def align(items: list[Item], plan: tuple[ReadRequest, ...], skips: dict[tuple[str, int], int],
           make_filler: Any) -> Layout:
     """Set address/offset/register_count/force_new_range/skip_updates so ESPHome reads ``plan``.
 
