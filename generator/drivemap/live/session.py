@@ -55,8 +55,10 @@ class Session:
 
     # -- reads
     def read_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
-        """Raw values of ``keys`` in the fewest requests the map allows (the client's planner)."""
-        return self.client._read_raw_keys(tuple(keys))  # type: ignore[no-any-return]
+        """Raw values of ``keys`` in the fewest requests the map allows (the client's planner), with
+        the scale-factor registers of scaled ones read in the same pass (``fmt.decode`` needs them)."""
+        factors = {self.target.codecs[name].scale_key for name, _ in keys} - {None} - set(keys)
+        return self.client._read_raw_keys(tuple(keys) + tuple(sorted(factors)))  # type: ignore[no-any-return]
 
     def read_request(self, request: ReadRequest) -> dict[Key, int]:
         """Raw values of one planned request, exactly as planned."""
