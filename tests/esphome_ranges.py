@@ -74,10 +74,12 @@ def items_of(doc: dict[str, Any]) -> list[SensorItem]:
             count, size = _count(platform, cfg)
             offset = int(cfg.get("offset", 0))
             address = int(cfg["address"])
+            register_type = cfg.get("register_type", "holding")
+            bits = register_type in ("coil", "discrete_input")  # offset in bits there, else in bytes
             out.append(SensorItem(str(cfg.get("name") or cfg.get("id")), platform,
-                                  cfg.get("register_type", "holding"), address, offset, count, size,
+                                  register_type, address, offset, count, size,
                                   bool(cfg.get("force_new_range", False)), int(cfg.get("skip_updates", 0)),
-                                  len(out), address + offset // 2))
+                                  len(out), address + (offset if bits else offset // 2)))
     return out
 
 

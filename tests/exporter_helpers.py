@@ -24,7 +24,18 @@ SERIAL: dict[str, dict[str, Any]] = {
     "vfd1000": {"baudrate": 9600, "parity": "none", "stopbits": 1},
     "v2": {"baudrate": 9600, "parity": "none", "stopbits": 1},
     "edx": {"baudrate": 9600, "parity": "none", "stopbits": 1, "method": "rtu"},
+    "fronius_symo_hybrid": {"baudrate": 9600, "parity": "none", "stopbits": 1},
 }
+#: the synthetic map that uses every construct of the map language (coils, discretes, f64, strings,
+#: low-first bytes, scale registers...): exported as well as the maps of maps/
+ALLKINDS = ROOT / "tests" / "maps" / "allkinds.yaml"
+
+
+def load(name: str) -> Model:
+    """A map of maps/ by name, or the synthetic ``allkinds``."""
+    from drivemap.compiler import load_model
+
+    return compile_map(ALLKINDS) if name == "allkinds" else load_model(name)
 
 HOSTILE = (
     "it's \"quoted\" {{ states('sensor.x') }} {% raw %}x{% endraw %} !!python/object/apply:os.system ['id'] "

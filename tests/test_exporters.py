@@ -29,6 +29,7 @@ from tests.exporter_helpers import (
     MAPS,
     ROOT,
     compile_hostile,
+    load,
     parse,
     render,
     shape,
@@ -56,10 +57,10 @@ def test_list_shows_every_builtin() -> None:
 
 
 @pytest.mark.parametrize("fmt", INTEGRATIONS)
-@pytest.mark.parametrize("model", MAPS)
+@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
 def test_deterministic_and_parseable(model: str, fmt: str) -> None:
-    m = load_model(model)
-    first, second = render(m, fmt), render(load_model(model), fmt)
+    m = load(model)
+    first, second = render(m, fmt), render(load(model), fmt)
     assert first.encode() == second.encode()
     assert parse(fmt, first)
 
@@ -148,11 +149,11 @@ def test_option_errors_are_usage_errors(argv: list[str], message: str) -> None:
     assert message.lower() in err.lower() and "Traceback" not in err
 
 
-@pytest.mark.parametrize("model", MAPS)
+@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
 def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
     """ESPHome's range builder (ported) on the export: every entity decodes its own word, no range
     exceeds the device's limit, and the ranges are drivemap's plan (plus what the header reports)."""
-    m = load_model(model)
+    m = load(model)
     text = render(m, "esphome")
     doc = parse("esphome", text)
     items = esp.items_of(doc)
@@ -160,8 +161,9 @@ def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
     spec = load_spec(m)
     for r in got:
         for item in r.sensors:
-            assert r.start_address + item.offset // 2 == item.word, (item.name, hex(r.start_address))
-            assert item.offset // 2 + item.register_count <= r.register_count, item.name
+            words = item.offset if item.register_type in ("coil", "discrete_input") else item.offset // 2
+            assert r.start_address + words == item.word, (item.name, hex(r.start_address))
+            assert words + item.register_count <= r.register_count, item.name
     fc = spec.function(0x03)
     limit = fc.max_quantity if fc and fc.max_quantity else 125
     assert all(r.register_count <= limit for r in got)
@@ -170,14 +172,16 @@ def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
     keys = {(n.rsplit("[", 1)[0], int(n.rsplit("[", 1)[1][:-1]) if "[" in n else 0)
             for n in _polled_cells(m, doc)}
     plan = plan_reads(spec, keys)
-    spans = sorted((r.start_address, r.register_count) for r in got)
+    types = {"holding": "holding", "input": "read", "coil": "coil", "discrete": "discrete_input"}
+    spans = sorted((r.register_type, r.start_address, r.register_count) for r in got)
     if claimed == len(plan):
-        assert spans == sorted((q.address, q.count) for q in plan)
+        assert spans == sorted((types[q.table], q.address, q.count) for q in plan)
 
 
 def _polled_cells(model: Any, doc: dict[str, Any]) -> set[str]:
-    words = {i.word for i in esp.items_of(doc) if not i.name.startswith("gap_")}
-    return {c.name for c in model.cells() if c.address in words and c.register.readable
+    types = {"holding": "holding", "input": "read", "coil": "coil", "discrete": "discrete_input"}
+    words = {(i.register_type, i.word) for i in esp.items_of(doc) if not i.name.startswith("gap_")}
+    return {c.name for c in model.cells() if (types[c.register.table], c.address) in words and c.register.readable
             and (c.register.page is None or c.register.page.value == 0)}
 
 
@@ -195,8 +199,8 @@ def test_pymodbus_simulator_serves_the_export() -> None:
     answers the generated client with the map's image (the real CLI: test_exporters_tools.py)."""
     from tests.sim_helpers import read_back, serve_export
 
-    for model in MAPS:
-        m = load_model(model)
+    for model in [*MAPS, "allkinds"]:
+        m = load(model)
         with serve_export(m) as (port, unit):
             got, expected = read_back(m, port, unit)
         assert got == expected, model

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from drivemap.compiler import load_model
-from tests.exporter_helpers import MAPS, compile_hostile, parse, render
+from tests.exporter_helpers import MAPS, compile_hostile, load, parse, render
 from tests.toolenv import require
 
 pytestmark = pytest.mark.tools
@@ -36,9 +36,9 @@ def _esphome_config(folder: Path, name: str, text: str) -> str:
     return output
 
 
-@pytest.mark.parametrize("model", MAPS)
+@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
 def test_esphome_config_accepts_the_export(model: str, tmp_path: Path) -> None:
-    text = render(load_model(model), "esphome")
+    text = render(load(model), "esphome")
     output = _esphome_config(tmp_path, f"{model}.yaml", text)
     for entity in parse("esphome", text).get("sensor", [])[:5]:
         if "name" in entity:
@@ -70,12 +70,13 @@ def _check_config(folder: Path, package: str) -> str:
     return output
 
 
-@pytest.mark.parametrize("model", MAPS)
+@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
 def test_home_assistant_check_config_accepts_the_export(model: str, tmp_path: Path) -> None:
-    text = render(load_model(model), "homeassistant", ha_version="2024.3")
+    text = render(load(model), "homeassistant", ha_version="2024.3")
     output = _check_config(tmp_path, text)
     doc = parse("homeassistant", text)
-    names = [e["name"] for e in doc["modbus"][0].get("sensors", []) + doc["modbus"][0].get("switches", [])]
+    hub = doc["modbus"][0]
+    names = [e["name"] for e in hub.get("sensors", []) + hub.get("switches", []) + hub.get("binary_sensors", [])]
     for name in names:  # every entity reached the validated modbus configuration
         assert f"name: {name} " in output or f"name: {name}\n" in output, name
     for block in doc.get("template", []):

@@ -21,7 +21,7 @@ CLIENT_ATTRIBUTES = frozenset(
         "read", "write", "read_all", "read_by_name", "write_by_name", "read_modify_write", "close",
         "stats", "bus", "unit", "pending_configuration", "pending_power_cycle", "apply_configuration",
         "registers", "accessor", "tcp", "serial", "rtu_over_tcp", "broadcast", "model", "page_policy",
-        "connect", "plan", "loopback", "write_many", "self", "cls", "holes",
+        "connect", "plan", "loopback", "write_many", "self", "cls", "holes", "read_registers",
     }
 )
 

@@ -1,7 +1,10 @@
 """The ``csv`` exporter: one row per register element, for PLC tools and spreadsheets.
 
 Written by Python's ``csv`` module (quoting is its business, so map text never adds a row or a
-column). Text cells are flattened to one line, and a text cell that a spreadsheet would run as a
+column). ``table`` is holding/input/coil/discrete, ``modicon`` the six-digit reference with the table's
+digit first (coil 0, discrete 1, input 3, holding 4), ``not_available`` the raw values meaning "no
+value" (hex, as the register's words), ``scale_register`` the register whose value v scales by 10^v.
+Text cells are flattened to one line, and a text cell that a spreadsheet would run as a
 formula (it starts with ``=``, ``+``, ``-``, ``@``) gets a leading apostrophe.
 """
 
@@ -20,12 +23,13 @@ __all__ = ["COLUMNS", "MODICON", "CsvExporter"]
 
 COLUMNS = (
     "table", "address_hex", "address", "modicon", "name", "param", "group", "label", "type", "words", "word_order",
-    "scale", "offset", "unit", "access", "min", "max", "default", "reflect", "storage", "page", "enum", "enum_labels",
+    "byte_order", "length", "encoding", "scale", "scale_register", "offset", "not_available", "unit", "access", "min", "max", "default", "reflect", "storage", "page", "enum", "enum_labels",
     "bits", "command", "description", "source",
 )
 
-#: table -> (Modicon prefix, function code that reads it). Issue 14 adds input (3), coil (0), discrete (1).
-MODICON: dict[str, tuple[int, int]] = {"holding": (4, 0x03)}
+#: table -> (Modicon prefix, function code that reads it).
+MODICON: dict[str, tuple[int, int]] = {"coil": (0, 0x01), "discrete": (1, 0x02), "input": (3, 0x04),
+                                       "holding": (4, 0x03)}
 
 _DELIMITERS = {"comma": ",", "semicolon": ";", "tab": "\t"}
 
@@ -65,10 +69,10 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         for b in reg.bits
     )
     return {
-        "table": "holding",
+        "table": reg.table,
         "address_hex": f"0x{cell.address:04X}",
         "address": str(cell.address),
-        "modicon": modicon("holding", cell.address),
+        "modicon": modicon(reg.table, cell.address),
         "name": cell.name,
         "param": reg.element_param(cell.index) or "",
         "group": reg.group,
@@ -76,8 +80,14 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "type": reg.type,
         "words": str(reg.words),
         "word_order": reg.word_order or "",
+        "byte_order": "" if reg.bit_table else reg.byte_order,
+        "length": str(reg.length) if reg.type == "string" else "",
+        "encoding": reg.encoding if reg.type == "string" else "",
         "scale": _num(reg.scale),
+        "scale_register": reg.scale_register or "",
         "offset": _num(reg.offset),
+        "not_available": " | ".join(f"0x{v & ((1 << (16 * reg.words)) - 1):0{4 * reg.words}X}"
+                                    for v in reg.not_available),
         "unit": _text(reg.unit),
         "access": reg.access,
         "min": _num(reg.min),
@@ -112,8 +122,9 @@ class CsvExporter(Exporter):
         writer = csv.DictWriter(out, fieldnames=COLUMNS, delimiter=_DELIMITERS[delimiter], lineterminator="\n",
                                 quoting=csv.QUOTE_MINIMAL)
         writer.writeheader()
-        cells: list[Any] = sorted(model.cells(),
-                                  key=lambda c: (c.address, c.register.page.value if c.register.page else -1, c.name))
+        order = {"coil": 0, "discrete": 1, "input": 3, "holding": 4}
+        cells: list[Any] = sorted(model.cells(), key=lambda c: (order[c.register.table], c.address,
+                                                                c.register.page.value if c.register.page else -1, c.name))
         for cell in cells:
             writer.writerow(_row(model, cell))
         return {f"{model.name}.csv": ("\ufeff" if options.get("bom") else "") + out.getvalue()}

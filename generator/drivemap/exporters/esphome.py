@@ -4,8 +4,17 @@ Entities per register element (``platform: modbus_controller``): ``sensor`` for 
 offset as filters), ``number`` for writable values with a range (min/max/step in engineering
 units, ``multiply`` for the scale), ``select`` for writable enums, ``text_sensor`` with the enum's
 labels (HEXBYTES + ``map``) for read-only enums, ``binary_sensor`` with ``bitmask`` per one-bit
-field (a multi-bit field: a sensor with ``bitmask``), ``switch`` per command (assumed state, never
-polled). Range batching follows drivemap's read plan (:mod:`drivemap.views.esphome`); timing comes
+field of a one-word register (a multi-bit field, or any field of a multi-word register: a sensor with
+``bitmask`` and the register's value_type, 0/1 for one bit: ESPHome's binary_sensor reads one word and
+would split the register's read), ``switch`` per command (assumed state, never
+polled). Issue 14: input registers are ``register_type: read``; a coil or discrete input is a
+``binary_sensor`` (``coil``/``discrete_input``), a writable coil a ``switch`` that polls it (write-only:
+assumed state); f32 -> FP32(_R), u64/s64 -> U_QWORD/S_QWORD(_R); strings are a ``text_sensor``
+(``raw_encode: ANSI``); what ESPHome has no value_type for (f64, low byte first) is a ``text_sensor``
+with the wire bytes as hex (HEXBYTES), listed in the header for the reader to decode;
+``not_available`` values are a ``filter_out`` before scaling (integers; a NaN float is NaN anyway);
+a scale register is the id of its sensor, and each scaled sensor multiplies by 10^its last value in a
+``lambda`` filter. Range batching follows drivemap's read plan (:mod:`drivemap.views.esphome`); timing comes
 from the map (``command_throttle``, ``turnaround_time``, ``send_wait_time``, ``max_cmd_retries``).
 """
 
@@ -17,7 +26,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..inmemory import load_spec
-from ..model import Model
+from ..model import Model, Register
 from ..runtime.planner import plan_reads
 from ..views import integrations as iv
 from ..views.common import header as generated_header
@@ -27,19 +36,33 @@ from .base import Exporter, OptionError, Options
 
 __all__ = ["REGISTER_TYPES", "VALUE_TYPES", "EsphomeExporter"]
 
-#: (drivemap type, word order) -> value_type. Issue 14 adds f32 -> FP32/FP32_R, u64 -> U_QWORD/_R,
-#: s64 -> S_QWORD/_R (f64 has no value_type: a raw text_sensor or a lambda).
+#: (drivemap type, word order) -> value_type (high byte first: ESPHome has no byte-swapped types).
 VALUE_TYPES: dict[tuple[str, str | None], str] = {
     ("u16", None): "U_WORD",
     ("s16", None): "S_WORD",
+    ("bool", None): "U_WORD",
     ("u32", "high_first"): "U_DWORD",
     ("u32", "low_first"): "U_DWORD_R",
     ("s32", "high_first"): "S_DWORD",
     ("s32", "low_first"): "S_DWORD_R",
+    ("f32", "high_first"): "FP32",
+    ("f32", "low_first"): "FP32_R",
+    ("u64", "high_first"): "U_QWORD",
+    ("u64", "low_first"): "U_QWORD_R",
+    ("s64", "high_first"): "S_QWORD",
+    ("s64", "low_first"): "S_QWORD_R",
 }
-#: drivemap register table -> register_type. Issue 14 adds input -> "read", coil -> "coil",
-#: discrete -> "discrete_input".
-REGISTER_TYPES = {"holding": "holding"}
+#: drivemap register table -> register_type.
+REGISTER_TYPES = {"holding": "holding", "input": "read", "coil": "coil", "discrete": "discrete_input"}
+
+
+def value_type(reg: Register) -> str | None:
+    """ESPHome's value_type of a register, None where it has none (f64, strings, low byte first)."""
+    if reg.byte_order == "low_first":
+        return None
+    return VALUE_TYPES.get((reg.type, reg.word_order if reg.words > 1 else None))
+
+
 NUMBER_LIMIT = 16777215  # ESPHome's number range (24 bits of a float)
 _PARITY = {"none": "NONE", "even": "EVEN", "odd": "ODD"}
 _PLATFORMS = ("sensor", "binary_sensor", "text_sensor", "number", "select", "switch")
@@ -114,13 +137,25 @@ class _Build:
         self.model, self.sel = model, sel
         self.items: list[Item] = []
         self.notes: list[str] = sel.omitted_lines()
+        self.raw: list[str] = []
+        #: scale-factor registers -> the id of their entity (read by the scaled entities' lambda)
+        exported = {p.reg.name for p in sel.points if p.readable and not p.reg.is_array}
+        self.factors = {p.reg.scale_register: f"sf_{p.reg.scale_register}" for p in sel.points
+                        if p.reg.scale_register and p.reg.scale_register in exported}
         readable = [p for p in sel.points if p.readable]
         self.base = min((p.interval for p in readable), default=iv.DEFAULT_SCAN_S)
         for point in sel.points:
             self._point(point)
-        keys = sorted({(p.reg.name, p.index) for p in readable if any(i.polled and i.address == p.address for i in self.items)})
+        keys = sorted({(p.reg.name, p.index) for p in readable
+                       if any(i.polled and i.address == p.address and i.table == p.reg.table for i in self.items)})
         plan = plan_reads(load_spec(model), keys) if keys else ()
-        skips = {p.address: max(0, round(p.interval / self.base) - 1) for p in readable}
+        skips: dict[tuple[str, int], int] = {(p.reg.table, p.address): max(0, round(p.interval / self.base) - 1) for p in readable}
+        if self.raw:
+            self.notes.append("text_sensor with the wire bytes as hex (ESPHome has no value_type for them): "
+                              + "; ".join(self.raw))
+        if self.factors:
+            self.notes.append("scale registers: each scaled sensor multiplies by 10^(the last value of its factor "
+                              "sensor, id sf_<register>) in a lambda filter")
         self.layout = align(self.items, plan, skips, self._filler)
 
     def controller(self) -> dict[str, Any]:
@@ -139,14 +174,50 @@ class _Build:
 
     def _base(self, point: iv.Point, name: str) -> dict[str, Any]:
         return {"platform": "modbus_controller", "modbus_controller_id": "device", "name": name,
-                "register_type": REGISTER_TYPES["holding"], "address": Hex(point.address)}
+                "register_type": REGISTER_TYPES[point.reg.table], "address": Hex(point.address)}
 
     def _add(self, platform: str, point: iv.Point, config: dict[str, Any], polled: bool = True) -> None:
-        self.items.append(Item(platform, config, point.address, point.reg.words, polled))
+        self.items.append(Item(platform, config, point.address, point.reg.words, polled, table=point.reg.table))
 
     def _point(self, point: iv.Point) -> None:
         reg, name = point.reg, f"{self.sel.prefix} {point.key}"
-        value_type = VALUE_TYPES[(reg.type, reg.word_order)]
+        if reg.bit_table:
+            self._bit(point, name)
+            return
+        vtype = value_type(reg)
+        if vtype is None:
+            self._text(point, name)
+            return
+        self._typed(point, name, vtype)
+
+    def _bit(self, point: iv.Point, name: str) -> None:
+        """A coil or discrete input: a binary_sensor; a writable coil: a switch that polls it."""
+        if point.writable:
+            readable = point.reg.readable  # a write-only coil: assumed state, never polled
+            self._add("switch", point, {**self._base(point, name), **({} if readable else {"assumed_state": True})},
+                      polled=readable)
+        elif point.reg.readable:
+            self._add("binary_sensor", point, self._base(point, name))
+
+    def _text(self, point: iv.Point, name: str) -> None:
+        """Strings (ANSI text) and what ESPHome has no value_type for (f64, low byte first): a
+        text_sensor with the wire bytes as hex (HEXBYTES), decoded by the reader."""
+        reg = point.reg
+        if not reg.readable:
+            self.notes.append(f"not exported: {point.cell.name} is write-only")
+            return
+        text_string = reg.type == "string" and reg.byte_order == "high_first"
+        self._add("text_sensor", point, {**self._base(point, name), "register_count": reg.words,
+                                         "response_size": 2 * reg.words,
+                                         "raw_encode": "ANSI" if text_string else "HEXBYTES"})
+        if not text_string:
+            self.raw.append(f"{point.cell.name} ({reg.type}, word order {reg.word_order or '-'}, "
+                            f"byte order {reg.byte_order})")
+        if point.writable:
+            self.notes.append(f"{point.cell.name} is writable; this export reads it only")
+
+    def _typed(self, point: iv.Point, name: str, value_type: str) -> None:
+        reg = point.reg
         if point.is_command or (reg.enum and not reg.readable and point.writable):
             self._switches(point, name)
             return
@@ -167,7 +238,7 @@ class _Build:
                                              "filters": [{"map": _hex_map(reg, self.sel.enum_labels(point))}]})
         for bit in reg.bits:
             config = {**self._base(point, f"{name} {bit.name}"), "bitmask": Hex(bit.mask)}
-            if bit.width == 1:
+            if bit.width == 1 and reg.words == 1:
                 self._add("binary_sensor", point, config)
             else:
                 self._add("sensor", point, {**config, "value_type": value_type, "accuracy_decimals": 0})
@@ -176,7 +247,10 @@ class _Build:
 
     def _sensor(self, point: iv.Point, name: str, value_type: str) -> dict[str, Any]:
         reg = point.reg
-        config = {**self._base(point, name), "value_type": value_type, "accuracy_decimals": iv.decimals(reg.scale, reg.offset)}
+        places = iv.decimals(reg.scale, reg.offset) + (2 if reg.is_float or reg.scale_register else 0)
+        config = {**self._base(point, name), "value_type": value_type, "accuracy_decimals": places}
+        if reg.name in self.factors:
+            config["id"] = self.factors[reg.name]
         if reg.unit and not reg.enum and not reg.bits:
             config["unit_of_measurement"] = text(reg.unit)
             device_class, state_class = iv.DEVICE_CLASSES.get(reg.unit, (None, None))
@@ -185,6 +259,14 @@ class _Build:
             if state_class:
                 config["state_class"] = state_class
         filters: list[dict[str, Any]] = []
+        if reg.not_available and not reg.is_float:
+            # before any scaling: the decoded value (signed for s16/s32/s64) as ESPHome sees it
+            filters.append({"filter_out": [v for v in reg.not_available]})
+        if reg.scale_register and reg.scale_register not in self.factors:
+            self.notes.append(f"{point.cell.name}: its scale register {reg.scale_register} is not exported; "
+                              "the sensor is the unscaled value")
+        elif reg.scale_register:
+            filters.append({"lambda": f"return x * powf(10.0f, id({self.factors[reg.scale_register]}).state);"})
         if reg.scale != 1:
             filters.append({"multiply": _number(reg.scale)})
         if reg.offset:
@@ -198,12 +280,14 @@ class _Build:
         low, high = reg.raw_bounds()
         lo = reg.min if reg.min is not None else low * reg.scale + reg.offset
         hi = reg.max if reg.max is not None else high * reg.scale + reg.offset
-        if reg.offset or not -NUMBER_LIMIT <= lo < hi <= NUMBER_LIMIT:
+        if reg.offset or reg.scale_register or reg.not_available or not -NUMBER_LIMIT <= lo < hi <= NUMBER_LIMIT:
             return False
         config = {**self._base(point, name), "value_type": value_type, "min_value": _number(lo),
                   "max_value": _number(hi), "step": _number(reg.scale)}
         if reg.scale != 1:
             config["multiply"] = _number(1 / reg.scale)
+        if reg.name in self.factors:
+            config["id"] = self.factors[reg.name]
         if reg.unit:
             config["unit_of_measurement"] = text(reg.unit)
         self._add("number", point, config)
@@ -218,11 +302,12 @@ class _Build:
             self._add("switch", point, {**self._base(point, label), "assumed_state": True, "bitmask": Hex(value),
                                         "write_lambda": "return true;"}, polled=False)
 
-    def _filler(self, address: int, words: int) -> Item:
+    def _filler(self, table: str, address: int, words: int) -> Item:
+        prefix = "" if table == "holding" else f"{table}_"
         config = {"platform": "modbus_controller", "modbus_controller_id": "device",
-                  "id": f"gap_{address:04x}", "internal": True, "register_type": REGISTER_TYPES["holding"],
+                  "id": f"gap_{prefix}{address:04x}", "internal": True, "register_type": REGISTER_TYPES[table],
                   "address": Hex(address), "value_type": "U_WORD", "register_count": words}
-        return Item("sensor", config, address, words, True, filler=True)
+        return Item("sensor", config, address, words, True, filler=True, table=table)
 
 
 def _options(labels: tuple[tuple[int, str], ...]) -> dict[str, int]:

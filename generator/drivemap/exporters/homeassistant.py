@@ -8,6 +8,16 @@ elements fit one read are one sensor with ``virtual_count`` (one request for the
 Read-only registers are never writable; writable settings are sensors too (the modbus integration
 has no number entity; write them with the ``modbus.write_register`` action).
 
+Issue 14 types: f32/f64/u64/s64 -> float32/float64/uint64/int64, string -> string with ``count`` =
+length; low-first words -> ``swap: word``, low-first bytes -> ``swap: byte`` (both: ``word_byte``);
+input registers -> ``input_type: input``; a coil or discrete input -> a modbus ``binary_sensor``
+(``input_type: coil``/``discrete_input``), a writable coil -> a ``switch`` with ``write_type: coil``
+that reads its state back (``verify``); ``not_available`` -> ``nan_value`` (the integration takes one
+value and compares it with the decoded integer; floats and strings have none, a NaN float reads as
+unavailable anyway). A scale register (value x 10^factor) has no equivalent in the integration: the
+modbus sensor is named ``<name> raw`` and a template sensor ``<name>`` multiplies it by 10^factor,
+unavailable while either is (the header of the export lists them).
+
 Key names follow the current Home Assistant release; ``--ha-version X.Y`` writes an older
 release's names where they differ (``KEYS``).
 """
@@ -20,7 +30,7 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-from ..model import Model
+from ..model import READ_CODES, Model, Register
 from ..runtime.planner import MODBUS_MAX_READ
 from ..views import integrations as iv
 from ..views.common import header as generated_header
@@ -33,17 +43,27 @@ __all__ = ["DATA_TYPES", "KEYS", "HomeAssistantExporter"]
 CURRENT = (2026, 11)
 OLDEST = (2022, 1)
 
-#: (drivemap type, word order) -> (data_type, swap). Issue 14 adds f32/f64/u64/s64/string here.
-DATA_TYPES: dict[tuple[str, str | None], tuple[str, str | None]] = {
-    ("u16", None): ("uint16", None),
-    ("s16", None): ("int16", None),
-    ("u32", "high_first"): ("uint32", None),
-    ("u32", "low_first"): ("uint32", "word"),
-    ("s32", "high_first"): ("int32", None),
-    ("s32", "low_first"): ("int32", "word"),
+#: drivemap type -> the modbus integration's data_type (a string reads ``count`` = length registers).
+DATA_TYPES: dict[str, str] = {
+    "u16": "uint16", "s16": "int16", "bool": "uint16",
+    "u32": "uint32", "s32": "int32",
+    "u64": "uint64", "s64": "int64",
+    "f32": "float32", "f64": "float64",
+    "string": "string",
 }
-#: drivemap register table -> the sensor's input_type (issue 14 adds input -> "input").
-INPUT_TYPES = {"holding": "holding"}
+#: drivemap register table -> the entity's input_type.
+INPUT_TYPES = {"holding": "holding", "input": "input", "coil": "coil", "discrete": "discrete_input"}
+
+
+def swap_of(reg: Register) -> str | None:
+    """The integration's ``swap``: ``word`` reverses the words (low word first), ``byte`` swaps the
+    bytes of each word (low byte first), ``word_byte`` both; one-word types and strings only ``byte``."""
+    words = reg.words > 1 and reg.type != "string" and reg.word_order == "low_first"
+    byte = reg.byte_order == "low_first"
+    if words and byte:
+        return "word_byte"
+    return "word" if words else "byte" if byte else None
+
 
 #: Key names by release: the first release that reads a name -> {our key: its name}. 2023.10 added
 #: ``device_address`` and ``virtual_count`` (home-assistant/core #100399, #100398); the current
@@ -145,11 +165,10 @@ class _Build:
         self.model, self.sel, self.keys, self.values = model, sel, keys, values
         self.sensors: list[dict[str, Any]] = []
         self.switches: list[dict[str, Any]] = []
+        self.binary_sensors: list[dict[str, Any]] = []
         self.templates_sensor: list[dict[str, Any]] = []
         self.templates_binary: list[dict[str, Any]] = []
         self.notes: list[str] = []
-        fc = model.protocol.function(0x03)
-        self.max_read = fc.max_quantity if fc is not None and fc.max_quantity else MODBUS_MAX_READ
         self._entities()
 
     # ---------------------------------------------------------------- the hub
@@ -173,6 +192,8 @@ class _Build:
             hub["message_wait_milliseconds"] = iv.timing_ms(wait)
         if self.sensors:
             hub["sensors"] = self.sensors
+        if self.binary_sensors:
+            hub["binary_sensors"] = self.binary_sensors
         if self.switches:
             hub["switches"] = self.switches
         return hub
@@ -188,6 +209,9 @@ class _Build:
             reg = point.reg
             if reg.name in done:
                 continue
+            if reg.bit_table:
+                self._bit(point)
+                continue
             if point.is_command:
                 self.switches.append(self._switch(point, point.key, reg.command_value or 0))
                 continue
@@ -199,7 +223,8 @@ class _Build:
                 self.notes.append(f"not exported: {point.cell.name} is write-only (use the modbus.write_register action)")
                 continue
             group = [p for p in self.sel.points if p.reg.name == reg.name]
-            if reg.is_array and len(group) == reg.count and reg.stride == 1 and reg.count * reg.words <= self.max_read:
+            if (reg.is_array and len(group) == reg.count and reg.stride == 1 and reg.type != "string"
+                    and reg.count * reg.words <= self._max_read(reg.table)):
                 self.sensors.append(self._sensor(point, virtual=reg.count - 1))
                 done.add(reg.name)
                 targets = group
@@ -213,6 +238,30 @@ class _Build:
             if p.selector:
                 self.notes.append(f"{p.key} is a page selector: exported read-only (writing it changes what the "
                                   "paged entities read)")
+        scaled = sorted({p.reg.name for p in self.sel.points if p.reg.scale_register and p.reg.readable})
+        if scaled:
+            self.notes.append("scale registers (value x 10^factor, SunSpec): the modbus integration has no such "
+                              "option; each '<name> raw' modbus sensor is the unscaled value and a template sensor "
+                              f"'<name>' multiplies it by 10^<its factor register>: {', '.join(scaled)}")
+
+    def _max_read(self, table: str) -> int:
+        fc = self.model.protocol.function(READ_CODES.get(table, 0x03))
+        return fc.max_quantity if fc is not None and fc.max_quantity else MODBUS_MAX_READ
+
+    def _bit(self, point: iv.Point) -> None:
+        """A coil or discrete input: a binary_sensor, a writable coil a switch (which reads it back)."""
+        reg = point.reg
+        name = self.entity_name(point)
+        entry: dict[str, Any] = {"name": name, "unique_id": slug(name), "address": Hex(point.address),
+                                 self.keys["device_address"]: self.sel.unit}
+        if point.writable:
+            entry.update({"write_type": "coil", "command_on": 1, "command_off": 0})
+            if reg.readable:
+                entry["verify"] = {"input_type": "coil"}
+            self.switches.append(entry)
+        elif reg.readable:
+            entry.update({"input_type": INPUT_TYPES[reg.table], "scan_interval": point.interval})
+            self.binary_sensors.append(entry)
 
     def entity_name(self, point: iv.Point) -> str:
         """The name Home Assistant shows (element 0 of an array keeps the plain name, as virtual_count does)."""
@@ -224,19 +273,31 @@ class _Build:
 
     def _sensor(self, point: iv.Point, virtual: int) -> dict[str, Any]:
         reg = point.reg
-        data_type, swap = DATA_TYPES[(reg.type, reg.word_order)]
+        name = self.entity_name(point) + (" raw" if reg.scale_register else "")
         entry: dict[str, Any] = {
-            "name": self.entity_name(point),
-            "unique_id": slug(self.entity_name(point)),
+            "name": name,
+            "unique_id": slug(name),
             "address": Hex(point.address),
             self.keys["device_address"]: self.sel.unit,
-            "input_type": INPUT_TYPES["holding"],
-            "data_type": data_type,
+            "input_type": INPUT_TYPES[reg.table],
+            "data_type": DATA_TYPES[reg.type],
         }
+        if reg.type == "string":
+            entry["count"] = reg.length
+        swap = swap_of(reg)
         if swap:
             entry["swap"] = swap
         if virtual:
             entry[self.keys["virtual_count"]] = virtual
+        if reg.type == "string":
+            entry["scan_interval"] = point.interval
+            return entry
+        if reg.not_available and not reg.is_float:
+            # the integration compares the decoded value (signed for s16/s32/s64) with one value
+            entry["nan_value"] = reg.not_available[0]
+            if len(reg.not_available) > 1:
+                self.notes.append(f"{point.cell.name}: the integration takes one nan_value; not available as well: "
+                                  + ", ".join(hex(v) for v in reg.not_available[1:]))
         if reg.scale != 1:
             entry["scale"] = _number(reg.scale)
         if reg.offset:
@@ -244,15 +305,26 @@ class _Build:
         places = iv.decimals(reg.scale, reg.offset)
         if places:
             entry["precision"] = places
-        if reg.unit and not reg.enum and not reg.bits:
-            entry["unit_of_measurement"] = reg.unit
-            device_class, state_class = iv.DEVICE_CLASSES.get(reg.unit, (None, None))
-            if device_class:
-                entry["device_class"] = device_class
-            if state_class:
-                entry["state_class"] = state_class
+        if reg.scale_register:
+            self._scaled(point, name, places)
+        elif reg.unit and not reg.enum and not reg.bits:
+            entry.update(_unit_keys(reg.unit))
         entry["scan_interval"] = point.interval
         return entry
+
+    def _scaled(self, point: iv.Point, raw_name: str, places: int) -> None:
+        """The template sensor of a register with a scale register: raw x 10^factor."""
+        reg = point.reg
+        factor = self.model.register(reg.scale_register or "")
+        raw_id, sf_id = f"sensor.{slug(raw_name)}", f"sensor.{slug(f'{self.sel.prefix} {factor.name}')}"
+        state = (f"{{% set sf = states('{sf_id}') | int %}}{{% set v = states('{raw_id}') | float %}}"
+                 f"{{{{ (v * 10 ** sf) | round({places} - sf if sf < 0 else {places}) }}}}")
+        entry: dict[str, Any] = {"name": self.entity_name(point), "unique_id": slug(self.entity_name(point)),
+                                 "state": state,
+                                 "availability": f"{{{{ has_value('{raw_id}') and has_value('{sf_id}') }}}}"}
+        if reg.unit and not reg.enum and not reg.bits:
+            entry.update(_unit_keys(reg.unit))
+        self.templates_sensor.append(entry)
 
     def _switch(self, point: iv.Point, key: str, value: int) -> dict[str, Any]:
         # command_off repeats the command: turning the switch off never writes a value the map does not document
@@ -291,6 +363,16 @@ class _Build:
             else:
                 self.templates_sensor.append({"name": name, "unique_id": uid, "state": f"{{{{ {value} }}}}",
                                               "availability": available})
+
+
+def _unit_keys(unit: str) -> dict[str, Any]:
+    out: dict[str, Any] = {"unit_of_measurement": unit}
+    device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, None))
+    if device_class:
+        out["device_class"] = device_class
+    if state_class:
+        out["state_class"] = state_class
+    return out
 
 
 def _label_template(source: str, value: str, labels: tuple[tuple[int, str], ...], expression: bool = False) -> str:

@@ -6,59 +6,68 @@ on a page selector), the readable reserved words as 0, and refuses every other a
 exception 02h, as a device would. pymodbus's simulator knows one address space: paged registers are
 served for one page (``--page``), and writing a page selector does not switch pages there.
 
-The simulator's ``int16`` section stores float bytes (pymodbus 3.16), so signed values are written
-as their two's complement in ``uint16``/``uint32`` cells; a value whose word order the simulator
-cannot hold goes in as its words (``SECTIONS``).
+The values are those drivemap's simulator starts with (defaults, scale factors, not-available
+values). Tables: coils and discrete inputs go in ``bits`` cells (16 per cell), input and holding
+registers in register cells, each table's block after the blocks before it (co, di, ir, hr: the
+simulator's layout with "shared blocks": false, so the addresses here are offset by the sizes of
+the blocks before). The simulator's ``int16`` section stores float bytes (pymodbus 3.16), so signed
+values are written as their two's complement in ``uint16``/``uint32`` cells; f32/f64 in the standard
+layout (high word and high byte first) go in ``float32``/``float64``; any other word or byte order,
+64-bit integers and strings go in as their wire words (``SECTIONS``, :func:`section`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import struct
 from typing import Any
 
+from ..inmemory import load_spec
 from ..model import Model, Register
+from ..runtime.simulator import Simulator
+from ..runtime.simunit import wire_words
 from ..views import integrations as iv
 from ..views.common import header as generated_header
 from .base import Exporter, Options
 
 __all__ = ["BLOCKS", "SECTIONS", "PymodbusSimExporter"]
 
-#: (drivemap type, word order) -> the simulator section that holds the raw value as is, or None
-#: (written as uint16 words in wire order). Issue 14 adds f32/f64 (float32/float64, high-first,
-#: big-endian bytes only), u64/s64 (words), string ("string" when space-padded, else words), bool.
-SECTIONS: dict[tuple[str, str | None], str | None] = {
-    ("u16", None): "uint16",
-    ("s16", None): "uint16",
-    ("u32", "high_first"): "uint32",
-    ("s32", "high_first"): "uint32",
-    ("u32", "low_first"): None,
-    ("s32", "low_first"): None,
+#: drivemap type -> the simulator section that holds the value as pymodbus lays it out (big-endian
+#: bytes, high word first), or None: written as uint16 words in wire order. Strings always go in as
+#: words: the simulator's "string" cell refuses a read that continues past the string (type exception).
+SECTIONS: dict[str, str | None] = {
+    "u16": "uint16", "s16": "uint16", "bool": "uint16",
+    "u32": "uint32", "s32": "uint32",
+    "f32": "float32", "f64": "float64",
+    "u64": None, "s64": None, "string": None,
 }
-#: The simulator's blocks in the order it lays them out ("shared blocks": false); issue 14 maps
-#: its coil/discrete/input tables to "co size"/"di size"/"ir size".
+#: The simulator's blocks in the order it lays them out ("shared blocks": false): coils, discrete
+#: inputs, input registers, holding registers; each table's addresses are offset by the sizes of the
+#: blocks before it (bit tables: 16 bits per cell).
 BLOCKS = ("co size", "di size", "ir size", "hr size")
+_BLOCK_OF = {"coil": "co size", "discrete": "di size", "input": "ir size", "holding": "hr size"}
 _TYPES = ("bits", "uint16", "uint32", "float32", "float64", "string")
 _PARITY = {"none": "N", "even": "E", "odd": "O"}
 
 
-def _raw(reg: Register, index: int, pages: dict[str, int]) -> int:
-    if reg.name in pages:
-        return pages[reg.name]
-    default = reg.default_at(index)
-    if isinstance(default, bool):
-        return int(default)
-    if default is None or isinstance(default, str):
-        return 0
-    return int(round((default - reg.offset) / reg.scale))
+def section(reg: Register) -> str | None:
+    """Where a register's value goes (None: as words)."""
+    if reg.bit_table:
+        return "bits"
+    if reg.byte_order != "high_first" or (reg.words > 1 and reg.word_order == "low_first"):
+        return None
+    return SECTIONS[reg.type]
 
 
-def wire_words(reg: Register, raw: int) -> list[int]:
-    if reg.words == 1:
-        return [raw & 0xFFFF]
-    value = raw & 0xFFFFFFFF
-    high, low = value >> 16, value & 0xFFFF
-    return [low, high] if reg.word_order == "low_first" else [high, low]
+def _image(model: Model, unit: int, pages: dict[str, int]) -> tuple[Any, dict[str, int]]:
+    """The raw value of every element as drivemap's simulator starts (defaults, scale factors,
+    not-available values), the shown page on each selector."""
+    spec = load_spec(model)
+    state = Simulator(spec, [unit]).unit(unit)
+    raws = dict(state.values)
+    raws.update(pages)
+    return spec, raws
 
 
 class PymodbusSimExporter(Exporter):
@@ -79,8 +88,7 @@ class PymodbusSimExporter(Exporter):
         values = options.values
         sel = iv.select(model, {"unit": values.get("unit"), "page": values.get("page")})
         pages = dict(sel.pages)
-        device, size = self._device(model, sel, pages)
-        device["setup"]["hr size"] = size
+        device = self._device(model, sel, pages)
         doc = {
             "drivemap": {
                 "note": generated_header(model, options),
@@ -108,36 +116,75 @@ class PymodbusSimExporter(Exporter):
         server["broadcast_enable"] = model.protocol.broadcast_address == 0
         return server
 
-    def _device(self, model: Model, sel: iv.Selection, pages: dict[str, int]) -> tuple[dict[str, Any], int]:
+    def _device(self, model: Model, sel: iv.Selection, pages: dict[str, int]) -> dict[str, Any]:
+        spec, raws = _image(model, sel.unit, pages)
         sections: dict[str, list[Any]] = {t: [] for t in _TYPES}
         writable: list[Any] = []
-        end = 0
+        ends = dict.fromkeys(_BLOCK_OF, 0)
+        words: dict[str, dict[int, int]] = {t: {} for t in _BLOCK_OF}  # table -> word address -> value
+        bits: dict[str, dict[int, int]] = {"coil": {}, "discrete": {}}   # table -> cell -> 16 bits
         for point in sel.points:
             reg = point.reg
-            raw = _raw(reg, point.index, pages)
-            section = SECTIONS[(reg.type, reg.word_order)]
+            raw = raws[point.cell.name]
             a = point.address
-            if section is None:
-                for i, word in enumerate(wire_words(reg, raw)):
-                    sections["uint16"].append({"addr": a + i, "value": word})
-            elif reg.words == 1:
-                sections[section].append({"addr": a, "value": raw & 0xFFFF})
-            else:
-                sections[section].append({"addr": [a, a + reg.words - 1], "value": raw & 0xFFFFFFFF})
+            if reg.bit_table:
+                cell = bits[reg.table].setdefault(a // 16, 0)
+                bits[reg.table][a // 16] = cell | ((raw & 1) << (a % 16))
+                ends[reg.table] = max(ends[reg.table], a // 16 + 1)
+                if reg.writable:
+                    writable.append((reg.table, a // 16, 1))
+                continue
+            for i, word in enumerate(wire_words(spec.register(reg.name), raw)):
+                words[reg.table][a + i] = word
             if reg.writable:
-                writable.append(a if reg.words == 1 else [a, a + reg.words - 1])
-            end = max(end, a + reg.words)
+                writable.append((reg.table, a, reg.words))
+            ends[reg.table] = max(ends[reg.table], a + reg.words)
         for res in model.reserved:
-            if res.readable is True and (res.page is None or pages.get(res.page.selector) == res.page.value):
-                sections["uint16"].append({"addr": [res.start, res.end], "value": 0})
-                end = max(end, res.end + 1)
+            if res.readable is True and (res.page is None or pages.get(res.page.selector) == res.page.value) \
+                    and res.table not in bits:
+                for w in range(res.start, res.end + 1):
+                    words[res.table].setdefault(w, 0)
+                ends[res.table] = max(ends[res.table], res.end + 1)
+        sizes = {_BLOCK_OF[t]: ends[t] for t in _BLOCK_OF}
+        base = {"coil": 0, "discrete": ends["coil"], "input": ends["coil"] + ends["discrete"],
+                "holding": ends["coil"] + ends["discrete"] + ends["input"]}
+        for table, cells in bits.items():
+            for cell, value in sorted(cells.items()):
+                sections["bits"].append({"addr": base[table] + cell, "value": value})
+        taken: set[tuple[str, int]] = set()
+        for point in sel.points:
+            reg = point.reg
+            if reg.bit_table:
+                continue
+            kind, a = section(reg), point.address
+            taken.update((reg.table, a + i) for i in range(reg.words))
+            at = base[reg.table] + a
+            if kind is None:
+                for i in range(reg.words):
+                    sections["uint16"].append({"addr": at + i, "value": words[reg.table][a + i]})
+            elif kind in ("float32", "float64"):
+                data = b"".join(words[reg.table][a + i].to_bytes(2, "big") for i in range(reg.words))
+                value = struct.unpack(">f" if kind == "float32" else ">d", data)[0]
+                sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
+            elif reg.words == 1:
+                sections[kind].append({"addr": at, "value": words[reg.table][a]})
+            else:
+                value = 0
+                for i in range(reg.words):
+                    value = (value << 16) | words[reg.table][a + i]
+                sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
+        for table, cells in words.items():  # readable reserved words
+            for w, value in sorted(cells.items()):
+                if (table, w) not in taken:
+                    sections["uint16"].append({"addr": base[table] + w, "value": value})
         for items in sections.values():
             items.sort(key=lambda item: item["addr"] if isinstance(item["addr"], int) else item["addr"][0])
+        write = [base[t] + a if n == 1 else [base[t] + a, base[t] + a + n - 1] for t, a, n in writable]
         setup = {
-            **{block: 0 for block in BLOCKS},
+            **sizes,
             "shared blocks": False,
             "type exception": True,
             "defaults": {"value": {"bits": 0, "uint16": 0, "uint32": 0, "float32": 0.0, "float64": 0.0, "string": " "},
                          "action": {t: None for t in _TYPES}},
         }
-        return {"setup": setup, "invalid": [], "write": writable, **sections, "repeat": []}, end
+        return {"setup": setup, "invalid": [], "write": write, **sections, "repeat": []}

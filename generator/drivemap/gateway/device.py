@@ -1,6 +1,8 @@
 """One drive behind the gateway: its generated async client, what it publishes and the commands it takes.
 
-Values leave in engineering units as JSON values: numbers as the codec decodes them, enum registers
+Values leave in engineering units as JSON values: numbers as the codec decodes them (a value scaled by
+a scale register with the factor read with it), strings as text, coils and bools as true/false, a
+not-available value as null, enum registers
 as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``), bit-field
 registers as an object of their fields (single bits true/false, enumerated fields by name, wider
 fields as integers), arrays as lists of those.
@@ -23,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..model import Model, Register
-from ..runtime.codec import EnumCodec, FieldsCodec, FlagCodec, check_raw
+from ..runtime.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
 from ..runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 from .config import DeviceConfig, PollGroup
 
@@ -39,10 +41,13 @@ class Command:
     target: str
     """``register`` or ``register[i]``."""
     accessor: Any
-    raw: int
+    raw: int | None
+    """None for a register with a scale register: ``value`` is written through the accessor, which
+    reads the factor just before the write (never a stale one)."""
     given: Any
     """The value as the sender gave it (echoed in the outcome)."""
     source: str = "mqtt"
+    value: Any = None
     done: asyncio.Future[None] | None = None
     accepted_at: float = field(default_factory=time.monotonic)
 
@@ -132,11 +137,20 @@ class Device:
             raw = check_raw(acc.spec, reg.command_value)
             return Command(self, acc.name, acc, raw, text, source)
         value = self.parse_value(reg, acc, text)
+        if acc.codec.scale_key is not None:
+            acc.codec.check(value)
+            return Command(self, acc.name, acc, None, text, source, value=value)
         return Command(self, acc.name, acc, acc.codec.encode(value), text, source)
 
     def parse_value(self, reg: Register, acc: Any, text: str) -> Any:
         """The Python value for ``acc`` from a payload text (JSON or plain)."""
-        codec = acc.codec
+        codec = unwrap(acc.codec)
+        if reg.optional and text.strip() in ("null", "None", ""):
+            return None  # writes the map's first not-available value
+        if isinstance(codec, StringCodec):
+            return _text_value(text)
+        if isinstance(codec, BoolCodec):
+            return _bool_value(reg, text)
         if isinstance(codec, EnumCodec):
             return _parse_enum(reg, codec, self.model, text)
         if isinstance(codec, (FlagCodec, FieldsCodec)):
@@ -150,6 +164,27 @@ class Device:
         """The Python value for a typed OPC UA write (numbers; enum registers take the raw value)."""
         acc = self.client.accessor(reg.name)
         return self.parse_value(reg, acc, json.dumps(value))
+
+
+def _text_value(text: str) -> str:
+    """A string payload: a JSON string, or the text as sent."""
+    if text.startswith('"'):
+        try:
+            value = json.loads(text)
+        except ValueError:
+            return text
+        if isinstance(value, str):
+            return value
+    return text
+
+
+def _bool_value(reg: Register, text: str) -> bool:
+    word = text.strip().strip('"').lower()
+    if word in ("true", "on", "1"):
+        return True
+    if word in ("false", "off", "0"):
+        return False
+    raise InvalidValue(f"{reg.name}: expected true/false (ON/OFF, 1/0), got {text[:40]!r}")
 
 
 def _json(reg: Register, text: str) -> Any:

@@ -5,8 +5,10 @@ register: a ``sensor`` for readable values (unit, ``device_class`` where the uni
 ``state_class`` for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single
 bit of a bit-field register (wider fields are sensors), a ``select`` per writable enumerated
 register, a ``number`` per writable register with a range in the map (min/max, step = the map's
-scale), and a ``button`` per command register. drivemap maps describe holding/input registers
-only (no coils, function codes 01h/05h), so no ``switch`` is generated.
+scale), a ``button`` per command register, a ``switch`` per writable coil (payloads true/false)
+and a ``binary_sensor`` per read-only coil or discrete input. Strings are text sensors (no unit or
+state class); a register with not-available values publishes null for them, which the sensor shows
+as unknown (its value template turns null into HA's "None" payload).
 
 Every entity is available only while both the gateway and its device are online
 (``availability_mode: all``). Topics: ``<discovery_prefix>/<component>/<node_id>/<object_id>/config``,
@@ -116,7 +118,9 @@ def _register(b: _Builder, reg: Register, published: bool) -> None:
         st: dict[str, Any] = {"state_topic": state} if published else {}
         if template and published:
             st["value_template"] = template
-        if reg.bits:
+        if reg.bit_table or reg.type == "bool":
+            _bool(b, reg, object_id, name, st, command, published)
+        elif reg.bits:
             if published:
                 _bits(b, reg, object_id, name, state, index)
         elif reg.command_value is not None and reg.writable:
@@ -132,8 +136,25 @@ def _register(b: _Builder, reg: Register, published: bool) -> None:
         elif published and reg.enum:
             b.add("sensor", object_id, name, {**st, "device_class": "enum",
                                               "options": _enum_names(b.device.model, reg.enum)})
+        elif published and reg.type == "string":
+            b.add("sensor", object_id, name, st)
         elif published:
+            if reg.optional and not template:
+                st["value_template"] = "{{ 'None' if value == 'null' else value }}"
             b.add("sensor", object_id, name, {**st, **unit_info(reg)})
+
+
+def _bool(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
+          published: bool) -> None:
+    """A coil (writable: a switch) or a discrete input / bool register: payloads true/false."""
+    states = {"payload_on": "true", "payload_off": "false"}
+    if "value_template" in st:  # an array element: Jinja writes True/False
+        st = {**st, "value_template": st["value_template"].replace(" }}", " | string | lower }}")}
+    if reg.writable:
+        b.add("switch", object_id, name, {**st, **states, "state_on": "true", "state_off": "false",
+                                          "command_topic": command, **({} if published else {"optimistic": True})})
+    elif published:
+        b.add("binary_sensor", object_id, name, {**st, **states})
 
 
 def _bits(b: _Builder, reg: Register, object_id: str, name: str, state: str, index: int | None) -> None:

@@ -187,7 +187,10 @@ class Line:
         device = cmd.device
         error: DriveError | None = None
         try:
-            await cmd.accessor.write_raw(cmd.raw)
+            if cmd.raw is None:  # scaled by a scale register: the client reads the factor first
+                await cmd.accessor.write(cmd.value)
+            else:
+                await cmd.accessor.write_raw(cmd.raw)
         except DriveError as exc:
             error = exc
         self.commands_done += 1

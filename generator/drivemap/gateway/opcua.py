@@ -5,8 +5,10 @@ with an ``Online`` boolean and one variable per register, named as in the map. E
 the map's access level (read, write or both; arrays are read-only here), the ``EngineeringUnits``
 property (``EUInformation`` with the map's unit), ``EURange`` where the map gives min and max, and,
 for enumerated registers, ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values
-run 0..n-1. Numbers are ``Double`` where the scale is fractional, else ``Int64``; enumerated and
-bit-field registers carry their raw integer.
+run 0..n-1. Numbers are ``Double`` where the scale is fractional (or a scale register applies), else
+``Int64``; ``UInt64`` for u64 counters, ``Float`` for unscaled f32, ``String`` for strings, ``Boolean``
+for coils, discrete inputs and bools; enumerated and bit-field registers carry their raw integer. A
+not-available value (the client reads None) is a null value with the status ``BadNoData``.
 
 Writes go through the same checks as MQTT commands (:meth:`drivemap.gateway.device.Device.command`)
 before anything is queued, then wait for the device's reply; the status says what happened:
@@ -132,9 +134,31 @@ class _CheckedWrites(AttributeService):
 
 
 def _variant_type(reg: Register) -> ua.VariantType:
+    """Boolean (coils, discrete inputs, bool), String, Float (f32 unscaled), UInt64 (u64 counters),
+    Int64 (other integers, enum and bit-field raw values), else Double."""
+    if reg.type == "bool":
+        return ua.VariantType.Boolean
+    if reg.type == "string":
+        return ua.VariantType.String
+    if reg.type == "f32" and reg.scale == 1 and not reg.offset and reg.scale_register is None:
+        return ua.VariantType.Float
+    if reg.type == "u64" and reg.is_integer and not reg.enum and not reg.bits:
+        return ua.VariantType.UInt64
     if reg.enum or reg.bits or reg.is_integer:
         return ua.VariantType.Int64
     return ua.VariantType.Double
+
+
+_INITIAL: dict[ua.VariantType, Any] = {ua.VariantType.Boolean: False, ua.VariantType.String: "",
+                                       ua.VariantType.Float: 0.0, ua.VariantType.Double: 0.0}
+
+
+def data_value(reg: Register, raw: Any) -> ua.DataValue:
+    """The DataValue of a published value; a not-available value (None) is a null value with the
+    status BadNoData (a Variant of a type cannot hold None)."""
+    if raw is None or (isinstance(raw, list) and any(v is None for v in raw)):
+        return ua.DataValue(ua.Variant(), StatusCode=ua.StatusCode(ua.StatusCodes.BadNoData))
+    return ua.DataValue(ua.Variant(raw, _variant_type(reg)))
 
 
 def _raw_of(device: Device, reg: Register, value: Any) -> Any:
@@ -241,9 +265,8 @@ class OpcuaBridge:
 
     async def _add_register(self, obj: Any, device: Device, reg: Register, readable: bool) -> None:
         vtype = _variant_type(reg)
-        initial: Any = [0] * reg.count if reg.is_array else 0
-        if vtype == ua.VariantType.Double:
-            initial = [0.0] * reg.count if reg.is_array else 0.0
+        first = _INITIAL.get(vtype, 0)
+        initial: Any = [first] * reg.count if reg.is_array else first
         node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), f"{self.idx}:{reg.name}", initial, vtype)
         level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (
             ua.AccessLevel.CurrentWrite.mask if reg.writable and device.cfg.writable and not reg.is_array else 0)
@@ -284,7 +307,7 @@ class OpcuaBridge:
                 continue
             reg = device.model.register(name)
             raw = [_raw_of(device, reg, v) for v in value] if isinstance(value, list) else _raw_of(device, reg, value)
-            self._updates.put_nowait((nodeid, ua.DataValue(ua.Variant(raw, _variant_type(reg)))))
+            self._updates.put_nowait((nodeid, data_value(reg, raw)))
 
     def publish_availability(self, device: Device, online: bool) -> None:
         nodeid = self.online_nodes.get(device.name)

@@ -8,7 +8,6 @@ from typing import Any
 from ..model import Register
 from ..runtime.bus import Bus
 from ..runtime.client import _run
-from ..runtime.codec import TYPE_BOUNDS
 from ..runtime.errors import DeviceException, DriveTimeout, TransportError
 from .target import Target
 
@@ -16,11 +15,16 @@ from .target import Target
 MAX_REQUESTS = 8
 
 
-def value_problem(target: Target, reg: Register, raw: int) -> str | None:
-    """Why a raw value read cannot be right for the map (None when it can)."""
-    lo, hi = TYPE_BOUNDS[reg.type]
+def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int] | None = None) -> str | None:
+    """Why a raw value read cannot be right for the map (None when it can). ``raws``: what was read
+    with it (the scale factor of a scaled register)."""
+    lo, hi = reg.raw_bounds()
     if not lo <= raw <= hi:
         return f"raw {raw} does not fit {reg.type}"
+    if raw in reg.not_available:
+        return None
+    if reg.type in ("string", "bool") or reg.scale_register is not None or reg.is_float:
+        return _decoded_problem(target, reg, raw, raws or {})
     if reg.enum is not None:
         values = {v.value for v in target.model.enum(reg.enum).values}
         if raw not in values:
@@ -42,6 +46,25 @@ def value_problem(target: Target, reg: Register, raw: int) -> str | None:
         return f"{value:g}{' ' + reg.unit if reg.unit else ''} is below the map's min {reg.min:g}"
     if reg.max is not None and value > reg.max + tol:
         return f"{value:g}{' ' + reg.unit if reg.unit else ''} is above the map's max {reg.max:g}"
+    return None
+
+
+def _decoded_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int]) -> str | None:
+    """Strings and bools fit as read; floats and scaled values are checked against min/max decoded."""
+    from .fmt import decode
+
+    if reg.type in ("string", "bool"):
+        return None
+    value, why = decode(target, reg, raw, raws)
+    if value is None:
+        return None if why == "not available" or (reg.scale_register, 0) not in raws else why
+    number = float(value)
+    if number != number:  # NaN: a float register may read NaN
+        return None
+    if reg.min is not None and number < reg.min - 1e-9 * max(1.0, abs(number)):
+        return f"{number:g}{' ' + reg.unit if reg.unit else ''} is below the map's min {reg.min:g}"
+    if reg.max is not None and number > reg.max + 1e-9 * max(1.0, abs(number)):
+        return f"{number:g}{' ' + reg.unit if reg.unit else ''} is above the map's max {reg.max:g}"
     return None
 
 
@@ -98,7 +121,7 @@ def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
         fit.answered += 1
         for (name, index), raw in raws.items():
             fit.values += 1
-            problem = value_problem(target, target.model.register(name), raw)
+            problem = value_problem(target, target.model.register(name), raw, raws)
             if problem:
                 fit.problems.append(f"{target.model.register(name).element_name(index)}: {problem}")
     return fit

@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ..model import Register
+from ..runtime.errors import ScaleUnavailable
 from .target import Target
 from .values import to_text
 
@@ -30,27 +31,41 @@ class Row:
     index: int
     raw: int | None
     value: Any
+    #: why the value is None although the raw value was read (not available, no scale factor)
+    why: str | None = None
 
     @property
     def address(self) -> int:
         return self.register.element_address(self.index)
 
     def value_text(self) -> str:
-        return "" if self.raw is None else to_text(self.value)
+        if self.raw is None:
+            return ""
+        return "n/a" if self.value is None else to_text(self.value)
 
     def meaning(self, target: Target) -> str:
-        return "" if self.raw is None else meaning(target, self.register, self.value)
+        if self.raw is None:
+            return ""
+        return self.why if self.why is not None else meaning(target, self.register, self.value)
 
     def raw_text(self) -> str:
         if self.raw is None:
             return ""
-        digits = 8 if self.register.words == 2 else 4
-        return f"0x{self.raw & ((1 << (4 * digits)) - 1):0{digits}X}"
+        if self.register.bit_table:
+            return str(self.raw)
+        digits = 4 * self.register.words
+        text = f"0x{self.raw & ((1 << (4 * digits)) - 1):0{digits}X}"
+        return text if digits <= 16 else text[:18] + "…"  # a long string: its first 8 bytes
+
+    def address_text(self) -> str:
+        """``0x0010`` (holding), ``input 0x0010`` for the other tables (each its own address space)."""
+        table = self.register.table
+        return f"0x{self.address:04X}" if table == "holding" else f"{table} 0x{self.address:04X}"
 
     def cells(self, target: Target) -> dict[str, str]:
         return {
             "name": self.name, "value": self.value_text(), "unit": self.register.unit or "",
-            "meaning": self.meaning(target), "raw": self.raw_text(), "address": f"0x{self.address:04X}",
+            "meaning": self.meaning(target), "raw": self.raw_text(), "address": self.address_text(),
             "param": self.register.element_param(self.index) or "",
         }
 
@@ -58,7 +73,8 @@ class Row:
         return {
             "name": self.name, "value": json_value(self.value) if self.raw is not None else None,
             "unit": self.register.unit, "meaning": self.meaning(target) or None, "raw": self.raw,
-            "address": self.address, "param": self.register.element_param(self.index),
+            "address": self.address, "table": self.register.table,
+            "param": self.register.element_param(self.index),
         }
 
 
@@ -97,9 +113,23 @@ def rows_of(target: Target, cells: Iterable[tuple[Register, int]], raws: dict[tu
     rows = []
     for reg, index in cells:
         raw = raws.get((reg.name, index))
-        value = target.codecs[reg.name].decode(raw) if raw is not None else None
-        rows.append(Row(reg.element_name(index), reg, index, raw, value))
+        value, why = decode(target, reg, raw, raws) if raw is not None else (None, None)
+        rows.append(Row(reg.element_name(index), reg, index, raw, value, why))
     return rows
+
+
+def decode(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int]) -> tuple[Any, str | None]:
+    """(engineering value, why it is None): a scale-register value is scaled by the factor read with
+    it (never by a stale one); a not-available raw value reads None."""
+    codec = target.codecs[reg.name]
+    if raw in reg.not_available:
+        return None, "not available"
+    try:
+        if codec.scale_key is not None:
+            return codec.decode_scaled(raw, raws.get(codec.scale_key)), None
+        return codec.decode(raw), None
+    except ScaleUnavailable as exc:
+        return None, str(exc)
 
 
 def table(target: Target, rows: Sequence[Row], title: str | None = None,

@@ -11,13 +11,13 @@ import argparse
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInputRegistersRequest
-
 from ..model import Register
 from ..runtime.bus import Bus, Exchange
 from ..runtime.client import Core, _run
+from ..runtime.core import READ_REQUESTS
 from ..runtime.errors import DriveError
 from ..runtime.planner import Key, ReadRequest, read_function
+from ..runtime.spec import READ_CODES
 from .connection import Link, open_bus, resolve_link, run
 from .errors import EXIT_INPUT, LiveError
 from .target import Target
@@ -55,8 +55,10 @@ class Session:
 
     # -- reads
     def read_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
-        """Raw values of ``keys`` in the fewest requests the map allows (the client's planner)."""
-        return self.client._read_raw_keys(tuple(keys))  # type: ignore[no-any-return]
+        """Raw values of ``keys`` in the fewest requests the map allows (the client's planner), with
+        the scale-factor registers of scaled ones read in the same pass (``fmt.decode`` needs them)."""
+        factors = {self.target.codecs[name].scale_key for name, _ in keys} - {None} - set(keys)
+        return self.client._read_raw_keys(tuple(keys) + tuple(sorted(factors)))  # type: ignore[no-any-return]
 
     def read_request(self, request: ReadRequest) -> dict[Key, int]:
         """Raw values of one planned request, exactly as planned."""
@@ -64,10 +66,12 @@ class Session:
         assert self.bus is not None
         return _run(self.bus, self.core.read_raw(keys, (request,), checked=True))
 
-    def read_words(self, address: int, count: int) -> list[int]:
-        """``count`` words at ``address`` with the map's read function (no register needed there)."""
+    def read_words(self, address: int, count: int, table: str = "holding") -> list[int]:
+        """``count`` words (bits) at ``address`` of ``table`` with its read function (no register
+        needed there: probes of what the map calls reserved or unreadable go out as asked)."""
         assert self.bus is not None
-        return read_words(self.bus, self.core, address, count)
+        code = read_function(self.core.spec, table) or READ_CODES[table]
+        return read_words(self.bus, self.core, address, count, code)
 
 
 def check_unit(target: Target, unit: int) -> None:
@@ -81,8 +85,10 @@ def check_unit(target: Target, unit: int) -> None:
 
 def read_words(bus: Bus, core: Core, address: int, count: int, code: int | None = None) -> list[int]:
     code = code if code is not None else read_function(core.spec) or 0x03
-    cls = ReadHoldingRegistersRequest if code == 0x03 else ReadInputRegistersRequest
+    cls = READ_REQUESTS[code]
     reply = core.raise_for(bus.exchange(Exchange(core.unit, cls(address=address, count=count), core.spec.timing)), code)
+    if code <= 0x02:
+        return [1 if b else 0 for b in reply.bits[:count]]
     return list(reply.registers)
 
 

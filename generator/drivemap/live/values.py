@@ -24,6 +24,7 @@ from typing import Any
 from ..diagnostics import CompileError
 from ..model import Register
 from ..runtime.codec import EnumCodec, FieldsCodec, FlagCodec, FloatCodec, IntCodec
+from ..runtime.core import Deferred
 from ..runtime.errors import DriveError
 from .target import Target, command_line_error, register_note
 
@@ -36,7 +37,9 @@ class Assignment:
 
     text: str
     register: Register
-    items: tuple[tuple[str, int, int, Any], ...]  # (element name, index, raw, engineering value)
+    #: (element name, index, raw, engineering value); the raw value of a register with a scale
+    #: register is a :class:`Deferred`: the client reads the factor just before the write
+    items: tuple[tuple[str, int, int | Deferred, Any], ...]
 
 
 def locate_error(token: str, message: str, target: Target | None = None, reg: Register | None = None,
@@ -83,7 +86,12 @@ def parse_assignment(target: Target, text: str) -> Assignment:
     for i, part in zip(indexes, parts, strict=True):
         try:
             engineering = from_text(codec, part.strip())
-            raw = codec.encode(engineering)
+            raw: int | Deferred
+            if codec.scale_key is not None:  # checked now, scaled by the factor read at the write
+                codec.check(engineering)
+                raw = Deferred(engineering, codec)
+            else:
+                raw = codec.encode(engineering)
         except (DriveError, ValueError) as exc:
             raise locate_error(text, f"{text}: {exc}", target, reg) from None
         items.append((reg.element_name(i), i, raw, engineering))

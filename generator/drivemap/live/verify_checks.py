@@ -139,7 +139,7 @@ def shift_hint(session: Session, reg: Register, index: int) -> str:
         if delta == 0 or not 0 <= probe <= 0xFFFF or session.target.register_at(probe) is not None:
             continue
         try:
-            session.read_words(probe, reg.words)
+            session.read_words(probe, reg.words, reg.table)
         except DriveError:
             continue
         answering.append(f"0x{probe:04X} ({delta:+d})")
@@ -194,7 +194,7 @@ def check_reserved(session: Session, results: Results, pages: dict[str, int], ti
         failure = None
         for start in range(item.start, item.end + 1, limit):
             try:
-                session.read_words(start, min(limit, item.end + 1 - start))
+                session.read_words(start, min(limit, item.end + 1 - start), item.table)
             except (DeviceException, DriveTimeout) as exc:
                 failure = failure_text(session, exc)
                 break

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..model import Register
-from ..runtime.codec import TYPE_BOUNDS
 from ..runtime.errors import DeviceException, DriveError, DriveTimeout
 from .session import Session
 from .verify_checks import Cell, Finding, Results, failure_text
@@ -46,7 +45,7 @@ def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str,
             if raw != original:
                 out.append((f"the map's {what} {value:g}{' ' + reg.unit if reg.unit else ''}", raw))
     if not out:
-        lo, hi = TYPE_BOUNDS[reg.type]
+        lo, hi = reg.raw_bounds()
         step = original + 1 if original < hi else original - 1
         out.append((f"raw {step}", max(lo, step)))
     return out

@@ -17,7 +17,7 @@ from rich.table import Table
 
 from ..model import Register
 from ..runtime.bus import Exchange
-from ..runtime.core import Core, Op
+from ..runtime.core import Core, Deferred, Op
 from ..runtime.errors import DriveError
 from .connection import Link, add_connection_arguments, resolve_link
 from .errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
@@ -102,8 +102,9 @@ def show(session: Session, assignments: Sequence[Assignment], back: dict[tuple[s
         for name, index, raw, value in a.items:
             rows = rows_of(target, [(reg, index)], back)
             shown = f"{rows[0].value_text()} {reg.unit or ''}".strip() if (reg.name, index) in back else "-"
-            out.add_row(name, f"{to_text(value)} {reg.unit or ''}".strip(), rows_of(target, [(reg, index)],
-                        {(reg.name, index): raw})[0].raw_text(), shown, effect(reg, applied, has_config),
+            raw_text = f"x 10^{reg.scale_register}" if not isinstance(raw, int) else \
+                rows_of(target, [(reg, index)], {(reg.name, index): raw})[0].raw_text()
+            out.add_row(name, f"{to_text(value)} {reg.unit or ''}".strip(), raw_text, shown, effect(reg, applied, has_config),
                         STORAGE.get(reg.storage, reg.storage))
     console().print(out)
 
@@ -111,10 +112,14 @@ def show(session: Session, assignments: Sequence[Assignment], back: dict[tuple[s
 # ---------------------------------------------------------------- --dry-run
 
 
-def dry_run(target: Target, link: Link, items: list[tuple[tuple[str, int], int]], apply: bool,
+def dry_run(target: Target, link: Link, items: list[tuple[tuple[str, int], int | Deferred]], apply: bool,
             switch_pages: bool) -> int:
     """Print the frames the write would send, built by pymodbus's framer for the link."""
     check_unit(target, link.unit)
+    scaled = [key[0] for key, raw in items if not isinstance(raw, int)]
+    if scaled:
+        raise LiveError(EXIT_INPUT, f"--dry-run: {', '.join(scaled)} scale by a factor register read from the "
+                                    "device at the write; a dry run reads nothing, so it cannot show the frame")
     core = Core(target.spec, link.unit, {}, "switch" if switch_pages else "raise", False)
     try:
         exchanges = record(core.write_raw(items))

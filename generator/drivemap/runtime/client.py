@@ -18,6 +18,7 @@ import enum
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, ClassVar, Generic, Self, TypeVar
 
+from . import rawio
 from .accessors import (
     AsyncCommand,
     AsyncReadOnly,
@@ -405,6 +406,14 @@ class ClientBase(_Common[S]):
         with self.bus.lock:
             return _run(self.bus, self._core.loopback(data))
 
+    def read_registers(self, table: str, address: int, count: int) -> list[int]:
+        """``count`` words (0/1 per coil or discrete input) of ``table`` from ``address``, as the
+        device sends them, in one request; checked before the wire (:mod:`drivemap.runtime.rawio`)."""
+        rawio.check_read(self._core.spec, table, address, count, self._core.broadcast)
+        op = rawio.read_registers(self._core, table, address, count)
+        with self.bus.lock:
+            return _run(self.bus, op)
+
 
 class AsyncClientBase(_Common[S]):
     """Asyncio client of one unit on an :class:`AsyncBus` (same API, awaited)."""
@@ -527,6 +536,13 @@ class AsyncClientBase(_Common[S]):
 
     async def loopback(self, data: int = 0xA537) -> int:
         op = self._core.loopback(data)
+        async with self.bus.lock:
+            return await _arun(self.bus, op)
+
+    async def read_registers(self, table: str, address: int, count: int) -> list[int]:
+        """The asyncio twin of :meth:`ClientBase.read_registers`."""
+        rawio.check_read(self._core.spec, table, address, count, self._core.broadcast)
+        op = rawio.read_registers(self._core, table, address, count)
         async with self.bus.lock:
             return await _arun(self.bus, op)
 
