@@ -15,11 +15,13 @@ from drivemap.runtime.client import (
     AsyncClientBase,
     AsyncReadOnly,
     AsyncReadWrite,
+    AsyncReadWriteCommand,
     Bus,
     ClientBase,
     PagePolicy,
     ReadOnly,
     ReadWrite,
+    ReadWriteCommand,
     SnapshotBase,
 )
 from drivemap.runtime.codec import (
@@ -1042,7 +1044,7 @@ class Client(ClientBase[Snapshot]):
     def __init__(self, bus: Bus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:
         super().__init__(bus, unit, page_policy=page_policy, _broadcast=_broadcast, _owns_bus=_owns_bus)
-        self.f_delete_data: ReadWrite[int] = ReadWrite(self, _codec_f_delete_data)
+        self.f_delete_data: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_f_delete_data)
         """Delete stored ratings of the current inverter by writing 0xFFFF.
 
         Address 0x00D3 (Modicon 40212); parameter F_Delete_Data; u16, access rw.
@@ -1051,7 +1053,7 @@ class Client(ClientBase[Snapshot]):
         Command: writing 65535 executes it.
         Manual: IntSF 'Complete Map' 212 ('Fronius Register').
         """
-        self.f_store_data: ReadWrite[int] = ReadWrite(self, _codec_f_store_data)
+        self.f_store_data: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_f_store_data)
         """Rating data of all inverters connected to the Fronius Datamanager are persistently stored by writing 0xFFFF.
 
         Address 0x00D4 (Modicon 40213); parameter F_Store_Data; u16, access rw.
@@ -1069,7 +1071,7 @@ class Client(ClientBase[Snapshot]):
         Default: —; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 214 ('Fronius Register').
         """
-        self.f_reset_all_event_flags: ReadWrite[int] = ReadWrite(self, _codec_f_reset_all_event_flags)
+        self.f_reset_all_event_flags: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_f_reset_all_event_flags)
         """Write 0xFFFF to reset all event flags and active state code.
 
         Address 0x00D6 (Modicon 40215); parameter F_Reset_All_Event_Flags; u16, access rw.
@@ -3050,13 +3052,13 @@ class AsyncClient(AsyncClientBase[Snapshot]):
     def __init__(self, bus: AsyncBus, unit: int = 1, *, page_policy: PagePolicy = "raise",
                  _broadcast: bool = False, _owns_bus: bool = False) -> None:
         super().__init__(bus, unit, page_policy=page_policy, _broadcast=_broadcast, _owns_bus=_owns_bus)
-        self.f_delete_data: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_f_delete_data)
+        self.f_delete_data: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_f_delete_data)
         """Delete stored ratings of the current inverter by writing 0xFFFF. (see :attr:`Client.f_delete_data`)."""
-        self.f_store_data: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_f_store_data)
+        self.f_store_data: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_f_store_data)
         """Rating data of all inverters connected to the Fronius Datamanager are persistently stored by writing 0xFFFF. (see :attr:`Client.f_store_data`)."""
         self.f_active_state_code: AsyncReadOnly[int | None] = AsyncReadOnly(self, _codec_f_active_state_code)
         """Current active state code of inverter - Description can be found in inverter manual (see :attr:`Client.f_active_state_code`)."""
-        self.f_reset_all_event_flags: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_f_reset_all_event_flags)
+        self.f_reset_all_event_flags: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_f_reset_all_event_flags)
         """Write 0xFFFF to reset all event flags and active state code. (see :attr:`Client.f_reset_all_event_flags`)."""
         self.f_model_type: AsyncReadWrite[ModelType] = AsyncReadWrite(self, _codec_f_model_type)
         """Type of SunSpec models used for inverter and meter data. Write 1 or 2 and then immediately 6 to acknowledge setting. (see :attr:`Client.f_model_type`)."""

@@ -12,16 +12,16 @@ from typing import Any
 from drivemap.runtime.client import (
     AsyncBus,
     AsyncClientBase,
+    AsyncCommand,
     AsyncReadOnly,
     AsyncReadWrite,
-    AsyncWriteOnly,
     Bus,
     ClientBase,
+    Command,
     PagePolicy,
     ReadOnly,
     ReadWrite,
     SnapshotBase,
-    WriteOnly,
 )
 from drivemap.runtime.codec import (
     Codec,
@@ -1173,7 +1173,7 @@ class Client(ClientBase[Snapshot]):
         Default: 4; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.7 (40087, hex 00 56).
         """
-        self.reset: WriteOnly[int] = WriteOnly(self, _codec_reset)
+        self.reset: Command[int] = Command(self, _codec_reset)
         """Reset
 
         Address 0xF010 (Modicon 461457); parameter 30729; u16, access w.
@@ -1396,7 +1396,7 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         """Network Baud Rate (see :attr:`Client.network_baud_rate`)."""
         self.pulse1_energy_type: AsyncReadWrite[float] = AsyncReadWrite(self, _codec_pulse1_energy_type)
         """Pulse 1 Energy Type (see :attr:`Client.pulse1_energy_type`)."""
-        self.reset: AsyncWriteOnly[int] = AsyncWriteOnly(self, _codec_reset)
+        self.reset: AsyncCommand[int] = AsyncCommand(self, _codec_reset)
         """Reset (see :attr:`Client.reset`)."""
         self.serial_number: AsyncReadOnly[int] = AsyncReadOnly(self, _codec_serial_number)
         """Serial number (see :attr:`Client.serial_number`)."""
