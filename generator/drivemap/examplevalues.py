@@ -7,8 +7,8 @@ printed (or corrected) frames carry.
 * a write example (06h / 10h, broadcast too): the request's words are the values of
   ``meaning.values``.
 
-Only numeric registers of the holding and input tables (u16, s16, u32, s32) with a protocol
-``address`` are compared here, each against the frame of its own table's function; floats, 64-bit
+Only numeric registers of the holding and input tables (u16, s16, u32, s32, standard byte order)
+with a protocol ``address`` are compared here, each against the frame of its own table's function; floats, 64-bit
 values, strings, coils, scale-factor registers and Modicon-numbered registers are proven by the
 round-trip tests, which decode every example's frames through the generated client.
 
@@ -79,7 +79,8 @@ def _cell(registers: dict[str, dict[str, Any]], ref: str, table: str) -> tuple[d
     base, _, rest = ref.partition("[")
     reg = registers.get(base)
     if (reg is None or reg.get("type", "u16") not in _COMPARED_TYPES or "address" not in reg
-            or reg.get("table", "holding") != table or reg.get("scale_register")):
+            or reg.get("table", "holding") != table or reg.get("scale_register")
+            or reg.get("byte_order", "high_first") != "high_first"):
         return None
     count = reg.get("count", 1)
     if not rest:
