@@ -220,10 +220,12 @@ class _Common(Generic[S]):
         defaults = self._snapshot_defaults()
         if defaults is None:
             return self.SNAPSHOT(_values=values, **fields)  # type: ignore[return-value]
-        # what the dataclass __init__ does (every field set, in order), without its per-field setattr calls
+        # what __init__ does, without its per-field setattr calls: only the fields read are stored when
+        # the class's defaults are class attributes (SnapshotBase.__init__), else every default is copied
         snap = object.__new__(self.SNAPSHOT)
         state = snap.__dict__
-        state.update(defaults)
+        if defaults:
+            state.update(defaults)
         state["_values"] = values
         state.update(fields)
         return snap  # type: ignore[return-value]
@@ -232,9 +234,10 @@ class _Common(Generic[S]):
     def _snapshot_defaults(cls) -> dict[str, Any] | None:
         """Field values of an empty ``SNAPSHOT`` when building it without ``__init__`` is exact, else None.
 
-        Exact for what the client template generates: a frozen dataclass whose fields are all in
-        ``__init__`` and default to None (``_values`` aside), without ``__post_init__`` or
-        ``__slots__``. Computed once per class.
+        Exact for what the client template generates: a frozen dataclass whose fields all default to
+        None (``_values`` aside), without ``__post_init__`` or ``__slots__``. Empty when the class
+        uses :class:`SnapshotBase`'s ``__init__`` (``init=False``, what the template generates now):
+        unset fields read their default from the class. Computed once per class.
         """
         if "_defaults" in cls.__dict__:
             return cls._defaults
@@ -244,7 +247,11 @@ class _Common(Generic[S]):
         exact = (params is not None and params.frozen and not hasattr(snapshot, "__post_init__")
                  and not hasattr(snapshot, "__slots__") and snapshot.__new__ is object.__new__
                  and all(f.init and (f.name == "_values" or f.default is None) for f in fields))
-        defaults = {f.name: None for f in fields} if exact else None
+        defaults: dict[str, Any] | None = None
+        if exact and snapshot.__init__ is SnapshotBase.__init__:
+            defaults = {}
+        elif exact:  # a dataclass __init__ of its own (clients generated before init=False): copy the defaults
+            defaults = {f.name: None for f in fields}
         cls._defaults = defaults
         return defaults
 
