@@ -58,6 +58,8 @@ S = TypeVar("S", bound=SnapshotBase)
 _run = run
 _arun = arun
 _tables = spec_tables
+#: Read programs kept per client (distinct tuples of accessors passed to read()).
+_MAX_PROGRAMS = 1024
 
 
 # ----------------------------------------------------------------------------- clients
@@ -79,6 +81,8 @@ class _Common(Generic[S]):
     def _setup(self, unit: int, page_policy: PagePolicy, broadcast: bool, stats: Stats | None = None) -> None:
         self._core = Core(self.SPEC, unit, self.EXCEPTIONS, page_policy, broadcast, stats)
         self._accessors = {}
+        #: read programs: the accessors of a read() -> the keys they read (checked readable once)
+        self._programs: dict[tuple[Readable, ...], tuple[Key, ...]] = {}
 
     def _register_accessors(self) -> None:
         """Called by generated ``__init__`` after the accessors are set: index them by name."""
@@ -262,6 +266,17 @@ class _Common(Generic[S]):
             keys.extend(acc.read_keys)
         return keys
 
+    def _program(self, accessors: tuple[Readable, ...]) -> tuple[Key, ...]:
+        """The keys ``read(*accessors)`` reads, checked readable; cached per tuple of accessors (their
+        plan is the class's, cached per tuple of keys; a client that knows holes plans with them)."""
+        keys = self._programs.get(accessors)
+        if keys is None:
+            keys = tuple(self._keys(accessors))
+            self._core.check_readable(keys)
+            if len(self._programs) < _MAX_PROGRAMS:
+                self._programs[accessors] = keys
+        return keys
+
     def _by_name_value(self, acc: Any, value: Any) -> int | Deferred:
         codec = unwrap(acc.codec)
         if isinstance(codec, (EnumCodec, FlagCodec)) and isinstance(value, int) and not isinstance(value, enum.Enum):
@@ -351,7 +366,11 @@ class ClientBase(_Common[S]):
     # public API
     def read(self, *accessors: Readable) -> S:
         """Read the given registers together, in the fewest requests the map allows."""
-        return self._snapshot(self._read_raw_keys(self._keys(accessors)))
+        keys = self._program(accessors)
+        core = self._core
+        plan = core.plan_with_holes(keys) if core.holes else self._plans.get(keys) or self.plan(keys)
+        with self.bus.lock:
+            return self._snapshot(_run(self.bus, core.read_raw(keys, plan, checked=True)))
 
     def read_all(self) -> S:
         """Read every readable register (plan computed once per client class).
@@ -480,7 +499,11 @@ class AsyncClientBase(_Common[S]):
             await _arun(self.bus, op)
 
     async def read(self, *accessors: Readable) -> S:
-        return self._snapshot(await self._read_raw_keys(self._keys(accessors)))
+        keys = self._program(accessors)
+        core = self._core
+        plan = core.plan_with_holes(keys) if core.holes else self._plans.get(keys) or self.plan(keys)
+        async with self.bus.lock:
+            return self._snapshot(await _arun(self.bus, core.read_raw(keys, plan, checked=True)))
 
     async def read_all(self) -> S:
         """See :meth:`ClientBase.read_all` (pages visited and restored under ``page_policy="raise"``)."""
