@@ -41,6 +41,7 @@ from drivemap.runtime.codec import (
     IntCodec,
 )
 from drivemap.runtime.errors import DeviceException
+from drivemap.runtime.records import record
 
 from .spec import SPEC
 
@@ -239,7 +240,7 @@ class NetIn(enum.IntFlag):
     """NET-X7 的狀態"""
 
 
-@dataclasses.dataclass(frozen=True)
+@record
 class Rs485CommSettings:
     """Bits of rs485_comm_settings (0x090F, 001 §1.1)."""
 
