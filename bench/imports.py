@@ -59,6 +59,7 @@ def _child(path: str, package: str, cached: bool) -> float:
             shutil.rmtree(cache)
     cmd = [sys.executable] + ([] if cached else ["-B"]) + ["-c", CHILD, path, package]
     env = dict(os.environ, PYTHONHASHSEED="0")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # the cached rounds need __pycache__ (cold ones run with -B)
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=str(ROOT), env=env, check=True)
     return float(json.loads(proc.stdout.strip().splitlines()[-1])["import_s"])
 
