@@ -62,6 +62,7 @@ class SerialReceiver:
         self._got = 0
         #: time.monotonic() of the last byte this receiver read.
         self.last_byte_at = 0.0
+        self._deadline = 0.0
         client.recv = self.recv
 
     def expect(self, pdu: Any) -> None:
@@ -98,7 +99,9 @@ class SerialReceiver:
     def _receive(self, fd: int) -> bytes:
         head = 5 if self._ascii else 2
         buf = bytearray()
-        self._read(fd, buf, head, self._client.comm_params.timeout_connect, self.gap_s)
+        timeout = self._client.comm_params.timeout_connect
+        self._deadline = time.monotonic() + timeout  # a line that never goes quiet ends here too
+        self._read(fd, buf, head, timeout, self.gap_s)
         if len(buf) < head:
             return bytes(buf)  # nothing (timeout) or a frame shorter than any reply: the framer decides
         try:
@@ -118,6 +121,8 @@ class SerialReceiver:
         chunk and ``gap_s`` after each one."""
         wait = first_s
         while len(buf) < total:
+            if buf and time.monotonic() >= self._deadline:
+                return
             ready, _, _ = select.select([fd], [], [], max(wait, 0.0))
             if not ready:
                 return
