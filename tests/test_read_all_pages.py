@@ -62,13 +62,13 @@ class _FailingPage1(EvSimulator):  # type: ignore[misc, valid-type]
 
     failed = False
 
-    def handle(self, unit_id: int, pdu: bytes) -> bytes | None:
+    def handle(self, unit_id: int, pdu: bytes, **options: bool) -> bytes | None:
         address = int.from_bytes(pdu[1:3], "big") if len(pdu) >= 3 else -1
         if (pdu[:1] == b"\x03" and 0x0008 <= address <= 0x000F and self.get_raw("watch_data_select") == 1
                 and not self.failed):
             self.failed = True
             return bytes([0x83, 0x04])
-        return super().handle(unit_id, pdu)
+        return super().handle(unit_id, pdu, **options)
 
 
 def test_selector_restored_after_a_failed_read() -> None:

@@ -512,7 +512,7 @@ CODECS: dict[str, Codec[Any]] = {
 """Register name -> codec (raw value <-> Python value)."""
 
 
-@dataclasses.dataclass(frozen=True, repr=False)
+@dataclasses.dataclass(frozen=True, repr=False, init=False)
 class Snapshot(SnapshotBase):
     """Values read together by ``read()`` / ``read_all()``; None where a register was not read."""
 

@@ -45,6 +45,7 @@ from drivemap.runtime.codec import (
     IntCodec,
 )
 from drivemap.runtime.errors import DeviceException
+from drivemap.runtime.records import record
 
 from .spec import SPEC
 
@@ -243,7 +244,7 @@ class NetIn(enum.IntFlag):
     """NET-X7 的狀態"""
 
 
-@dataclasses.dataclass(frozen=True)
+@record
 class Rs485CommSettings:
     """Bits of rs485_comm_settings (0x090F, 001 §1.1)."""
 
@@ -399,7 +400,7 @@ CODECS: dict[str, Codec[Any]] = {
 """Register name -> codec (raw value <-> Python value)."""
 
 
-@dataclasses.dataclass(frozen=True, repr=False)
+@dataclasses.dataclass(frozen=True, repr=False, init=False)
 class Snapshot(SnapshotBase):
     """Values read together by ``read()`` / ``read_all()``; None where a register was not read."""
 

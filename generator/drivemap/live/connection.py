@@ -231,6 +231,11 @@ def explain(exc: Exception, link: Link, target: Target | None, what: str, *, gar
             return LiveError(EXIT_GARBLED, f"{what}: replies from {link.line()} are garbled ({hint})")
         return LiveError(EXIT_NO_ANSWER, f"{what}: no answer from {link.describe()} "
                                          f"(is the unit id right? list the units with: drivemap scan {_scan_hint(link)})")
+    if isinstance(exc, TransportError) and "closed" in str(exc) and not link.serial:
+        # the connection was made; the peer dropped it on our request instead of answering
+        hint = ("is it Modbus TCP (--tcp) rather than RTU over TCP?" if link.kind != "tcp" else
+                "is it a serial gateway passing RTU frames (--rtu-over-tcp) rather than Modbus TCP?")
+        return LiveError(EXIT_NO_ANSWER, f"{what}: {link.line()} closed the connection without answering ({hint})")
     if isinstance(exc, TransportError):
         return LiveError(EXIT_CONNECT, f"{what}: {link.line()}: {exc}")
     return LiveError(EXIT_CONNECT, f"{what}: {exc}")

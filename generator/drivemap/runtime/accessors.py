@@ -29,15 +29,29 @@ def encode_for_write(codec: Codec[T], value: T) -> int | Deferred:
     return Deferred(value, codec)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, init=False)
 class SnapshotBase:
     """Values read together; generated subclasses add one typed field per readable register.
 
     ``snap.motor_speed`` is the value (None when not read; a tuple for arrays), ``snap[acc]`` the
     value of one accessor, typed.
+
+    Generated subclasses are frozen dataclasses declared with ``init=False``: they share this
+    ``__init__``, which takes any of their fields by keyword, so a map of N registers does not
+    generate (and compile at import) an ``__init__`` of N parameters, whose cost grows with N².
+    An instance stores only the fields given; the others are the class's default, None.
     """
 
     _values: Mapping[Key, Any] = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    def __init__(self, _values: Mapping[Key, Any] | None = None, **fields: Any) -> None:
+        names = _field_names(type(self))
+        for name in fields:
+            if name not in names:
+                raise TypeError(f"{type(self).__name__}.__init__() got an unexpected keyword argument {name!r}")
+        state = self.__dict__
+        state["_values"] = {} if _values is None else _values
+        state.update(fields)
 
     def __repr__(self) -> str:
         shown = ", ".join(
@@ -55,6 +69,17 @@ class SnapshotBase:
             return tuple(self._values[k] for k in accessor.keys)
         return self._values[accessor.key]  # type: ignore[no-any-return]
 
+
+
+_FIELD_NAMES: dict[type, frozenset[str]] = {}
+
+
+def _field_names(cls: type) -> frozenset[str]:
+    """The dataclass field names of a snapshot class (computed once per class)."""
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = frozenset(f.name for f in dataclasses.fields(cls)) - {"_values"}
+    return names
 
 
 class _Element(Generic[T]):
@@ -301,8 +326,6 @@ class AsyncReadWriteArray(_AsyncReadArrayMixin[T, AsyncReadWrite[T]], _AsyncWrit
 
 
 Readable = _Element[Any] | _Array[Any, Any]
-
-
 
 
 __all__ = [

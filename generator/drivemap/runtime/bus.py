@@ -58,11 +58,12 @@ from typing import Any
 
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient, ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
-from pymodbus.framer import FramerType
+from pymodbus.framer import FramerAscii, FramerType
 from pymodbus.pdu import ModbusPDU
 
 from . import staleguard
 from .errors import DriveTimeout, InvalidArgument, TransportError
+from .serialrx import SerialReceiver
 from .spec import SerialSpec, TimingSpec
 
 log = logging.getLogger("drivemap")
@@ -346,8 +347,12 @@ class Bus(_BusBase):
         self.client = client
         client.set_max_no_responses(1 << 30)  # retries and disconnects are ours
         self.lock = threading.RLock()
+        self._receiver: SerialReceiver | None = None
         if isinstance(client, ModbusSerialClient):  # see the module docstring: pymodbus's end-of-reply poll
             self._rx_quiet_s = float(getattr(client, "_recv_interval", 0.0))
+            if baudrate:  # runtime.serialrx: sees the end of a reply as it arrives (quiet_s of silence)
+                self._receiver = SerialReceiver(client, bits_per_char / baudrate, isinstance(client.framer, FramerAscii))
+                self._rx_quiet_s = min(self._rx_quiet_s, self._receiver.quiet_s)
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, timeout: float | None = None, retries: int | None = None) -> Bus:
@@ -426,6 +431,8 @@ class Bus(_BusBase):
                     self._rx = b""
                     self._rx_at = 0.0
                     ex.pdu.dev_id = ex.unit
+                    if self._receiver is not None:
+                        self._receiver.expect(ex.pdu)
                     started = time.monotonic()
                     try:
                         reply = client.execute(not ex.expect_reply, ex.pdu)

@@ -63,6 +63,8 @@ S = TypeVar("S", bound=SnapshotBase)
 _run = run
 _arun = arun
 _tables = spec_tables
+#: Read programs kept per client (distinct tuples of accessors passed to read()).
+_MAX_PROGRAMS = 1024
 
 
 # ----------------------------------------------------------------------------- clients
@@ -84,6 +86,8 @@ class _Common(Generic[S]):
     def _setup(self, unit: int, page_policy: PagePolicy, broadcast: bool, stats: Stats | None = None) -> None:
         self._core = Core(self.SPEC, unit, self.EXCEPTIONS, page_policy, broadcast, stats)
         self._accessors = {}
+        #: read programs: the accessors of a read() -> the keys they read (checked readable once)
+        self._programs: dict[tuple[Readable, ...], tuple[Key, ...]] = {}
 
     def _register_accessors(self) -> None:
         """Called by generated ``__init__`` after the accessors are set: index them by name."""
@@ -225,10 +229,12 @@ class _Common(Generic[S]):
         defaults = self._snapshot_defaults()
         if defaults is None:
             return self.SNAPSHOT(_values=values, **fields)  # type: ignore[return-value]
-        # what the dataclass __init__ does (every field set, in order), without its per-field setattr calls
+        # what __init__ does, without its per-field setattr calls: only the fields read are stored when
+        # the class's defaults are class attributes (SnapshotBase.__init__), else every default is copied
         snap = object.__new__(self.SNAPSHOT)
         state = snap.__dict__
-        state.update(defaults)
+        if defaults:
+            state.update(defaults)
         state["_values"] = values
         state.update(fields)
         return snap  # type: ignore[return-value]
@@ -237,9 +243,10 @@ class _Common(Generic[S]):
     def _snapshot_defaults(cls) -> dict[str, Any] | None:
         """Field values of an empty ``SNAPSHOT`` when building it without ``__init__`` is exact, else None.
 
-        Exact for what the client template generates: a frozen dataclass whose fields are all in
-        ``__init__`` and default to None (``_values`` aside), without ``__post_init__`` or
-        ``__slots__``. Computed once per class.
+        Exact for what the client template generates: a frozen dataclass whose fields all default to
+        None (``_values`` aside), without ``__post_init__`` or ``__slots__``. Empty when the class
+        uses :class:`SnapshotBase`'s ``__init__`` (``init=False``, what the template generates now):
+        unset fields read their default from the class. Computed once per class.
         """
         if "_defaults" in cls.__dict__:
             return cls._defaults
@@ -249,7 +256,11 @@ class _Common(Generic[S]):
         exact = (params is not None and params.frozen and not hasattr(snapshot, "__post_init__")
                  and not hasattr(snapshot, "__slots__") and snapshot.__new__ is object.__new__
                  and all(f.init and (f.name == "_values" or f.default is None) for f in fields))
-        defaults = {f.name: None for f in fields} if exact else None
+        defaults: dict[str, Any] | None = None
+        if exact and snapshot.__init__ is SnapshotBase.__init__:
+            defaults = {}
+        elif exact:  # a dataclass __init__ of its own (clients generated before init=False): copy the defaults
+            defaults = {f.name: None for f in fields}
         cls._defaults = defaults
         return defaults
 
@@ -258,6 +269,17 @@ class _Common(Generic[S]):
         keys: list[Key] = []
         for acc in accessors:
             keys.extend(acc.read_keys)
+        return keys
+
+    def _program(self, accessors: tuple[Readable, ...]) -> tuple[Key, ...]:
+        """The keys ``read(*accessors)`` reads, checked readable; cached per tuple of accessors (their
+        plan is the class's, cached per tuple of keys; a client that knows holes plans with them)."""
+        keys = self._programs.get(accessors)
+        if keys is None:
+            keys = tuple(self._keys(accessors))
+            self._core.check_readable(keys)
+            if len(self._programs) < _MAX_PROGRAMS:
+                self._programs[accessors] = keys
         return keys
 
     def _by_name_value(self, acc: Any, value: Any) -> int | Deferred:
@@ -349,7 +371,11 @@ class ClientBase(_Common[S]):
     # public API
     def read(self, *accessors: Readable) -> S:
         """Read the given registers together, in the fewest requests the map allows."""
-        return self._snapshot(self._read_raw_keys(self._keys(accessors)))
+        keys = self._program(accessors)
+        core = self._core
+        plan = core.plan_with_holes(keys) if core.holes else self._plans.get(keys) or self.plan(keys)
+        with self.bus.lock:
+            return self._snapshot(_run(self.bus, core.read_raw(keys, plan, checked=True)))
 
     def read_all(self) -> S:
         """Read every readable register (plan computed once per client class).
@@ -486,7 +512,11 @@ class AsyncClientBase(_Common[S]):
             await _arun(self.bus, op)
 
     async def read(self, *accessors: Readable) -> S:
-        return self._snapshot(await self._read_raw_keys(self._keys(accessors)))
+        keys = self._program(accessors)
+        core = self._core
+        plan = core.plan_with_holes(keys) if core.holes else self._plans.get(keys) or self.plan(keys)
+        async with self.bus.lock:
+            return self._snapshot(await _arun(self.bus, core.read_raw(keys, plan, checked=True)))
 
     async def read_all(self) -> S:
         """See :meth:`ClientBase.read_all` (pages visited and restored under ``page_policy="raise"``)."""
