@@ -235,7 +235,8 @@ def explain(exc: Exception, link: Link, target: Target | None, what: str, *, gar
         # the connection was made; the peer dropped it on our request instead of answering
         hint = ("is it Modbus TCP (--tcp) rather than RTU over TCP?" if link.kind != "tcp" else
                 "is it a serial gateway passing RTU frames (--rtu-over-tcp) rather than Modbus TCP?")
-        return LiveError(EXIT_NO_ANSWER, f"{what}: {link.line()} closed the connection without answering ({hint})")
+        return LiveError(EXIT_NO_ANSWER, f"{what}: no answer from {link.describe()}: the peer closed the connection "
+                                         f"on the request ({hint})")
     if isinstance(exc, TransportError):
         return LiveError(EXIT_CONNECT, f"{what}: {link.line()}: {exc}")
     return LiveError(EXIT_CONNECT, f"{what}: {exc}")
