@@ -13,6 +13,7 @@ from typing import Literal
 
 from . import modicon
 from .modicon import Table
+from .runtime.words import TYPE_BOUNDS as _INTEGER_BOUNDS
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
@@ -21,16 +22,8 @@ Status = Literal["verified", "erratum", "illegible"]
 #: An example's or a default's value: a number, true/false (bool registers), text (strings) or None.
 Value = float | str | None
 
-#: Raw bounds of the integer types (and of a bool in a bit table).
-TYPE_BOUNDS: dict[str, tuple[int, int]] = {
-    "u16": (0, 0xFFFF),
-    "s16": (-0x8000, 0x7FFF),
-    "u32": (0, 0xFFFFFFFF),
-    "s32": (-0x80000000, 0x7FFFFFFF),
-    "u64": (0, 0xFFFFFFFFFFFFFFFF),
-    "s64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
-    "bool": (0, 1),
-}
+#: Raw bounds of the integer types (the runtime's table) and of a bool in a bit table.
+TYPE_BOUNDS: dict[str, tuple[int, int]] = {**_INTEGER_BOUNDS, "bool": (0, 1)}
 #: Words (registers) of each fixed-size type; a string has ``length`` words; coils and discrete
 #: inputs are one bit each.
 TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
