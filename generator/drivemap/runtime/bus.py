@@ -375,7 +375,15 @@ class Bus(_BusBase):
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
         bus = cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
                         timeout, retries, f"{mode}:{port}")
-        staleguard.guard_sync_client(bus.client, bus._stale_guard(stale_guard))
+        guard = bus._stale_guard(stale_guard)
+        if guard.mode is not False and bus._receiver is not None:
+            # The stale-reply guard must see every byte up to pymodbus's own end-of-reply silence (a
+            # duplicate followed by the real reply); the fast receiver would stop after the first
+            # frame. Correctness first: with the guard on, pymodbus's receive is used.
+            del bus.client.recv  # the receiver's instance attribute; the class method again
+            bus._receiver = None
+            bus._rx_quiet_s = float(getattr(bus.client, "_recv_interval", 0.0))
+        staleguard.guard_sync_client(bus.client, guard)
         return bus
 
     @classmethod
