@@ -363,4 +363,4 @@ def test_cli_simulate_refuses_remote_bind() -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait(timeout=5)
-    assert proc.returncode == 2 and "--allow-remote" in err
+    assert proc.returncode == 1 and "--allow-remote" in err

@@ -523,15 +523,15 @@ def parse_tcp(text: str) -> tuple[str, int]:
 
 
 def serve_cli(args: argparse.Namespace) -> int:
-    """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0."""
+    """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0 (1 on an error, located when it can be)."""
     try:
         return run(args.factory, args)
     except StateFileError as exc:  # already located: path:line:col: error: ...
         print(exc, file=sys.stderr)
-        return 2
+        return 1
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"drivemap simulate: error: {exc}", file=sys.stderr)
-        return 2
+        return 1
 
 
 def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
@@ -599,7 +599,7 @@ def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = Non
         return run(factory, args)
     except StateFileError as exc:
         print(exc, file=sys.stderr)
-        return 2
+        return 1
     except (SimulatorError, RuntimeError, OSError) as exc:
         print(f"{model} simulator: error: {exc}", file=sys.stderr)
-        return 2
+        return 1
