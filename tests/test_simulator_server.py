@@ -25,7 +25,8 @@ from pymodbus.client import AsyncModbusTcpClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerRTU
 
-from drivemap.runtime.simserve import SimServer, ThreadedSimServer, is_loopback, parse_tcp
+from drivemap.runtime.simcli import parse_tcp
+from drivemap.runtime.simserve import SimServer, ThreadedSimServer, is_loopback
 from drivemap.runtime.simulator import SimulatorError
 from drivemap.testing.vserial import VirtualSerialLine
 

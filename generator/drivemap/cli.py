@@ -240,7 +240,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from .build import simulator_factory
     from .compiler import compile_map, resolve_map
-    from .runtime.simserve import serve_cli
+    from .runtime.simcli import serve_cli
 
     project = _project(args)
     model = compile_map(resolve_map(args.model, project))
@@ -307,7 +307,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--print", action="store_true")
     s.set_defaults(func=cmd_schema)
     s = sub.add_parser("simulate", help="serve a model's simulator (a map path is compiled in memory)")
-    from .runtime.simserve import add_arguments
+    from .runtime.simcli import add_arguments
 
     add_arguments(s, with_model=True)
     _project_flags(s, out=False)

@@ -26,7 +26,7 @@ import sys
 from collections.abc import Sequence
 
 from drivemap.behaviours import Behaviour, behaviour_for
-from drivemap.runtime import simserve
+from drivemap.runtime import simcli
 from drivemap.runtime.simulator import Simulator as SimulatorBase
 
 from .spec import SPEC
@@ -71,7 +71,7 @@ class Simulator(SimulatorBase):
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Serve this simulator (same options as ``drivemap simulate``) until Ctrl-C."""
-    return simserve.main(MODEL, Simulator, argv)
+    return simcli.main(MODEL, Simulator, argv)
 
 
 if __name__ == "__main__":
