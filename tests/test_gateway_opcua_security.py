@@ -231,3 +231,61 @@ async def test_anonymous_writes_switched_on(tmp_path: Path, pki: dict[str, tuple
             async with Client(_url(opc_port)) as anonymous:
                 assert await write_status(anonymous, 7.5) == "Good"
             assert sim.get("communication_setting") == pytest.approx(7.5)
+
+
+def _locate(text: str, needle: str) -> str:
+    before = text[:text.index(needle)]
+    return f"{before.count(chr(10)) + 1}:{len(before) - before.rfind(chr(10))}"
+
+
+def _bad_files(folder: Path, pki: dict[str, tuple[Path, Path]]) -> dict[str, Path]:
+    from cryptography.hazmat.primitives import serialization
+
+    garbage = folder / "garbage.pem"
+    garbage.write_text("-----BEGIN PRIVATE KEY-----\nnot base64 at all\n-----END PRIVATE KEY-----\n")
+    der_garbage = folder / "garbage.der"
+    der_garbage.write_bytes(b"\x30\x03\x02\x01")
+    key = serialization.load_pem_private_key(pki["server"][1].read_bytes(), None)
+    encrypted = folder / "encrypted.pem"
+    encrypted.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                            serialization.BestAvailableEncryption(b"secret")))
+    pem_as_der = folder / "server-cert-in-pem.der"
+    cert = x509.load_der_x509_certificate(pki["server"][0].read_bytes())
+    pem_as_der.write_bytes(cert.public_bytes(Encoding.PEM))
+    return {"garbage": garbage, "der_garbage": der_garbage, "encrypted": encrypted, "pem_as_der": pem_as_der,
+            "missing": folder / "missing.der", "other_key": pki["maintenance"][1]}
+
+
+CERT_ERRORS = [  # (which path in the config, replaced by which bad file, the message)
+    ("server_key", "garbage", "is not a private key in PEM"),
+    ("server_key", "encrypted", "is encrypted: the gateway needs an unencrypted private key"),
+    ("server_key", "other_key", "is not the private key of"),
+    ("server_key", "missing", "no such file"),
+    ("server_cert", "der_garbage", "is not an X.509 certificate in DER"),
+    ("server_cert", "pem_as_der", "is not an X.509 certificate in DER"),
+    ("client_cert", "garbage", "is not an X.509 certificate in PEM"),
+    ("client_cert", "missing", "no such file"),
+]
+
+
+@pytest.mark.parametrize(("where", "bad", "message"), CERT_ERRORS, ids=[f"{w}-{b}" for w, b, _ in CERT_ERRORS])
+def test_certificate_file_errors_are_located(tmp_path: Path, pki: dict[str, tuple[Path, Path]],
+                                             capsys: pytest.CaptureFixture[str], where: str, bad: str,
+                                             message: str) -> None:
+    """Unusable certificate and key files are configuration errors at the line of their path (exit 1,
+    no traceback), found by ``drivemap gateway --check`` before anything starts."""
+    files = _bad_files(tmp_path, pki)
+    good = config(5020, 4840, pki, "[Basic256Sha256_Sign]")
+    path = tmp_path / "gw.yaml"
+    path.write_text(good)
+    assert main(["gateway", "--check", str(path)]) == 0
+    capsys.readouterr()
+    original = {"server_key": pki["server"][1], "server_cert": pki["server"][0],
+                "client_cert": pki["maintenance"][0]}[where]
+    text = good.replace(str(original), str(files[bad]))
+    path.write_text(text)
+    assert main(["gateway", "--check", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:{_locate(text, str(files[bad]))}: error: " in err, err
+    assert message in err, err
+    assert "Traceback" not in err
