@@ -341,9 +341,9 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         users.append(OpcuaUser(u["name"], secret, None, u.get("write", True)))
     for i, c in enumerate(o.get("trusted_certificates", ())):
         path = check.path(c["certificate"])
-        problem = f"no such file: {display(path)}" if not path.is_file() else _certificate_problem(path)
-        if problem is not None:
-            check.error(where + ("trusted_certificates", i, "certificate"), problem)
+        unusable = f"no such file: {display(path)}" if not path.is_file() else _certificate_problem(path)
+        if unusable is not None:
+            check.error(where + ("trusted_certificates", i, "certificate"), unusable)
         users.append(OpcuaUser(c["name"], None, path, c.get("write", True)))
     return OpcuaConfig(o["endpoint"], o.get("namespace", f"urn:drivemap:{name}"), security, cert, key, tuple(users),
                        o.get("anonymous", True), o.get("anonymous_writes", False))
