@@ -28,9 +28,10 @@ README = ROOT / "README.md"
 
 def readme_commands() -> list[list[str]]:
     """The README's ``drivemap simulate`` commands (one line, joined with ``&``) and its gateway command."""
-    text = README.read_text()
-    simulate = next(line for line in text.splitlines() if line.strip().startswith("drivemap simulate"))
-    gateway = next(line for line in text.splitlines() if line.strip().startswith("drivemap gateway"))
+    lines = [line.strip() for line in README.read_text().splitlines()]
+    at = lines.index("drivemap gateway docs/examples/plant.yaml")
+    simulate, gateway = lines[at - 1], lines[at]
+    assert simulate.startswith("drivemap simulate"), simulate
     commands = [part.split() for part in simulate.split("&") if part.strip()]
     return [*commands, gateway.split()]
 
