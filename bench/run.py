@@ -116,10 +116,13 @@ only) and one dataclass per bit-field record type (≈ 1 ms each; the synthetic 
 5 registers).""",
     "Gateway scale (20 lines x 10 drives, MQTT)": """\
 One `drivemap gateway` process (`bench/gateway.py`): 20 Modbus TCP lines, 10 ev drives on each (the
-generated simulator with realistic timing), a real MQTT broker, an independent subscriber. Polls/s per
-line are counted from the per-poll `state` snapshots that reach the subscriber; latency runs from the
-moment a simulator's value changes to the moment its MQTT message arrives (one monotonic clock for
-all processes). The capacity plan built on these figures is in `docs/gateway.md`.""",
+generated simulator with realistic timing), a real MQTT broker, an independent subscriber; then the
+same over paced virtual serial lines at 19200 Bd (`bench/gateway_serial.py`: 1 to 20 lines of 10
+drives on Modbus RTU, relays and simulators in their own processes, CPU of each part measured apart).
+On TCP, polls/s per line are counted from the per-poll `state` snapshots that reach the subscriber, on
+serial lines from the request frames on the wire; latency runs from the moment a simulator's value
+changes to the moment its MQTT message arrives (one monotonic clock for all processes). The capacity
+plan built on these figures is in `docs/gateway.md`.""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the

@@ -177,3 +177,74 @@ def _wait_for(port: int, timeout: float = 20.0) -> None:
         except OSError:
             time.sleep(0.1)
     pytest.fail(f"simulator did not listen on 127.0.0.1:{port}")
+
+
+GATEWAY = """\
+gateway: 1
+name: plant
+mqtt: {{host: 127.0.0.1, port: {broker}}}
+buses:
+  - name: line1
+    tcp: 127.0.0.1:{sim}
+    devices:
+      - {{name: conveyor, model: ev, unit: 1, interval: 0.2, publish: [motor_speed, alarm_no]}}
+"""
+
+
+def test_the_gateway_runs_from_the_wheel_in_a_foreign_folder(env: Path, tmp_path: Path) -> None:
+    """``drivemap gateway --check`` and a short real run (a broker, ``drivemap simulate``, an MQTT
+    subscriber) from the installed wheel, in a folder outside the checkout; without the opcua extra an
+    OPC UA configuration is a located error."""
+    import asyncio
+
+    import aiomqtt
+
+    from tests.helpers_gateway import Broker
+
+    package_before, checkout_before = tree_digest(site_package(env)), checkout_digest()
+    work = tmp_path / "plant"
+    work.mkdir()
+    broker, sim_port = Broker(tmp_path).start(), free_port()
+    (work / "gw.yaml").write_text(GATEWAY.format(broker=broker.port, sim=sim_port))
+    assert "conveyor: ev unit 1: 2 registers every 0.2 s in 1 requests" in ok(env, work, "gateway", "--check", "gw.yaml")
+    buses = GATEWAY.format(broker=broker.port, sim=sim_port).split("buses:\n", 1)[1]
+    (work / "opc.yaml").write_text("gateway: 1\nname: plant\nopcua: {endpoint: 'opc.tcp://127.0.0.1:4840/'}\n"
+                                   "buses:\n" + buses)
+    probe = subprocess.run([str(env / "python"), "-c", "import asyncua"], cwd=work, capture_output=True, timeout=60)
+    assert probe.returncode != 0, "the wheel alone (no opcua extra) brought asyncua"
+    proc = drivemap(env, work, "gateway", "--check", "opc.yaml")
+    assert proc.returncode == 1 and "opc.yaml:1:1: error: opcua needs the optional extra" in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+    clean = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    sim = subprocess.Popen([str(env / "drivemap"), "simulate", "ev", "--tcp", f"127.0.0.1:{sim_port}"], cwd=work,
+                           env=clean, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    gateway = subprocess.Popen([str(env / "drivemap"), "gateway", "gw.yaml"], cwd=work, env=clean, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+    async def seen() -> dict[str, str]:
+        got: dict[str, str] = {}
+        async with aiomqtt.Client("127.0.0.1", broker.port, identifier="wheel-test") as client:
+            await client.subscribe("drivemap/#")
+            async with asyncio.timeout(60):
+                async for m in client.messages:
+                    got[m.topic.value] = bytes(m.payload).decode() if isinstance(m.payload, bytes) else str(m.payload)
+                    if got.get("drivemap/conveyor/availability") == "online" and "drivemap/conveyor/motor_speed" in got:
+                        return got
+        return got
+
+    try:
+        _wait_for(sim_port)
+        got = asyncio.run(seen())
+        assert got["drivemap/conveyor/motor_speed"].isdigit(), got
+        assert got["drivemap/gateway/plant/availability"] == "online"
+    finally:
+        gateway.terminate()
+        out, err = gateway.communicate(timeout=30)
+        sim.terminate()
+        sim.wait(10)
+        broker.stop()
+    assert gateway.returncode == 0 and "gateway plant stopped" in out, err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in work.iterdir()) == ["gw.yaml", "opc.yaml"]
+    assert tree_digest(site_package(env)) == package_before
+    assert checkout_digest() == checkout_before

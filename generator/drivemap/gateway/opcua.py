@@ -32,6 +32,7 @@ from typing import Any
 from asyncua import ua as _ua
 from asyncua.crypto.permission_rules import SimpleRoleRuleset, User, UserRole
 from asyncua.server.address_space import AttributeService
+from asyncua.server.internal_server import InternalServer
 from asyncua.server.server import Server
 
 from ..model import Register
@@ -82,8 +83,27 @@ def status_for(error: BaseException) -> Any:
     return ua.StatusCodes.BadInternalError
 
 
+class _IdentityCertificate(bytes):
+    """A client certificate from an X509 identity token whose signature the server verified; asyncua
+    passes the secure channel's certificate to the user manager the same way, as plain bytes."""
+
+
+class _InternalServer(InternalServer):
+    """asyncua's internal server, marking the certificates of X509 identity tokens (see :class:`_Users`)."""
+
+    def verify_x509_token(self, isession: Any, token: Any, signature: Any) -> bytes:
+        return _IdentityCertificate(super().verify_x509_token(isession, token, signature))
+
+
 class _Users:
-    """asyncua user manager: configured passwords and client certificates; anonymous when allowed."""
+    """asyncua user manager: configured passwords, client certificates (X509 identity tokens) mapped to
+    users, anonymous sessions when allowed.
+
+    A user is who the identity token says: a password, or a certificate in ``trusted_certificates``
+    (an X509 token signed with its private key). An identity certificate that is not trusted is
+    refused, never taken for anonymous. The secure channel's own certificate authenticates the client
+    application, not a user: a session over a signed channel with an anonymous token is anonymous.
+    """
 
     def __init__(self, cfg: OpcuaConfig, certificates: dict[bytes, OpcuaUser]) -> None:
         self.cfg = cfg
@@ -93,14 +113,13 @@ class _Users:
                  certificate: Any = None) -> User | None:
         if username is not None:
             for u in self.cfg.users:
-                if u.name == username and u.password is not None and hmac.compare_digest(
+                if u.password is not None and u.name == username and hmac.compare_digest(
                         u.password.encode(), (password or "").encode()):
                     return User(role=UserRole.User, name=u.name)
             return None
-        # a trusted client certificate (identity token, or the secure channel's own) logs in as its user
-        found = self.certificates.get(bytes(certificate)) if certificate else None
-        if found is not None:
-            return User(role=UserRole.User, name=found.name)
+        if isinstance(certificate, _IdentityCertificate):
+            found = self.certificates.get(bytes(certificate))
+            return User(role=UserRole.User, name=found.name) if found is not None else None
         return User(role=UserRole.Anonymous) if self.cfg.anonymous else None
 
 
@@ -220,7 +239,8 @@ class OpcuaBridge:
 
     async def start(self) -> None:
         cfg = self.cfg
-        server = Server(user_manager=_Users(cfg, await self._certificates()))  # type: ignore[arg-type]
+        users = _Users(cfg, await self._certificates())
+        server = Server(iserver=_InternalServer(user_manager=users))  # type: ignore[arg-type]
         await server.init()
         server.set_endpoint(cfg.endpoint)
         server.set_server_name(f"drivemap gateway {self.gateway}")

@@ -1,0 +1,102 @@
+"""The README's two commands, for real: ``drivemap simulate ... &`` then ``drivemap gateway
+docs/examples/plant.yaml`` (the example as shipped, only its ports moved to free ones), each in its
+own process; the drives must show in an MQTT subscriber and in an OPC UA browse with asyncua's client.
+Only 127.0.0.1."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.helpers_gateway import Broker, Subscriber, free_port, until
+
+asyncua = pytest.importorskip("asyncua", reason="OPC UA is the optional extra drivemap[opcua] (in the test extra)")
+from asyncua import Client  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "docs/examples/plant.yaml"
+README = ROOT / "README.md"
+
+
+def readme_commands() -> list[list[str]]:
+    """The README's ``drivemap simulate`` commands (one line, joined with ``&``) and its gateway command."""
+    lines = [line.strip() for line in README.read_text().splitlines()]
+    at = lines.index("drivemap gateway docs/examples/plant.yaml")
+    simulate, gateway = lines[at - 1], lines[at]
+    assert simulate.startswith("drivemap simulate"), simulate
+    commands = [part.split() for part in simulate.split("&") if part.strip()]
+    return [*commands, gateway.split()]
+
+
+@contextlib.contextmanager
+def processes(commands: list[list[str]], cwd: Path) -> Iterator[list[subprocess.Popen[str]]]:
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        for n, argv in enumerate(commands):
+            with open(cwd / f"command{n}.log", "w") as log:
+                procs.append(subprocess.Popen([sys.executable, "-m", "drivemap", *argv[1:]], cwd=cwd, text=True,
+                                              stdout=log, stderr=subprocess.STDOUT))
+        yield procs
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(5)
+
+
+async def test_readme_two_commands_show_the_drives_in_mqtt_and_opcua(tmp_path: Path) -> None:
+    commands = readme_commands()
+    assert [c[:2] for c in commands] == [["drivemap", "simulate"]] * 2 + [["drivemap", "gateway"]]
+    assert commands[-1][2:] == ["docs/examples/plant.yaml"]
+    broker = Broker(tmp_path).start()
+    ports = {"5020": str(free_port()), "5021": str(free_port()), "4840": str(free_port()), "1883": str(broker.port)}
+    text = EXAMPLE.read_text()
+    for old in ("1883", "4840", "5020", "5021"):
+        assert old in text, f"the example no longer uses port {old}"
+    moved = re.sub(r"\b(1883|4840|5020|5021)\b", lambda m: ports[m.group(1)], text)
+    config = tmp_path / "docs/examples/plant.yaml"
+    config.parent.mkdir(parents=True)
+    config.write_text(moved)
+    argv = [[re.sub(r"\b(5020|5021)\b", lambda m: ports[m.group(1)], a) for a in c] for c in commands]
+    try:
+        async with Subscriber(broker.port, ("drivemap/#", "homeassistant/#")) as sub:
+            with processes(argv, tmp_path) as procs:
+                await until(lambda: all(sub.text(f"drivemap/{d}/availability") == "online"
+                                        for d in ("pump1", "fan2", "conveyor")), 45, "three drives online in MQTT")
+                await until(lambda: sub.text("drivemap/fan2/inverter_state"), 10, "a value of fan2")
+                await until(lambda: sub.text("drivemap/conveyor/state"), 10, "a snapshot of conveyor")
+                assert "operating_frequency" in json.loads(sub.text("drivemap/pump1/state") or "{}")
+                assert sub.text("drivemap/gateway/plant/availability") == "online"
+                assert any(t.startswith("homeassistant/") and "drivemap_plant_pump1" in t for t in sub.latest)
+                async with Client(f"opc.tcp://127.0.0.1:{ports['4840']}/drivemap/") as client:
+                    idx = await client.get_namespace_index("urn:drivemap:plant")
+                    plant = await client.nodes.objects.get_child([f"{idx}:plant"])
+                    names = {(await n.read_browse_name()).Name for n in await plant.get_children()}
+                    assert names == {"pump1", "fan2", "conveyor"}
+                    pump = await plant.get_child([f"{idx}:pump1"])
+                    children = {(await n.read_browse_name()).Name for n in await pump.get_children()}
+                    assert {"Online", "inverter_state", "operating_frequency"} <= children
+                    online = await pump.get_child([f"{idx}:Online"])
+                    for _ in range(100):
+                        if await online.read_value():
+                            break
+                        await asyncio.sleep(0.1)
+                    assert await online.read_value() is True
+                assert all(p.poll() is None for p in procs), "a process of the README's commands exited"
+            gateway_out = (tmp_path / f"command{len(argv) - 1}.log").read_text()
+            assert "gateway plant: 2 buses, 3 devices" in gateway_out
+            assert "Traceback" not in gateway_out
+    finally:
+        broker.stop()
