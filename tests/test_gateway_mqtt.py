@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import asyncio
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -44,6 +45,18 @@ buses:
 {extra}"""
 
 
+async def settled(measure: Callable[[], int], quiet: float = 0.5, timeout: float = 10.0) -> None:
+    """Wait until ``measure()`` has not changed for ``quiet`` seconds (all retained messages arrived)."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    last, since = measure(), loop.time()
+    while loop.time() - since < quiet:
+        assert loop.time() < end, "messages kept arriving"
+        await asyncio.sleep(0.05)
+        if measure() != last:
+            last, since = measure(), loop.time()
+
+
 def config_for(tmp_path: Path, broker: Broker, vfd_port: int, ev_port: int) -> GatewayConfig:
     return write_config(tmp_path, two_buses(broker.port, vfd_port, ev_port))
 
@@ -52,6 +65,10 @@ async def test_discovery_payloads(tmp_path: Path, broker: Broker) -> None:
     with tcp_server("vfd1000", (1,)) as (_, _, vport), tcp_server("ev", (2,)) as (_, _, eport):
         cfg = config_for(tmp_path, broker, vport, eport)
         async with running(cfg), Subscriber(broker.port, ("homeassistant/#",)) as sub:
+
+            async def config(topic: str) -> Any:  # each device's discovery may still be on its way
+                return json.loads(await until(lambda: sub.text(topic), what=topic))
+
             node = "homeassistant/{}/drivemap_plant_pump1/{}/config"
             number = await until(lambda: sub.text(node.format("number", "communication_setting")), what="number")
             await until(lambda: sub.text("homeassistant/button/drivemap_plant_drive2/alarm_reset/config"), what="button")
@@ -64,18 +81,19 @@ async def test_discovery_payloads(tmp_path: Path, broker: Broker) -> None:
             assert n["availability_mode"] == "all"
             assert [a["topic"] for a in n["availability"]] == ["drivemap/gateway/plant/availability",
                                                                "drivemap/pump1/availability"]
-            select = json.loads(sub.text(node.format("select", "control_command")) or "{}")
+            select = await config(node.format("select", "control_command"))
             assert select["options"][:2] == ["FORWARD_RUNNING", "REVERSE_RUNNING"] and "state_topic" not in select
-            state = json.loads(sub.text(node.format("sensor", "inverter_state")) or "{}")
+            state = await config(node.format("sensor", "inverter_state"))
             assert state["device_class"] == "enum" and "STANDBY" in state["options"]
-            bit = json.loads(sub.text("homeassistant/binary_sensor/drivemap_plant_drive2/net_in_x3/config") or "{}")
+            bit = await config("homeassistant/binary_sensor/drivemap_plant_drive2/net_in_x3/config")
             assert bit["value_template"] == "{{ 'ON' if value_json['X3'] else 'OFF' }}"
-            speed = json.loads(sub.text("homeassistant/sensor/drivemap_plant_drive2/motor_speed/config") or "{}")
+            speed = await config("homeassistant/sensor/drivemap_plant_drive2/motor_speed/config")
             assert speed["unit_of_measurement"] == "rpm" and speed["state_class"] == "measurement"
-            timeout = json.loads(sub.text("homeassistant/number/drivemap_plant_drive2/rs485_timeout/config") or "{}")
+            timeout = await config("homeassistant/number/drivemap_plant_drive2/rs485_timeout/config")
             assert timeout["device_class"] == "duration" and timeout["max"] == 1000
-            press = json.loads(sub.text("homeassistant/button/drivemap_plant_drive2/alarm_reset/config") or "{}")
+            press = await config("homeassistant/button/drivemap_plant_drive2/alarm_reset/config")
             assert press["payload_press"] == "PRESS"
+            await settled(lambda: len(sub.latest))
             async with Subscriber(broker.port, ("homeassistant/#",)) as late:  # retained: a late subscriber gets all
                 await until(lambda: len(late.latest) == len(sub.latest), what="retained discovery")
                 assert late.latest == sub.latest
