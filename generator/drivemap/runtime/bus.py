@@ -53,7 +53,6 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient, ModbusSerialClient, ModbusTcpClient
@@ -63,10 +62,13 @@ from pymodbus.pdu import ModbusPDU
 
 from . import staleguard
 from .errors import DriveTimeout, InvalidArgument, TransportError
+from .exchange import Exchange, Stats, reply_mismatch
 from .serialrx import SerialReceiver
 from .spec import SerialSpec, TimingSpec
 
 log = logging.getLogger("drivemap")
+_DEBUG = logging.DEBUG
+_monotonic = time.monotonic
 
 #: Response timeout when the map gives none (seconds). Generous for slow drives at 9600 Bd.
 DEFAULT_RESPONSE_TIMEOUT_S = 1.0
@@ -81,79 +83,28 @@ DEFAULT_BAUDRATE = 9600
 _PARITY = {"none": "N", "even": "E", "odd": "O", "N": "N", "E": "E", "O": "O", None: "N"}
 
 
-@dataclass
-class Stats:
-    """Counters of one bus: requests sent (with retries), retries, broadcasts and bytes."""
+class _Setting:
+    """A bus setting the cached transaction shapes depend on: setting it empties the cache."""
 
-    transactions: int = 0
-    retries: int = 0
-    timeouts: int = 0
-    broadcasts: int = 0
-    exceptions: int = 0
-    rejected: int = 0
-    """Replies that did not answer the request sent (see :func:`reply_mismatch`), never returned."""
-    stale: int = 0
-    """Serial lines: replies that began before the request could have been answered (a duplicate, an
-    echo, a late reply) or arrived between transactions; dropped unread (see :mod:`.staleguard`)."""
-    bytes_sent: int = 0
-    bytes_received: int = 0
-    bytes_garbled: int = 0
-    """Bytes received during attempts that got no valid reply (noise, wrong baud rate or parity)."""
-    by_function: dict[int, int] = field(default_factory=dict)
-    """Requests sent per function code (retries included)."""
-    split_reads: int = 0
-    """Reads the device refused with 02h that the client split (adaptive reads)."""
-    extra_requests: int = 0
-    """Requests the splitting sent beyond the plan (counted once each, retries aside)."""
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.attr = "_" + name
 
+    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        return self if obj is None else obj.__dict__[self.attr]
 
-@dataclass(frozen=True)
-class Exchange:
-    """One request the client core asks the bus to carry out."""
-
-    unit: int
-    pdu: ModbusPDU
-    timing: TimingSpec
-    expect_reply: bool = True
-    hold_ms: float = 0.0
-
-
-def reply_mismatch(request: ModbusPDU, reply: ModbusPDU) -> str | None:
-    """Why ``reply`` cannot be the answer to ``request`` (None when it can).
-
-    RTU and ASCII frames carry no transaction id, so everything a reply echoes is checked: unit,
-    function code (or its exception form), the address and value of 05h/06h, the address and
-    quantity of 0Fh/10h, the register count of 03h/04h, the byte count of 01h/02h and the
-    sub-function of 08h.
-    """
-    if reply.dev_id != request.dev_id:
-        return f"reply from unit {reply.dev_id}, asked unit {request.dev_id}"
-    fc = request.function_code
-    if reply.function_code & 0x7F != fc:
-        return f"reply has function 0x{reply.function_code:02X}, sent 0x{fc:02X}"
-    if reply.isError():
-        return None
-    if fc in (0x03, 0x04) and len(reply.registers) != request.count:
-        return f"reply has {len(reply.registers)} registers, asked {request.count}"
-    if fc in (0x01, 0x02) and len(reply.bits) != (request.count + 7) // 8 * 8:
-        return f"reply has {len(reply.bits) // 8} data bytes for {request.count} bits"
-    if fc in (0x05, 0x06, 0x0F, 0x10) and reply.address != request.address:
-        return f"reply echoes address 0x{reply.address:04X}, sent 0x{request.address:04X}"
-    if fc == 0x06 and list(reply.registers) != list(request.registers):
-        return f"reply echoes value {list(reply.registers)}, sent {list(request.registers)}"
-    if fc == 0x05 and bool(reply.bits[0]) != bool(request.bits[0]):
-        return f"reply echoes coil {reply.bits[0]}, sent {request.bits[0]}"
-    if fc == 0x10 and reply.count != len(request.registers):
-        return f"reply echoes quantity {reply.count}, sent {len(request.registers)}"
-    if fc == 0x0F and reply.count != len(request.bits):
-        return f"reply echoes quantity {reply.count}, sent {len(request.bits)}"
-    if fc == 0x08 and getattr(reply, "sub_function_code", None) != getattr(request, "sub_function_code", None):
-        return "reply has another diagnostics sub-function"
-    return None
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.attr] = value
+        obj._shapes = {}
 
 
 class _BusBase:
     """What the sync and async buses share: counters, frame logging, timing arithmetic."""
+
+    serial_line: bool = _Setting()  # type: ignore[assignment]
+    baudrate: int | None = _Setting()  # type: ignore[assignment]
+    bits_per_char: int = _Setting()  # type: ignore[assignment]
+    timeout_override: float | None = _Setting()  # type: ignore[assignment]
+    retries_override: int | None = _Setting()  # type: ignore[assignment]
 
     def __init__(self, *, serial: bool, baudrate: int | None, bits_per_char: int, timeout: float | None,
                  retries: int | None, name: str) -> None:
@@ -171,24 +122,27 @@ class _BusBase:
         self._rx_quiet_s = 0.0
         #: Quiet time (seconds) the bus kept, or is keeping, after the last transaction.
         self.last_quiet_s = 0.0
-        # per TimingSpec (by identity): (timing, timeout s, retries, quiet after a reply, after a broadcast)
-        self._timing_cache: dict[int, tuple[TimingSpec, float, int, float, float]] = {}
-        self._timing_settings: tuple[Any, ...] = ()
+        #: per transaction shape (timing by identity, reply expected, hold ms): see :meth:`_shape`
+        self._shapes: dict[tuple[int, bool, float], tuple[TimingSpec, float, int, float]] = {}
 
-    # pymodbus trace hooks: every byte that goes out or comes in passes here.
+    # pymodbus trace hooks: every byte that goes out or comes in passes here (kept lean: a counter,
+    # and the hex dump only when the drivemap logger shows DEBUG).
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
         if sending:
             self.stats.bytes_sent += len(data)
-            if log.isEnabledFor(logging.DEBUG):
+            if log.isEnabledFor(_DEBUG):
                 log.debug("%s TX %s", self.name, data.hex(" "))
         else:
             self._rx = data
-            self._rx_at = time.monotonic()
+            self._rx_at = _monotonic()
         return data
 
     def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
         if not sending and self._rx:
-            self._flush_rx("RX")
+            self.stats.bytes_received += len(self._rx)
+            if log.isEnabledFor(_DEBUG):
+                log.debug("%s RX %s", self.name, self._rx.hex(" "))
+            self._rx = b""
         return pdu
 
     def _flush_rx(self, what: str) -> None:
@@ -198,18 +152,16 @@ class _BusBase:
                 log.debug("%s %s %s", self.name, what, self._rx.hex(" "))
             self._rx = b""
 
-    def _timing(self, timing: TimingSpec) -> tuple[TimingSpec, float, int, float, float]:
-        """(timing, timeout s, retries, quiet s after a reply, quiet s after a broadcast), cached."""
-        settings = (self.timeout_override, self.retries_override, self.serial_line, self.baudrate,
-                    self.bits_per_char)
-        if settings != self._timing_settings:  # a setting changed since the cache was filled
-            self._timing_cache.clear()
-            self._timing_settings = settings
-        hit = self._timing_cache.get(id(timing))
+    def _shape(self, ex: Exchange) -> tuple[TimingSpec, float, int, float]:
+        """(timing, timeout s, attempts, quiet s after it) of the exchange's transaction shape (its
+        timing, whether it expects a reply, its hold time): computed once per shape and bus settings."""
+        timing, expect = ex.timing, ex.expect_reply
+        key = (id(timing), expect, ex.hold_ms)
+        hit = self._shapes.get(key)
         if hit is None or hit[0] is not timing:
-            hit = (timing, self.timeout_for(timing), self.retries_for(timing), self._quiet_s(timing, True),
-                   self._quiet_s(timing, False))
-            self._timing_cache[id(timing)] = hit
+            quiet = max(self._quiet_s(timing, expect), ex.hold_ms / 1000.0)
+            hit = self._shapes[key] = (timing, self.timeout_for(timing), 1 + (self.retries_for(timing) if expect else 0),
+                                       quiet)
         return hit
 
     def timeout_for(self, timing: TimingSpec) -> float:
@@ -246,9 +198,15 @@ class _BusBase:
 
     def quiet_after(self, ex: Exchange) -> float:
         """Seconds the line stays quiet after ``ex`` (see the module docstring for the rules)."""
-        cached = self._timing(ex.timing)
-        quiet = cached[3] if ex.expect_reply else cached[4]
-        return max(quiet, ex.hold_ms / 1000.0)
+        return self._shape(ex)[3]
+
+    def _no_reply(self, ex: Exchange, exc: Exception, attempt: int, attempts: int, quiet: float) -> None:
+        """Count and log an attempt that got no valid reply (timeout, corrupt frame)."""
+        self.stats.timeouts += 1
+        self.stats.bytes_garbled += len(self._rx)
+        self._flush_rx("RX (no valid reply)")
+        log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit, attempt + 1, attempts, exc)
+        self._mark_done(quiet)
 
     def _rejected(self, ex: Exchange, reply: ModbusPDU, problem: str, started: float) -> float:
         """Count and log a reply that is not ours; the seconds left of the attempt's timeout."""
@@ -417,63 +375,68 @@ class Bus(_BusBase):
     def exchange(self, ex: Exchange) -> ModbusPDU | None:
         """Send one request (retrying on timeout); the reply PDU, or None for a broadcast."""
         with self.lock:
-            client = self.client
-            if not client.connected:
-                self.connect()
-            _, timeout, retries, quiet_reply, quiet_broadcast = self._timing(ex.timing)
-            quiet = max(quiet_reply if ex.expect_reply else quiet_broadcast, ex.hold_ms / 1000.0)
-            params = client.comm_params
-            if params.timeout_connect != timeout:
-                params.timeout_connect = timeout
-            attempts = 1 + (0 if not ex.expect_reply else retries)
-            stats = self.stats
-            try:
-                for attempt in range(attempts):
-                    if attempt:
-                        stats.retries += 1
-                    if self._ready_at and (wait := self._wait_s()) > 0:
-                        time.sleep(wait)
-                    stats.transactions += 1
-                    fc = ex.pdu.function_code
-                    stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
-                    self._rx = b""
-                    self._rx_at = 0.0
-                    ex.pdu.dev_id = ex.unit
-                    if self._receiver is not None:
-                        self._receiver.expect(ex.pdu)
-                    started = time.monotonic()
-                    try:
-                        reply = client.execute(not ex.expect_reply, ex.pdu)
-                    except ConnectionException as exc:
-                        raise TransportError(f"{self.name}: {exc}") from exc
-                    except (ModbusIOException, TimeoutError) as exc:
-                        self.stats.timeouts += 1
-                        self.stats.bytes_garbled += len(self._rx)
-                        self._flush_rx("RX (no valid reply)")
-                        log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
-                                  attempt + 1, attempts, exc)
-                        self._mark_done(quiet)
-                        continue
-                    except ModbusException as exc:
-                        raise TransportError(f"{self.name}: {exc}") from exc
-                    except OSError as exc:  # e.g. ConnectionResetError from the socket: reconnect next time
-                        client.close()
-                        raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
-                    if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
-                        time.sleep(self._rejected(ex, reply, problem, started))
-                        self._mark_done(quiet)
-                        continue
-                    self._mark_done(quiet, replied=ex.expect_reply and reply is not None)
-                    if not ex.expect_reply:
-                        stats.broadcasts += 1
-                        return None
-                    if reply is not None and reply.isError():
-                        stats.exceptions += 1
-                    return reply  # type: ignore[no-any-return]
-            finally:
-                if self._rx:
-                    self._flush_rx("RX (unused)")
-            raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
+            return self.transact(ex)
+
+    def transact(self, ex: Exchange) -> ModbusPDU | None:
+        """:meth:`exchange` for a caller that holds :attr:`lock` (a client's read or write program)."""
+        client = self.client
+        if not client.connected:
+            self.connect()
+        hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
+        if hit is None or hit[0] is not ex.timing:
+            hit = self._shape(ex)
+        _, timeout, attempts, quiet = hit
+        params = client.comm_params
+        if params.timeout_connect != timeout:
+            params.timeout_connect = timeout
+        stats = self.stats
+        pdu = ex.pdu
+        fc = pdu.function_code
+        try:
+            for attempt in range(attempts):
+                if attempt:
+                    stats.retries += 1
+                if self._ready_at and (wait := self._wait_s()) > 0:
+                    time.sleep(wait)
+                stats.transactions += 1
+                stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
+                self._rx = b""
+                self._rx_at = 0.0
+                pdu.dev_id = ex.unit
+                if self._receiver is not None:
+                    self._receiver.expect(pdu)
+                started = _monotonic()
+                try:
+                    reply = client.execute(not ex.expect_reply, pdu)
+                except ConnectionException as exc:
+                    raise TransportError(f"{self.name}: {exc}") from exc
+                except (ModbusIOException, TimeoutError) as exc:
+                    self._no_reply(ex, exc, attempt, attempts, quiet)
+                    continue
+                except ModbusException as exc:
+                    raise TransportError(f"{self.name}: {exc}") from exc
+                except OSError as exc:  # e.g. ConnectionResetError from the socket: reconnect next time
+                    client.close()
+                    raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
+                if not ex.expect_reply:
+                    self._mark_done(quiet)
+                    stats.broadcasts += 1
+                    return None
+                if reply is not None and (problem := reply_mismatch(pdu, reply)):
+                    time.sleep(self._rejected(ex, reply, problem, started))
+                    self._mark_done(quiet)
+                    continue
+                if quiet > 0:
+                    self._mark_done(quiet, replied=reply is not None)
+                else:
+                    self.last_quiet_s = quiet
+                if reply is not None and reply.function_code > 0x80:  # reply.isError()
+                    stats.exceptions += 1
+                return reply  # type: ignore[no-any-return]
+        finally:
+            if self._rx:
+                self._flush_rx("RX (unused)")
+        raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
 
 
 class AsyncBus(_BusBase):
@@ -546,13 +509,16 @@ class AsyncBus(_BusBase):
         client = self.client
         if not client.connected:
             await self.connect()
-        _, timeout, retries, quiet_reply, quiet_broadcast = self._timing(ex.timing)
-        quiet = max(quiet_reply if ex.expect_reply else quiet_broadcast, ex.hold_ms / 1000.0)
+        hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
+        if hit is None or hit[0] is not ex.timing:
+            hit = self._shape(ex)
+        _, timeout, attempts, quiet = hit
         params = client.comm_params
         if params.timeout_connect != timeout:
             params.timeout_connect = timeout
-        attempts = 1 + (0 if not ex.expect_reply else retries)
         stats = self.stats
+        pdu = ex.pdu
+        fc = pdu.function_code
         try:
             for attempt in range(attempts):
                 if attempt:
@@ -560,38 +526,36 @@ class AsyncBus(_BusBase):
                 if self._ready_at and self._wait_s() > 0:
                     await sleep_until(self._ready_at)
                 stats.transactions += 1
-                fc = ex.pdu.function_code
                 stats.by_function[fc] = stats.by_function.get(fc, 0) + 1
                 self._rx = b""
                 self._rx_at = 0.0
-                ex.pdu.dev_id = ex.unit
-                started = time.monotonic()
+                pdu.dev_id = ex.unit
+                started = _monotonic()
                 try:
-                    reply = await client.execute(not ex.expect_reply, ex.pdu)
+                    reply = await client.execute(not ex.expect_reply, pdu)
                 except ConnectionException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
                 except (ModbusIOException, TimeoutError) as exc:
-                    self.stats.timeouts += 1
-                    self.stats.bytes_garbled += len(self._rx)
-                    self._flush_rx("RX (no valid reply)")
-                    log.debug("%s no valid reply to unit %d (attempt %d of %d): %s", self.name, ex.unit,
-                              attempt + 1, attempts, exc)
-                    self._mark_done(quiet)
+                    self._no_reply(ex, exc, attempt, attempts, quiet)
                     continue
                 except ModbusException as exc:
                     raise TransportError(f"{self.name}: {exc}") from exc
                 except OSError as exc:  # e.g. ConnectionResetError from the transport: reconnect next time
                     client.close()
                     raise TransportError(f"{self.name}: connection lost: {exc!r}") from exc
-                if ex.expect_reply and reply is not None and (problem := reply_mismatch(ex.pdu, reply)):
+                if not ex.expect_reply:
+                    self._mark_done(quiet)
+                    stats.broadcasts += 1
+                    return None
+                if reply is not None and (problem := reply_mismatch(pdu, reply)):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)
                     continue
-                self._mark_done(quiet, replied=ex.expect_reply and reply is not None)
-                if not ex.expect_reply:
-                    stats.broadcasts += 1
-                    return None
-                if reply is not None and reply.isError():
+                if quiet > 0:
+                    self._mark_done(quiet, replied=reply is not None)
+                else:
+                    self.last_quiet_s = quiet
+                if reply is not None and reply.function_code > 0x80:  # reply.isError()
                     stats.exceptions += 1
                 return reply  # type: ignore[no-any-return]
         finally:

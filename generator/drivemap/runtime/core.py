@@ -565,8 +565,16 @@ def _reply_words(reply: ModbusPDU, code: int, address: int, count: int) -> list[
 
 def run(bus: Bus, op: Op[T]) -> T:
     """Run an operation on a bus; a failed exchange is raised inside the operation (``throw``)."""
+    return run_replay(bus, op, ())
+
+
+def run_replay(bus: Bus, op: Op[T], replies: Sequence[ModbusPDU | None]) -> T:
+    """:func:`run` for an operation whose first exchanges have been carried out already (a read
+    program's, :mod:`drivemap.runtime.programs`): it gets ``replies`` for them, then the bus's."""
     try:
         ex = next(op)
+        for reply in replies:
+            ex = op.send(reply)
         while True:
             try:
                 reply = bus.exchange(ex)
@@ -580,8 +588,15 @@ def run(bus: Bus, op: Op[T]) -> T:
 
 async def arun(bus: AsyncBus, op: Op[T]) -> T:
     """The asyncio twin of :func:`run`."""
+    return await arun_replay(bus, op, ())
+
+
+async def arun_replay(bus: AsyncBus, op: Op[T], replies: Sequence[ModbusPDU | None]) -> T:
+    """The asyncio twin of :func:`run_replay`."""
     try:
         ex = next(op)
+        for reply in replies:
+            ex = op.send(reply)
         while True:
             try:
                 reply = await bus.exchange(ex)
@@ -593,5 +608,5 @@ async def arun(bus: AsyncBus, op: Op[T]) -> T:
         return stop.value  # type: ignore[no-any-return]
 
 
-__all__ = ["Core", "Deferred", "Op", "PagePolicy", "READ_REQUESTS", "RawItem", "SpecTables", "arun", "run",
-           "spec_tables"]
+__all__ = ["Core", "Deferred", "Op", "PagePolicy", "READ_REQUESTS", "RawItem", "SpecTables", "arun", "arun_replay",
+           "run", "run_replay", "spec_tables"]
