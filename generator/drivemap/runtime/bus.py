@@ -95,6 +95,7 @@ class _Setting:
     def __set__(self, obj: Any, value: Any) -> None:
         obj.__dict__[self.attr] = value
         obj._shapes = {}
+        obj._last_shape = (None, None)
 
 
 class _BusBase:
@@ -124,6 +125,8 @@ class _BusBase:
         self.last_quiet_s = 0.0
         #: per transaction shape (timing by identity, reply expected, hold ms): see :meth:`_shape`
         self._shapes: dict[tuple[int, bool, float], tuple[TimingSpec, float, int, float]] = {}
+        #: the last exchange carried out and its shape (see :meth:`Bus.transact`)
+        self._last_shape: tuple[Exchange | None, Any] = (None, None)
 
     # pymodbus trace hooks: every byte that goes out or comes in passes here (kept lean: a counter,
     # and the hex dump only when the drivemap logger shows DEBUG).
@@ -382,9 +385,14 @@ class Bus(_BusBase):
         client = self.client
         if not client.connected:
             self.connect()
-        hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
-        if hit is None or hit[0] is not ex.timing:
-            hit = self._shape(ex)
+        last = self._last_shape  # the same exchange again (a read or write program's): its shape as last time
+        if last[0] is ex:
+            hit = last[1]
+        else:
+            hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
+            if hit is None or hit[0] is not ex.timing:
+                hit = self._shape(ex)
+            self._last_shape = (ex, hit)
         _, timeout, attempts, quiet = hit
         params = client.comm_params
         if params.timeout_connect != timeout:
@@ -422,7 +430,9 @@ class Bus(_BusBase):
                     self._mark_done(quiet)
                     stats.broadcasts += 1
                     return None
-                if reply is not None and (problem := reply_mismatch(pdu, reply)):
+                if reply is not None and not (  # the common case first, without a call: a register read answered
+                        reply.function_code == fc and (fc == 0x03 or fc == 0x04) and reply.dev_id == pdu.dev_id
+                        and len(reply.registers) == pdu.count) and (problem := reply_mismatch(pdu, reply)):
                     time.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)
                     continue
@@ -509,9 +519,14 @@ class AsyncBus(_BusBase):
         client = self.client
         if not client.connected:
             await self.connect()
-        hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
-        if hit is None or hit[0] is not ex.timing:
-            hit = self._shape(ex)
+        last = self._last_shape  # the same exchange again (a read or write program's): its shape as last time
+        if last[0] is ex:
+            hit = last[1]
+        else:
+            hit = self._shapes.get((id(ex.timing), ex.expect_reply, ex.hold_ms))
+            if hit is None or hit[0] is not ex.timing:
+                hit = self._shape(ex)
+            self._last_shape = (ex, hit)
         _, timeout, attempts, quiet = hit
         params = client.comm_params
         if params.timeout_connect != timeout:
@@ -547,7 +562,9 @@ class AsyncBus(_BusBase):
                     self._mark_done(quiet)
                     stats.broadcasts += 1
                     return None
-                if reply is not None and (problem := reply_mismatch(pdu, reply)):
+                if reply is not None and not (  # the common case first, without a call: a register read answered
+                        reply.function_code == fc and (fc == 0x03 or fc == 0x04) and reply.dev_id == pdu.dev_id
+                        and len(reply.registers) == pdu.count) and (problem := reply_mismatch(pdu, reply)):
                     await asyncio.sleep(self._rejected(ex, reply, problem, started))
                     self._mark_done(quiet)
                     continue

@@ -11,6 +11,7 @@ Every other register (and a broadcast client) writes through the core's general 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -18,9 +19,11 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest, WriteSingleRegisterRequest
 
 from .bus import Exchange
+from .codec import Codec, EnumCodec, IntCodec
 from .core import Core
+from .errors import DriveError
 from .spec import RegisterSpec
-from .words import raw_to_words
+from .words import raw_bounds, raw_to_words
 
 Writer = Callable[[Any, Any], Any]
 
@@ -36,6 +39,35 @@ def _request(core: Core, reg: RegisterSpec) -> tuple[ModbusPDU, int] | None:
         return WriteSingleRegisterRequest(address=address, registers=[0], dev_id=core.unit), 0x06
     if reg.words > 1 and t.fc10 is not None and t.write_limits.get("holding", 0) > 0:
         return WriteMultipleRegistersRequest(address=address, registers=[0] * reg.words, dev_id=core.unit), 0x10
+    return None
+
+
+def _fast_raw(codec: Codec[Any], reg: RegisterSpec) -> tuple[type, int, int, dict[Any, int] | None] | None:
+    """What lets a one-word write skip the codec for the values it accepts unchanged:
+    (value type, lowest, highest, raw per enum member or None), else None.
+
+    A plain integer register (scale 1, offset 0) writes an ``int`` from ``lowest`` to ``highest``
+    (the type's bounds within the map's min/max, whole numbers) as itself; an enum register writes
+    each member its codec accepts as its value. Anything else goes through ``codec.encode`` (its
+    checks and its errors), so the result is the same either way.
+    """
+    if reg.words != 1 or reg.byte_order == "low_first" or reg.bit_table:
+        return None
+    lo, hi = raw_bounds(reg)
+    if type(codec) is IntCodec and codec._scale == 1 and codec._offset == 0:
+        if reg.min is not None:
+            lo = max(lo, math.ceil(reg.min))
+        if reg.max is not None:
+            hi = min(hi, math.floor(reg.max))
+        return int, lo, hi, None
+    if type(codec) is EnumCodec:
+        table: dict[Any, int] = {}
+        for member in codec.enum_type:
+            try:
+                table[member] = codec.encode(member)
+            except DriveError:
+                continue
+        return codec.enum_type, lo, hi, table
     return None
 
 
@@ -56,10 +88,21 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
     ex = Exchange(core.unit, pdu, core.spec.timing, True, reg.write_delay_ms or 0.0)
     encode = codec.encode
     after = reg.name in core.tables.selectors or reg.reflect in ("configuration", "power_cycle")
+    fast = _fast_raw(codec, reg)
+    vtype: type | None
+    vtype, lo, hi, members = fast if fast is not None else (None, 0, -1, None)
+
+    def words_of(value: Any) -> tuple[int, list[int]]:
+        """(raw, words) of ``value``: what ``codec.encode`` and ``raw_to_words`` give, checked alike."""
+        if type(value) is vtype:
+            known: int = value if members is None else members.get(value, lo - 1)  # type: ignore[assignment]
+            if lo <= known <= hi:
+                return known, [known & 0xFFFF]
+        raw: int = encode(value)
+        return raw, raw_to_words(reg, raw)
 
     def write(client: Any, value: Any) -> None:
-        raw = encode(value)
-        words = raw_to_words(reg, raw)
+        raw, words = words_of(value)
         bus = client.bus
         with bus.lock:
             pdu.registers = words
@@ -70,8 +113,7 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
                 core._after_write(reg, key, int(raw))
 
     async def awrite(client: Any, value: Any) -> None:
-        raw = encode(value)
-        words = raw_to_words(reg, raw)
+        raw, words = words_of(value)
         bus = client.bus
         async with bus.lock:
             pdu.registers = words
