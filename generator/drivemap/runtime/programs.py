@@ -25,10 +25,11 @@ import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-from .bus import Exchange
 from .codec import BoolCodec, Codec, EnumCodec, FloatCodec, IntCodec
-from .core import READ_REQUESTS, SpecTables
+from .core import READ_REQUESTS
+from .exchange import Exchange
 from .planner import Key, ReadRequest
+from .tables import SpecTables
 from .words import words_to_raw
 
 #: Snapshot table entry per key (see ``_Common._snapshot_table``): decode, field, index in an array.

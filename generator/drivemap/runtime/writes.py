@@ -18,10 +18,10 @@ from typing import Any
 from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest, WriteSingleRegisterRequest
 
-from .bus import Exchange
 from .codec import Codec, EnumCodec, IntCodec
 from .core import Core
 from .errors import DriveError
+from .exchange import Exchange
 from .spec import RegisterSpec
 from .words import raw_bounds, raw_to_words
 
