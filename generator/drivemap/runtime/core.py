@@ -2,7 +2,7 @@
 
 An operation yields :class:`~drivemap.runtime.bus.Exchange` requests and receives the replies;
 :class:`~drivemap.runtime.client.ClientBase` runs it on a :class:`Bus`,
-:class:`~drivemap.runtime.client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
+:class:`~drivemap.runtime.aclient.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
 caller's input happens before the first request is yielded, so a bad value never sends a byte.
 
 Tables: holding registers are read with 03h and written with 06h/10h, input registers read with
