@@ -295,3 +295,30 @@ def test_device_exception_from_a_program_is_typed() -> None:
             sim.set("motor_speed", 99)
             assert drive.read(drive.motor_speed, drive.alarm_no).motor_speed == 99  # 02h: split, then read
             assert drive.stats.split_reads == 1 and drive.stats.exceptions == 2
+
+
+def test_bus_settings_changed_after_a_transaction_apply_to_the_next() -> None:
+    """The bus caches each transaction shape's timeout, attempts and quiet time; a setting changed
+    later (timeout, retries, serial-line rules, baud rate) applies to the very next transaction."""
+    with tcp_server("ev") as (_sim, host, port), ev.Client.tcp(host, port, timeout=TIMEOUT) as drive:
+        bus = drive.bus
+        drive.motor_speed.read()
+        assert bus.client.comm_params.timeout_connect == TIMEOUT and bus.last_quiet_s == 0.0
+        bus.timeout_override = 0.7
+        drive.motor_speed.read()
+        assert bus.client.comm_params.timeout_connect == 0.7
+        bus.serial_line, bus.baudrate = True, 9600  # as on a serial line: the silent interval applies
+        drive.motor_speed.read()
+        assert bus.last_quiet_s == pytest.approx(bus.quiet_after(_first_exchange(drive)))
+        assert bus.last_quiet_s > 0.003  # 3.5 characters of 11 bits at 9600 Bd, at least
+        bus.serial_line = False
+        drive.motor_speed.read()
+        assert bus.last_quiet_s == 0.0
+
+
+def _first_exchange(drive: Any) -> Any:
+    """The prepared exchange of ``drive.motor_speed``'s read program."""
+    for cell in drive.motor_speed._program.__closure__:
+        if isinstance(cell.cell_contents, tuple) and cell.cell_contents:
+            return cell.cell_contents[0]
+    raise AssertionError("no prepared exchange")

@@ -215,8 +215,8 @@ def compile_reader(kind: str, keys: tuple[Key, ...], plan: tuple[ReadRequest, ..
     if not plan or not eligible(plan, tables):
         return None
     if kind == "snapshot":
-        if defaults is None:
-            return None
+        if defaults is None or any(table.get(key) is None for req in plan for key, _ in req.cells):
+            return None  # a snapshot class of its own, or a key without a field: the general path knows
 
         def build(src: _Source, ind: int, raws: dict[Key, str]) -> None:
             _snapshot_lines(src, ind, raws, codecs, table, shape, snapshot, defaults or {})
