@@ -25,7 +25,7 @@ import drivemap.runtime.common as common_mod
 from drivemap.runtime.core import Core
 from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
-from tests.helpers_client import TIMEOUT, package, serial_server, tcp_server
+from tests.helpers_client import package, serial_server, tcp_server
 from tests.test_client_faults import rtu
 from tests.test_map_allkinds import MODEL, PKG, REFUSED, plain_server, server_tables
 
@@ -83,7 +83,7 @@ def outcome(fn: Callable[[], Any]) -> Any:
 
 
 def test_clean_reads_and_writes_take_the_program(paths: dict[str, int]) -> None:
-    with tcp_server("ev") as (sim, host, port), ev.Client.tcp(host, port, timeout=TIMEOUT) as drive:
+    with tcp_server("ev") as (sim, host, port), ev.Client.tcp(host, port, timeout=2.0) as drive:
         sim.set("motor_speed", 1234)
         sim.set("alarm_no", 7)
         assert drive.motor_speed.read() == 1234
@@ -99,7 +99,7 @@ def test_clean_reads_and_writes_take_the_program(paths: dict[str, int]) -> None:
         assert program.__code__.co_filename == "<drivemap read program snapshot>"
         assert drive.motor_speed._program.__code__.co_filename == "<drivemap read program value>"
         assert drive.digital_speed_ram._program.__code__.co_filename == "<drivemap read program tuple>"
-    with tcp_server("vfd1000") as (sim, host, port), vfd.Client.tcp(host, port, timeout=TIMEOUT) as drive:
+    with tcp_server("vfd1000") as (sim, host, port), vfd.Client.tcp(host, port, timeout=2.0) as drive:
         drive.read_all()
         assert drive._all_program.__code__.co_filename == "<drivemap read program snapshot>"
         assert paths == {"read_raw": 0, "write_raw": 0, "replay": 0, "run": 0}
@@ -110,7 +110,7 @@ def _both(model: str, body: Callable[[Any, Any], Any]) -> tuple[Any, Any]:
     pkg = package(model)
     results = []
     for cls in (pkg.Client, general_only(pkg.Client)):
-        with tcp_server(model) as (sim, host, port), cls.tcp(host, port, timeout=TIMEOUT) as drive:
+        with tcp_server(model) as (sim, host, port), cls.tcp(host, port, timeout=2.0) as drive:
             results.append((body(sim, drive), dataclasses.asdict(drive.stats)))
     return results[0], results[1]
 
@@ -219,7 +219,7 @@ def test_paged_reads_are_never_programs(paths: dict[str, int]) -> None:
     for policy in ("raise", "switch"):
         results = []
         for cls in (ev.Client, general_only(ev.Client)):
-            with tcp_server("ev") as (sim, host, port), cls.tcp(host, port, timeout=TIMEOUT,
+            with tcp_server("ev") as (sim, host, port), cls.tcp(host, port, timeout=2.0,
                                                                    page_policy=policy) as drive:
                 results.append((body(sim, drive), dataclasses.asdict(drive.stats)))
                 assert drive.bus_voltage._program.__code__.co_filename != "<drivemap read program value>"
@@ -300,10 +300,10 @@ def test_device_exception_from_a_program_is_typed() -> None:
 def test_bus_settings_changed_after_a_transaction_apply_to_the_next() -> None:
     """The bus caches each transaction shape's timeout, attempts and quiet time; a setting changed
     later (timeout, retries, serial-line rules, baud rate) applies to the very next transaction."""
-    with tcp_server("ev") as (_sim, host, port), ev.Client.tcp(host, port, timeout=TIMEOUT) as drive:
+    with tcp_server("ev") as (_sim, host, port), ev.Client.tcp(host, port, timeout=2.0) as drive:
         bus = drive.bus
         drive.motor_speed.read()
-        assert bus.client.comm_params.timeout_connect == TIMEOUT and bus.last_quiet_s == 0.0
+        assert bus.client.comm_params.timeout_connect == 2.0 and bus.last_quiet_s == 0.0
         bus.timeout_override = 0.7
         drive.motor_speed.read()
         assert bus.client.comm_params.timeout_connect == 0.7

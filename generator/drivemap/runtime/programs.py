@@ -196,11 +196,19 @@ def _function(kind: str, plan: Sequence[ReadRequest], tables: SpecTables, build:
     src.add(2, "core = client._core")
     src.add(2, f"if core.holes: return {aw}GENERAL(client)")
     src.add(2, "bus = client.bus")
-    src.add(2, f"{'async ' if asynchronous else ''}with bus.lock:")
+    if asynchronous:  # what ``async with bus.lock`` does, without its __aenter__/__aexit__ coroutines
+        src.add(2, "lock = bus.lock")
+        src.add(2, "await lock.acquire()")
+        src.add(2, "try:")
+    else:
+        src.add(2, "with bus.lock:")
     raws = _exchange_lines(src, 3, plan, tables, aw)
     if kind == "snapshot":
         build(src, 3, raws)
-    else:
+    if asynchronous:
+        src.add(2, "finally:")
+        src.add(3, "lock.release()")
+    if kind != "snapshot":
         build(src, 2, raws)
     src.add(1, "return program")
     namespace: dict[str, Any] = {"NEW": object.__new__, **src.names}

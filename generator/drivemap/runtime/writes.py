@@ -114,14 +114,17 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
 
     async def awrite(client: Any, value: Any) -> None:
         raw, words = words_of(value)
-        bus = client.bus
-        async with bus.lock:
+        lock = client.bus.lock
+        await lock.acquire()  # what ``async with`` does, without its __aenter__/__aexit__ coroutines
+        try:
             pdu.registers = words
-            reply = await bus.exchange(ex)
+            reply = await client.bus.exchange(ex)
             if reply is None or reply.function_code > 0x80:
                 core.raise_for(reply, code)
             if after:
                 core._after_write(reg, key, int(raw))
+        finally:
+            lock.release()
 
     return awrite if asynchronous else write
 
