@@ -56,9 +56,14 @@ def reply_mismatch(request: ModbusPDU, reply: ModbusPDU) -> str | None:
     sub-function of 08h.
     """
     fc = request.function_code
-    if (fc == 0x03 or fc == 0x04) and reply.function_code == fc and reply.dev_id == request.dev_id:
-        n = len(reply.registers)  # the common case first: a register read answered as asked
-        return None if n == request.count else f"reply has {n} registers, asked {request.count}"
+    if reply.function_code == fc and reply.dev_id == request.dev_id:  # the common cases first
+        if fc == 0x03 or fc == 0x04:  # a register read answered
+            n = len(reply.registers)
+            return None if n == request.count else f"reply has {n} registers, asked {request.count}"
+        if fc == 0x06 and reply.address == request.address:  # a register write echoed
+            if list(reply.registers) == list(request.registers):
+                return None
+            return f"reply echoes value {list(reply.registers)}, sent {list(request.registers)}"
     if reply.dev_id != request.dev_id:
         return f"reply from unit {reply.dev_id}, asked unit {request.dev_id}"
     if reply.function_code & 0x7F != fc:
