@@ -203,22 +203,26 @@ prepared once and a value the codec would take unchanged is checked by one range
 (`generator/drivemap/runtime/bus.py`: the caller holds the lock; timeout, attempts and quiet time
 are cached per transaction shape; a register read's reply is checked inline). Any other reply
 (exception, split, retry) hands the replies so far to the core's general operation, unchanged.
-With `execute()` replaced by a stub that returns a prepared reply (no socket) a call costs about
-2-3 µs (`element.read()`, `write`) and 4-5 µs (`read` of 8 registers), about 2 µs of it in
-`Bus.transact` (counters, shape, checks); the rest is the snapshot (`read`) or the encoder (`write`).
+With `execute()` replaced by a stub that returns a prepared reply (no socket, no trace hooks) a
+call costs about 1.6-2.7 µs (`element.read()`), 3-5 µs (`read` of 8 registers) and 3.5 µs
+(`write`), 1.5-2 µs of it in `Bus.transact` (counters, shape, reply check); the rest is the
+snapshot (`read`) or the encoder and the lock (`write`).
 
-What is left on the network path, and what bounds it: (1) the same code costs 2.5-3× more when it
-runs right after the blocking `select` that waits for the reply (cold caches after the wait: the
-stub with a 0.2 ms `select` before it returns the prepared reply shows the same factor, `read` of 8
-from about 5 to 15-17 µs); raw pymodbus's own request building (1-1.5 µs) grows alike to the 3-5 µs
-of its column. (2) Inside `execute()`, the bus's trace hooks (byte counters, the time of the last
-byte received that serial quiet times count from, DEBUG hex dumps) cost about 0.7 µs per
-transaction more than pymodbus's empty ones, and vfd1000's reply-quirk class (its map declares
-`two_byte_byte_count`) adds one test before pymodbus's decode. (3) pymodbus's own work per call
-(framing, and `str(pdu)` built in `pdu/decoders.py` for a debug message whether debug logging is on
-or not) is shared by both columns. A ratio goal of 1.03 at 80-100 µs per loopback round trip leaves
-2.4-3 µs per call for everything, less than (1) and (2) together; at 200 µs per round trip (a more
-loaded machine) it leaves 6 µs. The two cores are shared with other work: single rounds vary by
+What is left on the network path, and what bounds it: (1) the same code costs several times more
+when it runs right after the blocking `select` that waits for the reply (cold caches after the
+wait: with the stub waiting 0.2 ms in `select` before it returns the prepared reply,
+`element.read()` costs about 9 µs outside it instead of 1.6-2.7); raw pymodbus's own request
+building (about 1 µs) grows alike to the 3-5 µs of its column. (2) Inside `execute()`, the bus's
+trace hooks (byte counters, the time of the last byte received that serial quiet times count from,
+DEBUG hex dumps) cost about 0.5 µs per transaction more than pymodbus's empty ones (more after the
+wait), and vfd1000's reply-quirk class (its map declares `two_byte_byte_count`) adds one test
+before pymodbus's decode. (3) asyncio: the accessor's `read`, the program and `AsyncBus.exchange`
+are coroutines and the bus lock serialises the clients of one bus, where raw pymodbus hands its
+`execute()` coroutine straight to the caller. (4) pymodbus's own work per call (framing, and
+`str(pdu)` built in `pdu/decoders.py` for a debug message whether debug logging is on or not) is
+shared by both columns. A ratio goal of 1.03 at 80-100 µs per loopback round trip leaves 2.4-3 µs
+per call for everything, less than (1) and (2) together; at 200 µs per round trip (a more loaded
+machine) it leaves 6 µs. The two cores are shared with other work: single rounds vary by
 about ±10 %, so a ratio near its goal can land on either side of it."""
 
 
