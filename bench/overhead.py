@@ -15,6 +15,10 @@ Operations (model ``MODEL``):
 * ``read one``: ``client.<reg>.read()`` vs one raw ``read_holding_registers(address, count=1)``;
 * ``write one``: ``client.<reg>.write(value)`` (type/range/access checks, encoding) vs raw
   ``write_register(address, raw)`` with the same raw value.
+
+Then, per call, the µs spent outside pymodbus's ``execute()`` (the call's time less the time
+inside it), for ``read(8 accessors)`` and ``element.read()`` against the raw reads: what each
+layer adds on top of pymodbus. :func:`explain` says where the rest goes (the report's Shortfall).
 """
 
 from __future__ import annotations
@@ -184,6 +188,42 @@ def _outside_rows(sec: Section, client: Any, raw: Any, reg: Any, rounds: int) ->
         goal = 8.0 if "8" in name else 5.0
         sec.rows.append(Row("2 client overhead", f"sync {name}: µs outside execute()", None, f"≤ {goal:.0f} µs",
                             median(a) <= goal, f"{median(a):.1f} vs raw {median(b):.1f} µs/call"))
+
+
+def explain(s: Section) -> str:
+    """Where the time goes (the report's text under this section's Shortfall)."""
+    return """\
+Where the time goes (profiles below). The fault-free calls run compiled programs: per tuple of
+accessors, per element and for `read_all`, the plan's request PDUs are prepared once and one
+straight-line function sends them, accepts a reply that is a plain success of the size asked,
+decodes each cell with the codec's arithmetic inlined and builds a snapshot holding only the
+fields read (`generator/drivemap/runtime/programs.py`); a plain register's write request is
+prepared once and a value the codec would take unchanged is checked by one range test
+(`generator/drivemap/runtime/writes.py`). Both run on `Bus.transact`
+(`generator/drivemap/runtime/bus.py`: the caller holds the lock; timeout, attempts and quiet time
+are cached per transaction shape; a register read's reply is checked inline). Any other reply
+(exception, split, retry) hands the replies so far to the core's general operation, unchanged.
+With `execute()` replaced by a stub that returns a prepared reply (no socket, no trace hooks) a
+call costs about 1.6-2.7 µs (`element.read()`), 3-5 µs (`read` of 8 registers) and 3.5 µs
+(`write`), 1.5-2 µs of it in `Bus.transact` (counters, shape, reply check); the rest is the
+snapshot (`read`) or the encoder and the lock (`write`).
+
+What is left on the network path, and what bounds it: (1) the same code costs several times more
+when it runs right after the blocking `select` that waits for the reply (cold caches after the
+wait: with the stub waiting 0.2 ms in `select` before it returns the prepared reply,
+`element.read()` costs about 9 µs outside it instead of 1.6-2.7); raw pymodbus's own request
+building (about 1 µs) grows alike to the 3-5 µs of its column. (2) Inside `execute()`, the bus's
+trace hooks (byte counters, the time of the last byte received that serial quiet times count from,
+DEBUG hex dumps) cost about 0.5 µs per transaction more than pymodbus's empty ones (more after the
+wait), and vfd1000's reply-quirk class (its map declares `two_byte_byte_count`) adds one test
+before pymodbus's decode. (3) asyncio: the accessor's `read`, the program and `AsyncBus.exchange`
+are coroutines and the bus lock serialises the clients of one bus, where raw pymodbus hands its
+`execute()` coroutine straight to the caller. (4) pymodbus's own work per call (framing, and
+`str(pdu)` built in `pdu/decoders.py` for a debug message whether debug logging is on or not) is
+shared by both columns. A ratio goal of 1.03 at 80-100 µs per loopback round trip leaves 2.4-3 µs
+per call for everything, less than (1) and (2) together; at 200 µs per round trip (a more loaded
+machine) it leaves 6 µs. The two cores are shared with other work: single rounds vary by
+about ±10 %, so a ratio near its goal can land on either side of it."""
 
 
 def _rows(sec: Section, mode: str, results: dict[str, tuple[list[float], list[float], list[float]]],

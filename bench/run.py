@@ -84,8 +84,8 @@ one 2-word element that is never split). Counts are read requests.
 Ratio = time per operation of the generated client / raw pymodbus for the same requests
 (median of the per-round ratios; rounds interleave the two clients and alternate their order).
 The model is vfd1000 (no EEPROM write delay, no broadcast gap). Inter-frame gaps and silent
-intervals are serial-line rules: the bus does not keep them on Modbus TCP (`generator/drivemap/runtime/bus.py`,
-`Bus.quiet_after`).""",
+intervals are serial-line rules: the bus does not keep them on Modbus TCP
+(`generator/drivemap/runtime/busbase.py`, `quiet_after`).""",
     "Simulator throughput (TCP loopback)": "",
     "Wire efficiency (paced virtual serial line, 115200 8N1)": """\
 Efficiency = achieved requests/s ÷ physical limit. Goals apply to the generated client (`sync`,
@@ -168,30 +168,6 @@ def markdown(sections: list[Section], info: dict[str, str], elapsed: float, quic
     return "\n".join(out).rstrip() + "\n"
 
 
-def _explain_overhead(s: Section) -> str:
-    return """\
-Where the time goes (profiles below): the sockets, `select` and pymodbus's transaction code are
-shared with raw pymodbus and dominate both; the extra per request is the client runtime's Python
-work: building the request through the core's operation generator (`generator/drivemap/runtime/client.py`,
-`Core.write_raw` / `Core.read_raw` driven by `_run`), the value check and encoding
-(`generator/drivemap/runtime/codec.py`), the reply check that refuses replies to other requests
-(`generator/drivemap/runtime/bus.py`, `reply_mismatch`) and the statistics and trace hooks. Per-spec tables
-(page selectors, readable names, read_all keys, function codes) are computed once per class, and
-plans are cached; `read(*accessors)` keeps the keys of each tuple of accessors, checked once. The µs
-outside pymodbus's `execute()` table shows what is left per call: about 20-40 µs on the network path
-against 4-5 µs for raw pymodbus (which only builds the request). With `execute()` replaced by a stub
-that returns a prepared reply (no socket, no load) the same calls cost 6 µs (`element.read()`) and
-11-16 µs (`read` of 8 registers): in order, building the snapshot (decoding and the per-field
-dictionary, ≈ 25 %), `Bus.exchange` (lock, timing cache, counters, `reply_mismatch`, ≈ 30 %),
-`Core.read_raw` and `_decode` (the generator, the request PDU, the raw words, ≈ 25 %), and `_run`.
-The 8 µs / 5 µs goal of issue 18 needs the whole read (plan, PDUs, decoders, snapshot fields)
-compiled into one straight function per tuple of accessors, bypassing the operation generator on
-replies without faults; that is not done (the adaptive-read, page and retry paths must stay
-exactly as they are). The rest of the gap between the stub figures and the network figures is
-the machine: the client and the simulator share two cores with other work, so single rounds vary
-by about ±10 % and a ratio near the goal can land on either side of it."""
-
-
 def _explain_wire(s: Section) -> str:
     return """\
 Where the time goes, from the phase table (this run's medians, ms above the ideal share):
@@ -263,7 +239,7 @@ timeout divided by the registers: a lower bound."""
 
 
 EXPLAIN: dict[str, Callable[[Section], str]] = {
-    "Client overhead (TCP loopback)": _explain_overhead,
+    "Client overhead (TCP loopback)": overhead.explain,
     "Wire efficiency (paced virtual serial line, 115200 8N1)": _explain_wire,
     "Simulator throughput (TCP loopback)": _explain_sim,
     "Compiler scaling": _explain_compiler,

@@ -25,6 +25,7 @@ import ast
 import builtins
 import importlib
 import re
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -114,12 +115,18 @@ def _client_attributes(client_tree: ast.Module) -> set[str]:
     from .runtime import client as runtime
 
     names: set[str] = set()
-    source = ast.parse(Path(runtime.__file__).read_text(encoding="utf-8"))
-    classes = {n.name: n for n in source.body if isinstance(n, ast.ClassDef)}
+    modules: dict[str, dict[str, ast.ClassDef]] = {}  # runtime module -> its classes (the bases live in several)
     for base in (runtime.ClientBase, runtime.AsyncClientBase):
         names.update(dir(base))
         for cls in base.__mro__:
-            if cls.__module__ == runtime.__name__ and cls.__name__ in classes:
+            module = sys.modules.get(cls.__module__)
+            if module is None or not cls.__module__.startswith("drivemap.runtime.") or module.__file__ is None:
+                continue
+            classes = modules.get(cls.__module__)
+            if classes is None:
+                source = ast.parse(Path(module.__file__).read_text(encoding="utf-8"))
+                classes = modules[cls.__module__] = {n.name: n for n in source.body if isinstance(n, ast.ClassDef)}
+            if cls.__name__ in classes:
                 names |= _self_attributes(classes[cls.__name__])
     for generated in (n for n in client_tree.body if isinstance(n, ast.ClassDef) and n.name.endswith("Client")):
         names |= _self_attributes(generated)

@@ -85,6 +85,11 @@ def _field_names(cls: type) -> frozenset[str]:
 class _Element(Generic[T]):
     """One register (or one array element) of one client."""
 
+    #: The client's read program of this element (:mod:`.programs`), made on the first read.
+    _program: Callable[[Any], Any] | None = None
+    #: The client's writer of this element (:mod:`.writes`), made on the first write.
+    _writer: Callable[[Any, Any], Any] | None = None
+
     def __init__(self, owner: Any, codec: Codec[T], index: int = 0) -> None:
         self._owner = owner
         self.codec = codec
@@ -124,10 +129,10 @@ class ReadOnly(_Element[T]):
     """A readable register: ``read()`` gives the engineering value, ``read_raw()`` the raw one."""
 
     def read(self) -> T:
-        raw = self._owner._read_raw_keys(self._read_keys)
-        if self._scale is None:
-            return self.codec.decode(raw[self._key])
-        return self.codec.decode_scaled(raw[self._key], raw.get(self._scale))
+        program = self._program
+        if program is None:
+            program = self._program = self._owner._element_program(self)
+        return program(self._owner)  # type: ignore[no-any-return]
 
     def read_raw(self) -> int:
         return self._owner._read_raw_keys(self._keys)[self._key]  # type: ignore[no-any-return]
@@ -137,8 +142,10 @@ class WriteOnly(_Element[T]):
     """A writable register; ``write`` checks type, range and access before sending."""
 
     def write(self, value: T) -> None:
-        raw = self.codec.encode(value) if self._scale is None else encode_for_write(self.codec, value)
-        self._owner._write_raw_items([(self._key, raw)])
+        writer = self._writer
+        if writer is None:
+            writer = self._writer = self._owner._element_writer(self)
+        writer(self._owner, value)
 
     def write_raw(self, raw: int) -> None:
         self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
@@ -178,6 +185,8 @@ class _Array(Generic[T, E_co]):
     """An array register: indexable; ``read()``/``write()`` handle all elements at once."""
 
     element_type: ClassVar[type[_Element[Any]]] = _Element
+    #: The client's read program of the whole array (:mod:`.programs`), made on the first read.
+    _program: Callable[[Any], Any] | None = None
 
     def __init__(self, owner: Any, codec: Codec[T]) -> None:
         self._owner = owner
@@ -235,7 +244,10 @@ class _Array(Generic[T, E_co]):
 
 class _ReadArrayMixin(_Array[T, E_co]):
     def read(self) -> tuple[T, ...]:
-        return self._decode_all(self._owner._read_raw_keys(self._read_keys))
+        program = self._program
+        if program is None:
+            program = self._program = self._owner._element_program(self)
+        return program(self._owner)  # type: ignore[no-any-return]
 
 
 class _WriteArrayMixin(_Array[T, E_co]):
@@ -262,10 +274,10 @@ class AsyncReadOnly(_Element[T]):
     """Async form of :class:`ReadOnly`."""
 
     async def read(self) -> T:
-        raw = await self._owner._read_raw_keys(self._read_keys)
-        if self._scale is None:
-            return self.codec.decode(raw[self._key])
-        return self.codec.decode_scaled(raw[self._key], raw.get(self._scale))
+        program = self._program
+        if program is None:
+            program = self._program = self._owner._element_program(self)
+        return await program(self._owner)  # type: ignore[no-any-return]
 
     async def read_raw(self) -> int:
         return (await self._owner._read_raw_keys(self.keys))[self.key]  # type: ignore[no-any-return]
@@ -275,7 +287,10 @@ class AsyncWriteOnly(_Element[T]):
     """Async form of :class:`WriteOnly`."""
 
     async def write(self, value: T) -> None:
-        await self._owner._write_raw_items([(self._key, encode_for_write(self.codec, value))])
+        writer = self._writer
+        if writer is None:
+            writer = self._writer = self._owner._element_writer(self)
+        await writer(self._owner, value)
 
     async def write_raw(self, raw: int) -> None:
         await self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
@@ -302,7 +317,10 @@ class AsyncReadWriteCommand(AsyncReadWrite[T], AsyncCommand[T]):
 
 class _AsyncReadArrayMixin(_Array[T, E_co]):
     async def read(self) -> tuple[T, ...]:
-        return self._decode_all(await self._owner._read_raw_keys(self._read_keys))
+        program = self._program
+        if program is None:
+            program = self._program = self._owner._element_program(self)
+        return await program(self._owner)  # type: ignore[no-any-return]
 
 
 class _AsyncWriteArrayMixin(_Array[T, E_co]):

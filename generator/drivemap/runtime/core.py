@@ -2,7 +2,7 @@
 
 An operation yields :class:`~drivemap.runtime.bus.Exchange` requests and receives the replies;
 :class:`~drivemap.runtime.client.ClientBase` runs it on a :class:`Bus`,
-:class:`~drivemap.runtime.client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
+:class:`~drivemap.runtime.aclient.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
 caller's input happens before the first request is yielded, so a bad value never sends a byte.
 
 Tables: holding registers are read with 03h and written with 06h/10h, input registers read with
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Generator, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Literal, TypeVar
 
 from pymodbus.pdu import ModbusPDU
@@ -38,7 +38,6 @@ from pymodbus.pdu.register_message import (
 )
 
 from .advice import warn_if_running
-from .bus import AsyncBus, Bus, Exchange, Stats
 from .codec import Codec, raw_to_words, words_to_raw
 from .errors import (
     BroadcastRead,
@@ -55,14 +54,16 @@ from .errors import (
     WriteOnlyRegister,
     WrongPage,
 )
-from .planner import Hole, Key, ReadRequest, Unit, max_write_words, plan_reads, request_for, split_units, units
-from .spec import READ_CODES, DeviceSpec, FunctionSpec, PageSpec, RegisterSpec
+from .exchange import Exchange, Stats
+from .planner import Hole, Key, ReadRequest, Unit, plan_reads, request_for, split_units
+from .runner import Op, arun, arun_replay, run, run_replay
+from .spec import READ_CODES, DeviceSpec, PageSpec, RegisterSpec
+from .tables import SpecTables, spec_tables
 
 log = logging.getLogger("drivemap")
 
 T = TypeVar("T")
 PagePolicy = Literal["raise", "switch"]
-Op = Generator[Exchange, "ModbusPDU | None", T]
 
 #: The request class of each read function code.
 READ_REQUESTS: dict[int, type[ModbusPDU]] = {
@@ -82,60 +83,6 @@ class Deferred:
 
 
 RawItem = tuple[Key, "int | Deferred"]
-
-
-# ----------------------------------------------------------------------------- per-spec tables
-@dataclasses.dataclass(frozen=True)
-class SpecTables:
-    """What the per-call path needs from a :class:`DeviceSpec`, computed once per spec."""
-
-    readable: frozenset[str]
-    """Names of the readable registers."""
-    selectors: frozenset[str]
-    """Names of the registers that select a page of some register."""
-    read_codes: frozenset[int]
-    """The read function codes the map lists."""
-    all_keys: tuple[Key, ...]
-    """Every readable element, in :func:`planner.units` order (what ``read_all`` reads)."""
-    decode: Mapping[str, tuple[int, bool, bool, bool, RegisterSpec | None]]
-    """Per readable register: (words, signed, low word first, is a page selector, the spec when the
-    words need the general conversion: byte order, more than two words)."""
-    fc05: FunctionSpec | None
-    fc06: FunctionSpec | None
-    fc0f: FunctionSpec | None
-    fc10: FunctionSpec | None
-    write_limits: Mapping[str, int]
-    """:func:`max_write_words` per writable table."""
-
-
-_TABLES: dict[int, tuple[DeviceSpec, SpecTables]] = {}
-
-
-def _decode_entry(reg: RegisterSpec, selectors: frozenset[str]) -> tuple[int, bool, bool, bool, RegisterSpec | None]:
-    general = not reg.bit_table and (reg.byte_order == "low_first" or reg.words > 2)
-    return reg.words, reg.signed, reg.word_order == "low_first", reg.name in selectors, reg if general else None
-
-
-def spec_tables(spec: DeviceSpec) -> SpecTables:
-    """The tables of ``spec`` (cached by identity; specs are module-level constants)."""
-    hit = _TABLES.get(id(spec))
-    if hit is not None and hit[0] is spec:
-        return hit[1]
-    selectors = frozenset(r.page.selector for r in spec.registers if r.page is not None)
-    tables = SpecTables(
-        readable=frozenset(r.name for r in spec.registers if r.readable),
-        selectors=selectors,
-        read_codes=frozenset(c for c in READ_CODES.values() if spec.function(c) is not None),
-        all_keys=tuple(k for u in units(spec) for k, _ in u.keys),
-        decode={r.name: _decode_entry(r, selectors) for r in spec.registers if r.readable},
-        fc05=spec.function(0x05),
-        fc06=spec.function(0x06),
-        fc0f=spec.function(0x0F),
-        fc10=spec.function(0x10),
-        write_limits={"holding": max_write_words(spec, "holding"), "coil": max_write_words(spec, "coil")},
-    )
-    _TABLES[id(spec)] = (spec, tables)
-    return tables
 
 
 # ----------------------------------------------------------------------------- core
@@ -563,35 +510,5 @@ def _reply_words(reply: ModbusPDU, code: int, address: int, count: int) -> list[
     return list(registers)
 
 
-def run(bus: Bus, op: Op[T]) -> T:
-    """Run an operation on a bus; a failed exchange is raised inside the operation (``throw``)."""
-    try:
-        ex = next(op)
-        while True:
-            try:
-                reply = bus.exchange(ex)
-            except DriveError as exc:
-                ex = op.throw(exc)
-            else:
-                ex = op.send(reply)
-    except StopIteration as stop:
-        return stop.value  # type: ignore[no-any-return]
-
-
-async def arun(bus: AsyncBus, op: Op[T]) -> T:
-    """The asyncio twin of :func:`run`."""
-    try:
-        ex = next(op)
-        while True:
-            try:
-                reply = await bus.exchange(ex)
-            except DriveError as exc:
-                ex = op.throw(exc)
-            else:
-                ex = op.send(reply)
-    except StopIteration as stop:
-        return stop.value  # type: ignore[no-any-return]
-
-
-__all__ = ["Core", "Deferred", "Op", "PagePolicy", "READ_REQUESTS", "RawItem", "SpecTables", "arun", "run",
-           "spec_tables"]
+__all__ = ["Core", "Deferred", "Op", "PagePolicy", "READ_REQUESTS", "RawItem", "SpecTables", "arun", "arun_replay",
+           "run", "run_replay", "spec_tables"]

@@ -24,13 +24,6 @@ TWO_BYTE_BYTE_COUNT = "two_byte_byte_count"
 KNOWN = frozenset({TWO_BYTE_BYTE_COUNT})
 
 
-def _two_byte_count(data: bytes) -> int | None:
-    """The byte count of a two-byte-count reply body (after the function code), else None."""
-    if len(data) >= 2 and data[0] == 0 and data[1] > 0:
-        return data[1]
-    return None
-
-
 class _TwoByteCountMixin(ModbusPDU):
     """Sizes and decodes a 03h/04h reply with a one- or two-byte byte count (placed before the
     standard reply class in the bases, whose ``decode`` it calls for the standard form)."""
@@ -47,10 +40,10 @@ class _TwoByteCountMixin(ModbusPDU):
         return data[3] + 6  # address, function, count high, count low, data, CRC (2)
 
     def decode(self, data: bytes) -> None:
-        count = _two_byte_count(data)
-        if count is None:
+        if len(data) < 2 or data[0] != 0 or data[1] == 0:  # the standard form: its count is never 0
             super().decode(data)
             return
+        count = data[1]
         if count + 2 > len(data):
             raise ModbusIOException(f"byte_count {count} > length of packet {len(data)}", function_code=self.function_code)
         body = data[2 : 2 + count]
