@@ -36,8 +36,10 @@ Frames that follow each other: a stale frame that got past the time rule may be 
 real reply; of several complete frames back to back the last is the reply (:func:`last_reply`).
 So a receiver takes a reply only after the line has been silent for :attr:`StaleGuard.settle_s`
 (:data:`SETTLE_CHARS` characters, at least :data:`_MIN_SETTLE_S`: as long as pymodbus's own sync
-receive listens after the last byte, one poll of max(4 characters, 1 ms)); the bus keeps the line
-quiet that long after a reply anyway (the silent interval), so little of it is lost.
+receive listens after the last byte, one poll of max(4 characters, 1 ms)). The bus keeps the line
+quiet for the silent interval after a reply anyway (3.5 characters, or the map's floor, e.g. 1.75 ms
+above 19200 Bd) counted from the reply's last byte, so the settle time overlaps it: it adds at most
+half a character, plus the client's own work on the reply.
 
 The guard wraps hooks of a pymodbus serial client instance (the classes are untouched): the
 transaction manager's ``low_level_send`` (when the request left) and, for the sync client, ``recv``,
