@@ -192,10 +192,15 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   `raw-sync` rows, 1.4–2.1 ms at 115200 Bd. drivemap's sync serial bus no longer goes through that
   poll: `generator/drivemap/runtime/serialrx.py` (`SerialReceiver`, installed as the pymodbus client's
   `recv`, pymodbus unpatched) reads the reply length the request implies as it arrives (inter-character
-  timeout), then waits a quiet time of 1.5 characters from the last byte, so the `sync` rows see the
-  end of a reply within ≈ 0.2–0.35 ms, like the async client. The bus counts the t3.5 from the end of
-  the reply (the moment the reply is handed over, less the quiet time already kept). An earlier
-  version of this text said no change above pymodbus could remove the sync loss; that was wrong.
+  timeout); with the stale-reply guard (the default, `generator/drivemap/runtime/staleguard.py`) it
+  hands every chunk before the reply to the guard with its arrival time and then listens for the
+  guard's settle time, max(4 characters, 1 ms), after the last byte, so a frame that follows the
+  reply is seen (the guard keeps the last of frames that come back to back). So the `sync` rows'
+  "reply end seen" is that settle time plus the client's wake-up (≈ 1.2–1.4 ms at 115200 Bd); the
+  bus counts the t3.5 from the reply's last byte as the receiver read it, so the settle time overlaps
+  the silence the line keeps anyway and the client turnaround is the same as without the guard
+  (measured side by side, interleaved: 2.35 vs 2.32 ms; pymodbus's own receive: 3.0–3.4 ms). An
+  earlier version of this text said no change above pymodbus could remove the sync loss; that was wrong.
 * **Client, async**: the reply is seen within ≈ 0.2 ms (event loop reader). The bus's quiet time
   used to be an `asyncio.sleep` that the loop rounds up to whole milliseconds (≈ +0.7 ms, still
   visible in the `raw-async` rows); `generator/drivemap/runtime/bus.py` `sleep_until` now sleeps whole
@@ -203,10 +208,10 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   takes 0.2–0.3 ms to reach the line: pymodbus builds the frame after the wait, and its serial
   transport writes through an `add_writer` callback (one more loop turn) before the relay reads it.
 * What stays out of reach on this machine: the goal allows 1.07 ms of overhead per transaction for
-  `read 16` and 0.79 ms for `write one`. The sync client now sees the end of a reply in 0.3-0.4 ms
-  (raw pymodbus sync: 1.7-2.0 ms; the receiver's quiet time of 1.5 characters is 0.13 ms of it,
-  the rest is the wake-up of the client process after the relay writes the last byte), so the sync
-  client's turnaround is the async one's. What remains on both is the device's turnaround (the
+  `read 16` and 0.79 ms for `write one`. The sync client's turnaround is now the async one's: about
+  0.25 ms of it is the wake-up of the client process after the relay writes the last byte (the bus
+  can count the t3.5 only from the moment it read that byte), then the t3.5, the sleep's overshoot
+  (≈ 0.05–0.1 ms) and pymodbus's send path to the line (0.15 ms). What remains on both is the device's turnaround (the
   simulator 0.5-0.9 ms above t3.5 + processing, the lean device 0.2 ms), the request's way to the
   line (0.15-0.4 ms) and the sleeps' overshoot on 2 cores shared with other work: the efficiencies
   move by ±0.05 between runs with the machine's load (see the load average above), and both

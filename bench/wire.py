@@ -23,7 +23,10 @@ read from the client -> last byte handed to the device), device turnaround (-> f
 read from the device), reply on the wire (-> last byte handed to the client) and client
 turnaround (-> first byte of the next request), the last one split again at the moment pymodbus
 hands the complete reply to its framer (``trace_packet``) and the moment it hands over the next
-request.
+request. The generated sync client reads replies with ``drivemap.runtime.serialrx`` (not pymodbus's
+polling receive) and, with the stale-reply guard on (the default), hands a reply over after the
+guard's settle time of silence; the bus counts its t3.5 from the reply's last byte, so that wait
+overlaps the t3.5 rather than adding to it.
 """
 
 from __future__ import annotations
@@ -334,7 +337,9 @@ def run(quick: bool) -> Section:
                       "receiver (ideal: bytes x 86.8 µs). Device turnaround: last request byte handed to the device "
                       "-> first reply byte read from it (ideal: max(t3.5, processing)). Client turnaround: last "
                       "reply byte handed to the client -> first byte of the next request read from it (ideal: "
-                      "t3.5), split into: reply end seen (-> pymodbus hands the complete reply to its framer), "
+                      "t3.5), split into: reply end seen (-> pymodbus hands the complete reply to its framer; "
+                      "for the generated sync client this includes the stale-reply guard's settle time, "
+                      "max(4 characters, 1 ms) of silence after the last byte, which the t3.5 then overlaps), "
                       "client work + quiet (-> pymodbus hands over the next request), request to the line "
                       "(-> the line reads it).")
     sec.detail.append("")

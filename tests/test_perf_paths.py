@@ -40,7 +40,7 @@ def test_sync_serial_bus_reads_replies_through_the_receiver(mode: str) -> None:
     with serial_server("ev", mode) as (sim, line):
         sim.set("motor_speed", 321)
         with ev.Client.serial(line.master_port, unit=1, mode=mode, baudrate=38400, parity="none", stopbits=1,
-                              timeout=TIMEOUT, stale_guard=False) as drive:
+                              timeout=TIMEOUT) as drive:
             receiver = drive.bus._receiver  # the stale-reply guard wraps client.recv around it
             assert isinstance(receiver, SerialReceiver)
             assert receiver.last_byte_at == 0.0

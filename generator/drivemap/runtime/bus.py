@@ -34,11 +34,12 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
   it as ``hold_ms``).
 
 The quiet time counts from the end of the reply on the line, not from when the client has finished
-with it: the bus notes when pymodbus hands it the complete reply (its ``trace_packet`` hook), and
-pymodbus's sync serial client hands a reply over only after polling ``in_waiting`` once more
-without a new byte (``ModbusSerialClient._wait_for_data``), so that reply's last byte reached the
-port at least one poll interval (``_recv_interval``) earlier. Without a reply (timeouts,
-broadcasts, rejected replies) it counts from the end of the attempt.
+with it: the bus notes when pymodbus hands it the complete reply (its ``trace_packet`` hook), less
+the silence seen after the reply's last byte: the sync serial receiver
+(:mod:`drivemap.runtime.serialrx`) reports it; pymodbus's own receive hands a reply over only after
+polling ``in_waiting`` once more without a new byte (``ModbusSerialClient._wait_for_data``), so
+that reply's last byte reached the port at least one poll interval (``_recv_interval``) earlier.
+Without a reply (timeouts, broadcasts, rejected replies) it counts from the end of the attempt.
 
 :meth:`Bus.quiet_after` gives that quiet time for an exchange; :attr:`Bus.last_quiet_s` records the
 quiet time kept after the last transaction.
@@ -88,9 +89,14 @@ class Bus(_BusBase):
         self._receiver: SerialReceiver | None = None
         if isinstance(client, ModbusSerialClient):  # see the module docstring: pymodbus's end-of-reply poll
             self._rx_quiet_s = float(getattr(client, "_recv_interval", 0.0))
-            if baudrate:  # runtime.serialrx: sees the end of a reply as it arrives (quiet_s of silence)
-                self._receiver = SerialReceiver(client, bits_per_char / baudrate, isinstance(client.framer, FramerAscii))
+            if baudrate:  # runtime.serialrx: sees the end of a reply as it arrives, reports the silence after it
+                self._receiver = SerialReceiver(client, bits_per_char / baudrate, isinstance(client.framer, FramerAscii),
+                                                on_silence=self._reply_silence)
                 self._rx_quiet_s = min(self._rx_quiet_s, self._receiver.quiet_s)
+
+    def _reply_silence(self, seconds: float) -> None:
+        """The receiver saw the line silent for ``seconds`` after the reply's last byte (see :meth:`_mark_done`)."""
+        self._rx_quiet_s = seconds
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, timeout: float | None = None, retries: int | None = None) -> Bus:
@@ -113,15 +119,9 @@ class Bus(_BusBase):
         kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
         bus = cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
                         timeout, retries, f"{mode}:{port}")
-        guard = bus._stale_guard(stale_guard)
-        if guard.mode is not False and bus._receiver is not None:
-            # The stale-reply guard must see every byte up to pymodbus's own end-of-reply silence (a
-            # duplicate followed by the real reply); the fast receiver would stop after the first
-            # frame. Correctness first: with the guard on, pymodbus's receive is used.
-            del bus.client.recv  # the receiver's instance attribute; the class method again
-            bus._receiver = None
-            bus._rx_quiet_s = float(getattr(bus.client, "_recv_interval", 0.0))
-        staleguard.guard_sync_client(bus.client, guard)
+        # the receiver drops stale bytes through the guard as they arrive and listens the guard's
+        # settle time after a reply, so a frame that follows a stale one is seen (see .staleguard)
+        staleguard.guard_sync_client(bus.client, bus._stale_guard(stale_guard), bus._receiver)
         return bus
 
     @classmethod

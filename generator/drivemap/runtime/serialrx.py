@@ -6,17 +6,27 @@ so it notices the end of a reply 1-2 ms late at 115200 Bd. :class:`SerialReceive
 client's ``recv`` (instance attribute; pymodbus itself is not patched) and, for a request whose
 reply length is known (:func:`reply_length`), reads it as it comes:
 
-1. a blocking read of the frame's head (RTU: unit + function; ASCII: ``:`` + 4 hex digits) within
+1. with a stale-reply guard (:mod:`drivemap.runtime.staleguard`, the default): every chunk that
+   arrives before the reply, with the moment it was read, goes to :meth:`StaleGuard.skip
+   <drivemap.runtime.staleguard.StaleGuard.skip>`, which drops and counts what began before the
+   request could have been answered; the first chunk it accepts begins the reply;
+2. a blocking read of the frame's head (RTU: unit + function; ASCII: ``:`` + 4 hex digits) within
    the response timeout; the head says whether the reply is an exception (shorter frame);
-2. a blocking read of the rest of the expected length, each byte within the inter-character
+3. a blocking read of the rest of the expected length, each byte within the inter-character
    timeout :attr:`SerialReceiver.gap_s` (a shorter frame ends when the line goes silent that long);
-3. a quiet-time wait counted from the last byte: bytes that follow within
-   :attr:`SerialReceiver.quiet_s` belong to this reply (a longer foreign frame, a duplicate) and
-   are handed over with it, so pymodbus's framer and the bus's reply checks see them as before.
+4. a quiet-time wait counted from the last byte: bytes that follow within :attr:`SerialReceiver.quiet_s`
+   (with a guard: its ``settle_s``, long enough to see a frame that follows, as pymodbus's own
+   receive would) belong to this reply (a longer foreign frame, a duplicate) and are handed over
+   with it, so pymodbus's framer, the guard (the last of several complete frames is the reply) and
+   the bus's reply checks see them as before.
+
+The silence seen after the last byte is reported (``on_silence``) so the bus counts its quiet time
+from the reply's last byte, not from the hand-over.
 
 Anything else — a request whose reply length is unknown, a second ``recv`` in the same
 transaction (the framer wanted more: garbage, a bad CRC/LRC), a port without a file descriptor,
-local echo — goes to pymodbus's own ``recv`` unchanged.
+local echo handled by pymodbus — goes to pymodbus's own ``recv`` unchanged (and the guard polls
+the line itself).
 """
 
 from __future__ import annotations
@@ -24,6 +34,7 @@ from __future__ import annotations
 import os
 import select
 import time
+from collections.abc import Callable
 from typing import Any
 
 __all__ = ["SerialReceiver", "reply_length"]
@@ -49,9 +60,17 @@ def reply_length(pdu: Any) -> int:
 class SerialReceiver:
     """Replaces ``client.recv`` of one pymodbus ``ModbusSerialClient`` (see the module docstring)."""
 
-    def __init__(self, client: Any, char_s: float, ascii_mode: bool) -> None:
+    def __init__(self, client: Any, char_s: float, ascii_mode: bool,
+                 on_silence: Callable[[float], None] | None = None) -> None:
         self._client = client
         self._fallback = client.recv  # pymodbus's own, bound to the client
+        #: pymodbus's receive returns after a poll interval without a new byte: the silence it has seen.
+        self._fallback_silence = float(getattr(client, "_recv_interval", 0.0))
+        self._on_silence = on_silence
+        #: The stale-reply guard (set by :func:`drivemap.runtime.staleguard.guard_sync_client`), or None.
+        self.guard: Any = None
+        #: Replies this receiver read itself (not through pymodbus's receive).
+        self.handled = 0
         self._ascii = ascii_mode
         self.char_s = char_s
         #: Inter-character timeout within a frame (s).
@@ -70,6 +89,12 @@ class SerialReceiver:
         self._expected = reply_length(pdu)
         self._got = 0
 
+    def takes(self, size: int | None) -> int | None:
+        """The descriptor this receiver reads ``recv(size)`` from itself, or None (pymodbus's receive)."""
+        if size is not None or not self._expected or self._got:
+            return None
+        return self._fd()
+
     def _fd(self) -> int | None:
         sock = self._client.socket
         if sock is None or self._client.comm_params.handle_local_echo:
@@ -81,10 +106,12 @@ class SerialReceiver:
 
     def recv(self, size: int | None) -> bytes:
         """pymodbus's ``recv``: with ``size=None``, the reply of the current transaction."""
-        fd = None if size is not None or not self._expected or self._got else self._fd()
+        fd = self.takes(size)
         if fd is None:
             data: bytes = self._fallback(size)
             self._got += len(data) or 0
+            if self._on_silence is not None:
+                self._on_silence(self._fallback_silence)
             return data
         try:
             data = self._receive(fd)
@@ -94,6 +121,10 @@ class SerialReceiver:
 
             raise ConnectionException(str(self._client)) from None
         self._got = max(len(data), 1)
+        if data:
+            self.handled += 1
+            if self._on_silence is not None:
+                self._on_silence(max(time.monotonic() - self.last_byte_at, 0.0))
         return data
 
     def _receive(self, fd: int) -> bytes:
@@ -101,7 +132,10 @@ class SerialReceiver:
         buf = bytearray()
         timeout = self._client.comm_params.timeout_connect
         self._deadline = time.monotonic() + timeout  # a line that never goes quiet ends here too
-        self._read(fd, buf, head, timeout, self.gap_s)
+        guard = self.guard
+        if guard is not None:
+            self._skip_stale(fd, buf, guard)
+        self._read(fd, buf, head, self.gap_s if buf else self._deadline - time.monotonic(), self.gap_s)
         if len(buf) < head:
             return bytes(buf)  # nothing (timeout) or a frame shorter than any reply: the framer decides
         try:
@@ -112,9 +146,29 @@ class SerialReceiver:
         if self._ascii:
             total = 2 * total + 1  # ':' + hex of (frame less CRC, plus LRC) + CR LF
         self._read(fd, buf, total, self.gap_s, self.gap_s)
-        if len(buf) >= total:
-            self._read(fd, buf, 1 << 16, self.quiet_s, self.quiet_s)  # quiet time from the last byte
+        if len(buf) >= total:  # quiet time from the last byte
+            quiet = self.quiet_s if guard is None else max(self.quiet_s, guard.settle_s)
+            self._read(fd, buf, 1 << 16, quiet, quiet)
         return bytes(buf)
+
+    def _skip_stale(self, fd: int, buf: bytearray, guard: Any) -> None:
+        """Read chunks as they arrive until the guard takes one for the start of the reply (left in
+        ``buf``); it drops and counts the stale ones (see the module docstring)."""
+        try:
+            while True:
+                left = self._deadline - time.monotonic()
+                if left <= 0 or not select.select([fd], [], [], left)[0]:
+                    return
+                chunk = os.read(fd, 4096)
+                if not chunk:
+                    return
+                now = time.monotonic()  # after the read: the chunk's first byte came no later than this
+                self.last_byte_at = now
+                if not guard.skip(now, chunk):
+                    buf += chunk
+                    return
+        finally:
+            guard.checked = True
 
     def _read(self, fd: int, buf: bytearray, total: int, first_s: float, gap_s: float) -> None:
         """Append to ``buf`` until it holds ``total`` bytes, waiting ``first_s`` for the first

@@ -32,10 +32,22 @@ frame that starts after our request ended (a repeater that delays by more than t
 stale frame left behind makes the real reply fail its CRC and the request is retried, it is never
 taken for the reply.
 
+Frames that follow each other: a stale frame that got past the time rule may be followed by the
+real reply; of several complete frames back to back the last is the reply (:func:`last_reply`).
+So a receiver takes a reply only after the line has been silent for :attr:`StaleGuard.settle_s`
+(:data:`SETTLE_CHARS` characters, at least :data:`_MIN_SETTLE_S`: as long as pymodbus's own sync
+receive listens after the last byte, one poll of max(4 characters, 1 ms)). The bus keeps the line
+quiet for the silent interval after a reply anyway (3.5 characters, or the map's floor, e.g. 1.75 ms
+above 19200 Bd) counted from the reply's last byte, so the settle time overlaps it: it adds at most
+half a character, plus the client's own work on the reply.
+
 The guard wraps hooks of a pymodbus serial client instance (the classes are untouched): the
-transaction manager's ``low_level_send`` (when the request left) and, for the sync client, ``recv``
-(the guard polls the line until the earliest possible reply, dropping what arrives before it) or,
-for the asyncio client, ``datagram_received`` (every chunk as the event loop reads it).
+transaction manager's ``low_level_send`` (when the request left) and, for the sync client, ``recv``,
+or, for the asyncio client, ``datagram_received`` (every chunk as the event loop reads it). On the
+sync client, a receiver that reads the line itself (:class:`drivemap.runtime.serialrx.SerialReceiver`)
+hands every chunk it reads, with the moment it read it, to :meth:`StaleGuard.skip` until the reply
+begins, and waits :attr:`StaleGuard.settle_s` after it; on pymodbus's own receive the guard polls the
+line until the earliest possible reply, dropping what arrives before it.
 """
 
 from __future__ import annotations
@@ -49,6 +61,7 @@ from pymodbus.framer import FramerAscii, FramerRTU
 __all__ = [
     "CONTINUATION_CHARS",
     "REPLY_START_CHARS",
+    "SETTLE_CHARS",
     "StaleGuard",
     "guard_async_client",
     "guard_sync_client",
@@ -62,6 +75,10 @@ CONTINUATION_CHARS = 1.5
 _MIN_GAP_S = 0.0005
 #: Characters after the end of our request before the first byte of a reply can be complete here.
 REPLY_START_CHARS = 1.0
+#: Silence (in characters) after a complete reply before it is taken, so that a frame following it is
+#: seen (:func:`last_reply`); at least :data:`_MIN_SETTLE_S`. pymodbus's sync receive listens as long.
+SETTLE_CHARS = 4.0
+_MIN_SETTLE_S = 0.001
 
 
 class StaleGuard:
@@ -76,6 +93,8 @@ class StaleGuard:
         self.char_s = char_s
         self.turnaround_s = REPLY_START_CHARS * char_s
         self.gap_s = max(CONTINUATION_CHARS * char_s, _MIN_GAP_S)
+        #: Silence after a complete reply before a receiver takes it (s).
+        self.settle_s = max(SETTLE_CHARS * char_s, _MIN_SETTLE_S)
         self.on_stale = on_stale
         self.mode = mode
         self.real = False  # the time rule applies to the request in flight
@@ -105,6 +124,14 @@ class StaleGuard:
         first = now - (nbytes - 1) * self.char_s if self.real and nbytes > 1 else now
         if first < self.earliest or (self.last_stale and first - self.last_stale < self.gap_s):
             self.last_stale = now
+            return True
+        return False
+
+    def skip(self, now: float, data: bytes) -> bool:
+        """Bytes ``data`` read from the line at ``now`` (``time.monotonic()``, read as they arrived):
+        True when they are stale (then dropped and counted, :meth:`drop`), False when the reply begins."""
+        if self.stale(now, len(data)):
+            self.drop(data)
             return True
         return False
 
@@ -188,10 +215,15 @@ def last_reply(framer: Any, data: bytes) -> tuple[bytes, bytes]:
     return data[ends[-2]:], data[: ends[-2]]
 
 
-def guard_sync_client(client: Any, guard: StaleGuard) -> None:
-    """Install ``guard`` on a pymodbus ``ModbusSerialClient`` (instance hooks; the class is untouched)."""
+def guard_sync_client(client: Any, guard: StaleGuard, receiver: Any = None) -> None:
+    """Install ``guard`` on a pymodbus ``ModbusSerialClient`` (instance hooks; the class is untouched).
+
+    ``receiver``: the :class:`~drivemap.runtime.serialrx.SerialReceiver` in ``client.recv``, if any; it
+    gets the guard and, for the transactions it reads itself, drops stale bytes as they arrive."""
     if guard.mode is False:
         return
+    if receiver is not None:
+        receiver.guard = guard
     ctx = client.transaction  # the sync client's transaction manager (``ctx`` on the asyncio client)
     plain_send = ctx.low_level_send
     plain_recv = client.recv
@@ -209,7 +241,8 @@ def guard_sync_client(client: Any, guard: StaleGuard) -> None:
         return size
 
     def recv(size: int | None) -> bytes:
-        if size is None and not guard.checked and client.socket is not None:
+        if size is None and not guard.checked and client.socket is not None and (
+                receiver is None or receiver.takes(size) is None):
             _skip_stale(client, guard)
         data: bytes = plain_recv(size)
         if size is None:
