@@ -48,6 +48,8 @@ MODEL = "ev"
 BAUD = 115200
 BITS = 10
 GOAL = 0.90
+#: Issue 18 asks more of a sync read of 16 registers (issue 9's 0.90 stays for the rest).
+GOALS = {("sync", "read 16"): 0.92}
 BYTE = BITS / BAUD
 DEVICES = ("simulator", "lean")
 MODES = ("sync", "raw-sync", "async", "raw-async")
@@ -323,8 +325,9 @@ def run(quick: bool) -> Section:
             name += " (raw pymodbus, reference)"
         elif device != "simulator":
             name += " (reference)"
-        sec.rows.append(Row("3 wire", name, eff, f"≥ {GOAL:.2f}" if not baseline else "—",
-                            eff >= GOAL if not baseline else None, f"{achieved:.1f} of {lim:.1f} req/s"))
+        goal = GOALS.get((mode, op), GOAL)
+        sec.rows.append(Row("3 wire", name, eff, f"≥ {goal:.2f}" if not baseline else "—",
+                            eff >= goal if not baseline else None, f"{achieved:.1f} of {lim:.1f} req/s"))
         sec.detail.append(f"| {device} | {mode} | {op} | {req} + {resp} | {t_limit * 1000:.3f} | {lim:.1f} "
                           f"| {achieved:.1f} | {eff:.3f} ({spread(effs)}) | {(1 / achieved - t_limit) * 1000:.3f} "
                           f"| {len(rates)} |")
