@@ -13,7 +13,7 @@ import warnings
 
 import pytest
 
-from drivemap.runtime import simserve
+from drivemap.runtime import simcli
 from drivemap.runtime.errors import RunningWriteWarning
 from tests.helpers_client import TIMEOUT, package, tcp_server
 
@@ -96,7 +96,7 @@ def test_opt_in_simulator_refuses_like_a_busy_drive() -> None:
 
 def test_simulate_option_reaches_the_simulator() -> None:
     parser = argparse.ArgumentParser()
-    simserve.add_arguments(parser, with_model=True)
+    simcli.add_arguments(parser, with_model=True)
     args = parser.parse_args(["ev", "--tcp", "127.0.0.1:0", "--refuse-advised-while-running"])
     assert args.refuse_advised_while_running is True
     assert parser.parse_args(["ev", "--tcp", "127.0.0.1:0"]).refuse_advised_while_running is False

@@ -96,10 +96,10 @@ def test_simulator_refuses_a_quirk_the_map_does_not_list() -> None:
 def test_simulate_option_reaches_the_simulator() -> None:
     import argparse
 
-    from drivemap.runtime import simserve
+    from drivemap.runtime import simcli
 
     parser = argparse.ArgumentParser()
-    simserve.add_arguments(parser, with_model=True)
+    simcli.add_arguments(parser, with_model=True)
     args = parser.parse_args(["vfd1000", "--tcp", "127.0.0.1:0", "--reply-quirk", "two_byte_byte_count"])
     assert args.reply_quirks == ["two_byte_byte_count"]
     assert VfdSimulator(reply_quirks=args.reply_quirks).handle(1, bytes.fromhex("03 00 04 00 02")) == bytes.fromhex(

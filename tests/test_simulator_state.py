@@ -210,7 +210,7 @@ def test_corrupt_state_file_is_refused_clearly(tmp_path: Path) -> None:
     state = tmp_path / f"{MODEL}.json"
     state.write_text('{"model": "ev", "version": 1, "units": {"1": {', encoding="utf-8")
     with running(MODEL, "--tcp", "127.0.0.1:0", "--state", str(state)) as (proc, line):
-        assert proc.wait(timeout=20) == 2
+        assert proc.wait(timeout=20) == 1
         assert "cannot read simulator state" in line and "Traceback" not in line, line
 
 
@@ -218,7 +218,7 @@ def test_corrupt_state_file_is_refused_clearly(tmp_path: Path) -> None:
 @pytest.mark.parametrize("where", ["0.0.0.0:0", "0.0.0.0:15020", "[::]:0", "192.0.2.1:0", ":0"])
 def test_non_loopback_bind_is_refused(where: str) -> None:
     with running(MODEL, "--tcp", where) as (proc, line):
-        assert proc.wait(timeout=20) == 2
+        assert proc.wait(timeout=20) == 1
         assert line.startswith("drivemap simulate: error:"), line
         if where != ":0":
             assert "--allow-remote" in line and "non-loopback" in line, line
@@ -230,7 +230,7 @@ def test_generated_module_refuses_non_loopback_too() -> None:
         [sys.executable, "-m", f"drivemap_models.{MODEL}.simulator", "--tcp", "0.0.0.0:0"],
         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=30,
     )
-    assert proc.returncode == 2 and "--allow-remote" in proc.stderr, proc.stderr
+    assert proc.returncode == 1 and "--allow-remote" in proc.stderr, proc.stderr
 
 
 @pytest.mark.parametrize("host", ["127.0.0.1", "localhost"])
