@@ -1,6 +1,6 @@
 """Run every drivemap benchmark side by side and write bench/RESULTS.md.
 
-    python bench/run.py            # full run (< 5 minutes on 2 cores), writes bench/RESULTS.md
+    python bench/run.py            # full run (about 10 minutes on 2 cores), writes bench/RESULTS.md
     python bench/run.py --quick    # smoke mode (fewer, shorter rounds; writes nothing unless --out)
 
 Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire efficiency on a paced
