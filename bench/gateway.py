@@ -21,14 +21,12 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import random
 import shutil
 import socket
 import statistics
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -64,27 +62,9 @@ def serve(count: int, log_path: str, change_every: float) -> None:
     for _ in range(count):
         sim = sim_cls(list(range(1, DRIVES + 1)), realistic_timing=True)
         servers.append(ThreadedSimServer(sim, tcp=("127.0.0.1", 0)).start())
-    print("READY", *[s.address[1] for s in servers], flush=True)  # type: ignore[index]
-    changes: list[tuple[int, int, int, float]] = []
-    stop = threading.Event()
-
-    def changer() -> None:
-        value = 1 + os.getpid() % 1000 * 60
-        rng = random.Random(os.getpid())
-        while not stop.wait(change_every):
-            i, unit = rng.randrange(count), rng.randrange(1, DRIVES + 1)
-            value += 1
-            servers[i].sim.set("motor_speed", value % 60000, unit=unit)
-            changes.append((i, unit, value % 60000, time.monotonic()))
-
-    worker = threading.Thread(target=changer, daemon=True)
-    worker.start()
-    sys.stdin.read()
-    stop.set()
-    worker.join()
-    Path(log_path).write_text(json.dumps({"ports": [s.address[1] for s in servers], "changes": changes}))  # type: ignore[index]
-    for s in servers:
-        s.stop()
+    ports = [s.address[1] for s in servers]  # type: ignore[index]
+    print("READY", *ports, flush=True)
+    gateway_serial.change_until_stdin_closes(servers, change_every, log_path, ports)
 
 
 # ------------------------------------------------------------------------------ parent

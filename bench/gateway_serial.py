@@ -73,9 +73,6 @@ def relays(count: int, baud: int, out: str) -> None:
 def sims(baud: int, change_every: float, log_path: str, devices: list[str]) -> None:
     """One RTU simulator (units 1..DRIVES) per device end; change motor_speed now and then; log it."""
     import importlib
-    import os
-    import random
-    import threading
 
     from drivemap.runtime.simserve import ThreadedSimServer
 
@@ -83,6 +80,17 @@ def sims(baud: int, change_every: float, log_path: str, devices: list[str]) -> N
     servers = [ThreadedSimServer(sim_cls(list(range(1, DRIVES + 1)), realistic_timing=True), serial=dev,
                                  mode="rtu", baudrate=baud).start() for dev in devices]
     print("READY", flush=True)
+    change_until_stdin_closes(servers, change_every, log_path, devices)
+
+
+def change_until_stdin_closes(servers: list[Any], change_every: float, log_path: str, ports: list[Any]) -> None:
+    """Change a random drive's motor_speed every ``change_every`` s until stdin closes, then log the
+    changes (server index, unit, value, time) with ``ports`` to ``log_path`` and stop the servers.
+    Shared by this bench's serial simulators and :mod:`gateway`'s TCP ones."""
+    import os
+    import random
+    import threading
+
     changes: list[tuple[int, int, int, float]] = []
     stop = threading.Event()
 
@@ -100,7 +108,7 @@ def sims(baud: int, change_every: float, log_path: str, devices: list[str]) -> N
     sys.stdin.read()
     stop.set()
     worker.join()
-    Path(log_path).write_text(json.dumps({"ports": devices, "changes": changes}))
+    Path(log_path).write_text(json.dumps({"ports": ports, "changes": changes}))
     for s in servers:
         s.stop()
 
