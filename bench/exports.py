@@ -19,12 +19,12 @@ from typing import Any
 
 from common import ROOT, Row, Section
 
+from drivemap.backends.exporters.base import Options
+from drivemap.backends.exporters.esphome import EsphomeExporter
+from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
+from drivemap.backends.python.inmemory import load_spec
 from drivemap.compiler import load_model
-from drivemap.exporters.base import Options
-from drivemap.exporters.esphome import EsphomeExporter
-from drivemap.exporters.homeassistant import HomeAssistantExporter
-from drivemap.inmemory import load_spec
-from drivemap.runtime.planner import plan_reads
+from drivemap.runtime.client.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import SERIAL  # what the maps leave open on their serial line
 

@@ -55,7 +55,7 @@ def serve(count: int, log_path: str, change_every: float) -> None:
     """Run ``count`` TCP simulators (units 1..DRIVES); change motor_speed now and then; log the changes."""
     import importlib
 
-    from drivemap.runtime.simserve import ThreadedSimServer
+    from drivemap.runtime.sim.serve import ThreadedSimServer
 
     sim_cls = importlib.import_module(f"drivemap_models.{MODEL}.simulator").Simulator
     servers = []

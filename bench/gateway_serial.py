@@ -74,7 +74,7 @@ def sims(baud: int, change_every: float, log_path: str, devices: list[str]) -> N
     """One RTU simulator (units 1..DRIVES) per device end; change motor_speed now and then; log it."""
     import importlib
 
-    from drivemap.runtime.simserve import ThreadedSimServer
+    from drivemap.runtime.sim.serve import ThreadedSimServer
 
     sim_cls = importlib.import_module(f"drivemap_models.{MODEL}.simulator").Simulator
     servers = [ThreadedSimServer(sim_cls(list(range(1, DRIVES + 1)), realistic_timing=True), serial=dev,

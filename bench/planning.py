@@ -148,7 +148,7 @@ def contiguous_only(spec: Any) -> int:
 def measured_read_all(model: str) -> tuple[int, int, int]:
     """(read requests, other requests, len(plan)) of ``Client.read_all()`` against the simulator,
     counted where the requests arrive (the simulator's ``handle``), whatever path the client takes."""
-    from drivemap.runtime.simserve import ThreadedSimServer
+    from drivemap.runtime.sim.serve import ThreadedSimServer
 
     client_mod = importlib.import_module(f"drivemap_models.{model}.client")
     sim_mod = importlib.import_module(f"drivemap_models.{model}.simulator")

@@ -57,7 +57,7 @@ async def _serve_tcp(model: str, kind: str, stop: asyncio.Event) -> None:
     from pymodbus.simulator import DataType, SimData, SimDevice
 
     if kind == "drivemap":
-        from drivemap.runtime.simserve import SimServer
+        from drivemap.runtime.sim.serve import SimServer
 
         sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1])
         server = SimServer(sim, tcp=("127.0.0.1", 0))
@@ -90,7 +90,7 @@ async def _serve_tcp(model: str, kind: str, stop: asyncio.Event) -> None:
 
 
 async def _serve_serial(model: str, port: str, baud: int, stop: asyncio.Event) -> None:
-    from drivemap.runtime.simserve import SimServer
+    from drivemap.runtime.sim.serve import SimServer
 
     sim = importlib.import_module(f"drivemap_models.{model}.simulator").Simulator([1], realistic_timing=True)
     server = SimServer(sim, serial=port, mode="rtu", baudrate=baud, parity="none", stop_bits=1, data_bits=8)

@@ -22,7 +22,7 @@ SCAFFOLD_REGISTERS = 7  # registers of the scaffold itself
 
 
 def synthetic_map(model: str, registers: int) -> dict[str, Any]:
-    from drivemap.render import scaffold
+    from drivemap.backends.render import scaffold
 
     doc: dict[str, Any] = yaml.safe_load(scaffold(model))
     doc["device"]["coverage"] = f"Synthetic benchmark map with {registers} registers."

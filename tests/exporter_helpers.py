@@ -9,10 +9,10 @@ from typing import Any
 
 import yaml
 
+from drivemap.backends.exporters import available
+from drivemap.backends.exporters.base import Options
 from drivemap.compiler import compile_map
-from drivemap.exporters import available
-from drivemap.exporters.base import Options
-from drivemap.model import Model
+from drivemap.model.nodes import Model
 
 ROOT = Path(__file__).resolve().parent.parent
 MAPS = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))

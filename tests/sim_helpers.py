@@ -10,11 +10,11 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-from drivemap.exporters.base import Options
-from drivemap.exporters.pymodbus_sim import PymodbusSimExporter
-from drivemap.inmemory import load_package
-from drivemap.model import Model
-from drivemap.runtime.simulator import Simulator
+from drivemap.backends.exporters.base import Options
+from drivemap.backends.exporters.pymodbus_sim import PymodbusSimExporter
+from drivemap.backends.python.inmemory import load_package
+from drivemap.model.nodes import Model
+from drivemap.runtime.sim.simulator import Simulator
 
 
 def free_port() -> int:
@@ -81,7 +81,7 @@ def read_back(model: Model, port: int, unit: int) -> tuple[dict[str, Any], dict[
     """(what the generated client reads from the server at ``port``, what it reads from drivemap's
     own simulator of the same map) for every readable register on the served page, in one batched
     read each."""
-    from drivemap.runtime.simserve import ThreadedSimServer
+    from drivemap.runtime.sim.serve import ThreadedSimServer
 
     package = load_package(model)
     names = [r.name for r in model.registers if r.readable and (r.page is None or _page_default(model, r) == r.page.value)]

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from drivemap.cli import main
-from drivemap.load import MAX_MAP_BYTES
+from drivemap.frontend.load import MAX_MAP_BYTES
 
 HERE = Path(__file__).resolve().parent
 CORPUS = HERE / "bad_maps"
@@ -135,7 +135,7 @@ def test_special_files_are_refused_without_reading(tmp_path: Path) -> None:
 
 def test_a_large_realistic_map_is_not_refused_for_its_size(tmp_path: Path) -> None:
     """The one size limit admits an 11 MB map (the size of 60,000 registers)."""
-    from drivemap.load import load_file
+    from drivemap.frontend.load import load_file
 
     text = (CORPUS / "huge_integer.yaml").read_text(encoding="utf-8").replace("123456789012345678901234567890", "0x0101")
     big = tmp_path / "big.yaml"

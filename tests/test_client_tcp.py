@@ -14,7 +14,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from drivemap.runtime.errors import DeviceException, DriveTimeout, NotBroadcastable, ValueOutOfRange
-from drivemap.runtime.simserve import _request_classes
+from drivemap.runtime.sim.serve import _request_classes
 from tests.helpers_client import TIMEOUT, package, serial_server, simulator, tcp_server
 
 ev = package("ev")

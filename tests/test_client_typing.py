@@ -124,9 +124,9 @@ def misuse(drive: Client) -> None:
 def test_mypy_strict_on_a_generated_package_with_every_type(tmp_path: Path) -> None:
     """The generated code of tests/maps/allkinds.yaml (every type, Optional where not_available) passes
     mypy --strict, as does code using it; misuse of the new types is rejected."""
+    from drivemap.backends.exporters.base import Options
+    from drivemap.backends.exporters.python import PythonExporter
     from drivemap.compiler import compile_map
-    from drivemap.exporters.base import Options
-    from drivemap.exporters.python import PythonExporter
 
     model = compile_map(ROOT / "tests" / "maps" / "allkinds.yaml")
     files = PythonExporter().render(model, Options())

@@ -24,14 +24,14 @@ import yaml
 from markdown_it import MarkdownIt
 from markdown_it.token import Token
 
+from drivemap.backends.exporters.base import Options
+from drivemap.backends.exporters.docs import DocsExporter
+from drivemap.backends.render import _md, environment
+from drivemap.backends.views import docs
 from drivemap.build import render_tree, write_tree
 from drivemap.compiler import compile_map, map_paths
 from drivemap.diagnostics import CompileError
-from drivemap.exporters.base import Options
-from drivemap.exporters.docs import DocsExporter
-from drivemap.model import Model
-from drivemap.render import _md, environment
-from drivemap.views import docs
+from drivemap.model.nodes import Model
 
 ROOT = Path(__file__).resolve().parent.parent
 GENERATED = ROOT / "generated"
@@ -282,7 +282,7 @@ def test_every_bitfield_has_a_table_and_a_diagram(model_id: str, pages: dict[str
 
 def test_bit_diagram_layout() -> None:
     """A 16-bit field with a 2-bit field: numbers, markers and one ladder line per field."""
-    from drivemap.model import Bit
+    from drivemap.model.nodes import Bit
 
     m = compile_map(MAPS[0])
     reg = dataclasses.replace(
@@ -498,8 +498,8 @@ def built_tree(tmp_path_factory: pytest.TempPathFactory, models: list[Model]) ->
 @pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_snippet_runs_against_the_simulator(model_id: str, pages: dict[str, Page], target_paths: set[str],
                                             request: pytest.FixtureRequest) -> None:
-    pytest.importorskip("drivemap.runtime.simulator", reason="the simulator runtime is not written yet")
-    pytest.importorskip("drivemap.runtime.simserve", reason="`drivemap simulate` (simserve) is not written yet")
+    pytest.importorskip("drivemap.runtime.sim.simulator", reason="the simulator runtime is not written yet")
+    pytest.importorskip("drivemap.runtime.sim.serve", reason="`drivemap simulate` (simserve) is not written yet")
     assert f"{model_id}/client.py" in target_paths, (
         "the generated client (generator/drivemap/views/client.py) is missing: the page's snippet cannot run")
     built_tree: Path = request.getfixturevalue("built_tree")

@@ -13,8 +13,8 @@ import warnings
 
 import pytest
 
-from drivemap.runtime import simcli
 from drivemap.runtime.errors import RunningWriteWarning
+from drivemap.runtime.sim import cli as simcli
 from tests.helpers_client import TIMEOUT, package, tcp_server
 
 ev = package("ev")

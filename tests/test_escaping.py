@@ -1,6 +1,6 @@
 """One escaping path for map text (issue 21.2), proven over all of Unicode, lone surrogates included.
 
-Property tests (hypothesis) on :mod:`drivemap.escape`, whose functions are the templates' ``py``,
+Property tests (hypothesis) on :mod:`drivemap.backends.escape`, whose functions are the templates' ``py``,
 ``doc``, ``md`` and ``mdcomment`` filters:
 
 * a Python literal evaluates back to the text; a docstring body, in the contexts the templates put
@@ -31,7 +31,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from markdown_it import MarkdownIt
 
-from drivemap.escape import LINE_BREAKS, md_comment, md_text, py_docstring, py_literal
+from drivemap.backends.escape import LINE_BREAKS, md_comment, md_text, py_docstring, py_literal
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -166,7 +166,7 @@ HOSTILE = {
 
 
 def hostile_map() -> dict[str, Any]:
-    from drivemap.render import scaffold
+    from drivemap.backends.render import scaffold
 
     data: dict[str, Any] = yaml.safe_load(scaffold("hostile_text"))
     data["device"]["title"] = HOSTILE["title"]

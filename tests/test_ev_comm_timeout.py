@@ -12,7 +12,7 @@ import struct
 import time
 from typing import Any
 
-from drivemap.behaviours.ev import Ev
+from drivemap.runtime.sim.behaviours.ev import Ev
 from tests.helpers_client import TIMEOUT, package, tcp_server
 
 ev = package("ev")

@@ -31,7 +31,7 @@ count = "drivemap_count:CountExporter"
 
 MODULE = '''\
 """Counts registers (a plugin exporter living in its own distribution)."""
-from drivemap.exporters import Exporter
+from drivemap.backends.exporters import Exporter
 
 
 class CountExporter(Exporter):

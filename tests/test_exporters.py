@@ -16,12 +16,12 @@ from typing import Any
 import jinja2
 import pytest
 
+from drivemap.backends.exporters.homeassistant import jinja_literal
+from drivemap.backends.python.inmemory import load_spec
+from drivemap.backends.views.integrations import comment_safe
 from drivemap.cli import main
 from drivemap.compiler import load_model
-from drivemap.exporters.homeassistant import jinja_literal
-from drivemap.inmemory import load_spec
-from drivemap.runtime.planner import plan_reads
-from drivemap.views.integrations import comment_safe
+from drivemap.runtime.client.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import (
     HOSTILE,

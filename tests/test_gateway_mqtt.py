@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from drivemap.gateway.config import GatewayConfig
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from tests.helpers_client import serial_server, simulator, tcp_server
 from tests.helpers_gateway import Broker, Subscriber, publish, running, until, write_config
 

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
+from drivemap.backends.python.inmemory import load_spec
 from drivemap.compiler import compile_map
-from drivemap.inmemory import load_spec
-from drivemap.runtime.simserve import ThreadedSimServer
-from drivemap.runtime.simulator import Simulator
+from drivemap.runtime.sim.serve import ThreadedSimServer
+from drivemap.runtime.sim.simulator import Simulator
 from tests.helpers_client import tcp_server
 from tests.helpers_gateway import Broker, Subscriber, free_port, publish, running, until, write_config
 

@@ -1,6 +1,6 @@
 """The reserved names are derived from what the templates produce, and cover what they produce.
 
-:func:`drivemap.reserved.reserved` renders a probe map and reads the output back. These tests read
+:func:`drivemap.backends.python.reserved.reserved` renders a probe map and reads the output back. These tests read
 the generated packages of the seed maps (other maps than the probe, other features) and check that
 every name they bind, every builtin their classes annotate with and every attribute their clients
 have is in the derived sets, so a map name equal to any of them is refused by ``validate``
@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 
+from drivemap.backends.python.names import exception_classes
+from drivemap.backends.python.reserved import reserved
 from drivemap.compiler import compile_map, map_paths
-from drivemap.names import exception_classes
-from drivemap.reserved import reserved
-from drivemap.runtime.bus import Bus
+from drivemap.runtime.client.bus import Bus
 
 ROOT = Path(__file__).resolve().parent.parent
 GENERATED = ROOT / "generated" / "drivemap_models"

@@ -11,7 +11,7 @@ import pytest
 from helpers_client import serial_server, simulator, tcp_server
 from helpers_live import cli, no_traceback, simulate, wrong_map
 
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
 
 

@@ -11,7 +11,7 @@ import time
 from helpers_client import simulator, tcp_server
 from helpers_live import ENV, ROOT, cli
 
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
 
 

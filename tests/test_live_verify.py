@@ -12,7 +12,7 @@ import pytest
 from helpers_client import serial_server, simulator
 from helpers_live import cli, map_line, simulate, wrong_map
 
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 
 SHIFTED = [("    address: 0x0200\n    param: \"02-01\"", "    address: 0x0201\n    param: \"02-01\""),
            ("  - start: 0x0201\n    end: 0x0201\n", "  - start: 0x0F01\n    end: 0x0F01\n")]  # 0x0201 no longer reserved

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from drivemap import load
+from drivemap.frontend import load
 
 ROOT = Path(__file__).resolve().parent.parent
 FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "drivemap" / "templates" / "new_map.yaml.jinja"]

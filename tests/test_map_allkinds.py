@@ -30,11 +30,11 @@ from pymodbus.framer import FramerType
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from drivemap.backends.python.inmemory import load_package
 from drivemap.compiler import compile_map
-from drivemap.inmemory import load_package
-from drivemap.model import Model, Register
+from drivemap.model.nodes import Model, Register
+from drivemap.runtime.client.planner import plan_reads
 from drivemap.runtime.errors import DeviceException, InvalidValue, ScaleUnavailable, ValueOutOfRange
-from drivemap.runtime.planner import plan_reads
 from tests.allkinds_frames import cases
 
 HERE = Path(__file__).resolve().parent
@@ -474,7 +474,7 @@ def test_the_syntax_of_issue_14_validates(tmp_path: Path) -> None:
     needs), compiles, and means what the issue says."""
     import yaml
 
-    from drivemap.render import scaffold
+    from drivemap.backends.render import scaffold
 
     text = scaffold("issue14").replace(
         "  - {name: parameters, title: Parameters, source: \"manual §4\"}\n",
@@ -539,7 +539,7 @@ def test_simulator_serves_every_table_and_refuses_what_the_map_says() -> None:
 
 
 def test_export_json_of_the_new_constructs() -> None:
-    from drivemap.export import export
+    from drivemap.backends.export import export
 
     regs = {r["name"]: r for r in export(MODEL)["registers"]}
     assert regs["phase_3_voltage"]["table"] == "input" and regs["phase_3_voltage"]["byte_order"] == "low_first"
@@ -552,8 +552,8 @@ def test_export_json_of_the_new_constructs() -> None:
 
 
 def test_docs_show_tables_modicon_numbers_layouts_and_not_available_values() -> None:
-    from drivemap.exporters.base import Options
-    from drivemap.exporters.docs import DocsExporter
+    from drivemap.backends.exporters.base import Options
+    from drivemap.backends.exporters.docs import DocsExporter
 
     page = DocsExporter().render(MODEL, Options())["allkinds.md"]
     for text in ("**Input registers** (read 04h, read-only)", "**Coils** (read 01h, written 05h/0Fh",
@@ -569,8 +569,8 @@ def test_docs_show_tables_modicon_numbers_layouts_and_not_available_values() -> 
 def test_scaffold_examples_are_served_as_printed(tmp_path: Path) -> None:
     """`drivemap new` writes examples of the new constructs (an f32 input register, a coil): the
     generated simulator answers their requests with the printed replies, the client decodes them."""
-    from drivemap import frames
-    from drivemap.render import scaffold
+    from drivemap.backends.render import scaffold
+    from drivemap.frontend import frames
 
     path = tmp_path / "scaffolded.yaml"
     path.write_text(scaffold("scaffolded"), encoding="utf-8")
@@ -591,7 +591,7 @@ def test_scaffold_examples_are_served_as_printed(tmp_path: Path) -> None:
     ("00017", ("coil", 16)), ("012345", ("coil", 12344)), ("300001", ("input", 0)), (365536, ("input", 65535)),
 ])
 def test_modicon_numbers(number: int | str, where: tuple[str, int]) -> None:
-    from drivemap import modicon
+    from drivemap.model import modicon
 
     assert modicon.parse(number) == where
     table, address = where
@@ -600,7 +600,7 @@ def test_modicon_numbers(number: int | str, where: tuple[str, int]) -> None:
 
 @pytest.mark.parametrize("number", [40000, 20001, 50001, 465537, 300000, "4001", "4000001", "40000"])
 def test_modicon_numbers_refused(number: int | str) -> None:
-    from drivemap import modicon
+    from drivemap.model import modicon
 
     with pytest.raises(modicon.ModiconError):
         modicon.parse(number)

@@ -1,14 +1,14 @@
 """The edx map against values read in the manual (shared/manuals/004_698379178adcef99.txt).
 
 Each case id names the manual section it was read from ("004-<section>-<register>").
-The map is read through the export contract: ``drivemap.export.export_model("edx")``.
+The map is read through the export contract: ``drivemap.backends.export.export_model("edx")``.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from drivemap.export import export_model
+from drivemap.backends.export import export_model
 
 MODEL = "edx"
 

@@ -1,14 +1,14 @@
 """maps/ev.yaml checked against values read in the EV manual (001_47d2095fcebbe4cf.txt).
 
 Each case id cites the manual section the expected values come from. The map is read through
-the export contract (drivemap.export.export_model).
+the export contract (drivemap.backends.export.export_model).
 """
 
 from __future__ import annotations
 
 import pytest
 
-from drivemap.export import export_model
+from drivemap.backends.export import export_model
 
 
 @pytest.fixture(scope="module")

@@ -1,14 +1,14 @@
 """The v2 map against values read in the manual (shared/manuals/003_81ad9a58587804cf.txt).
 
 Each case id names the manual section it was read from ("003-<section>-<register>").
-The map is read through the export contract: ``drivemap.export.export_model("v2")``.
+The map is read through the export contract: ``drivemap.backends.export.export_model("v2")``.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from drivemap.export import export_model
+from drivemap.backends.export import export_model
 
 MODEL = "v2"
 

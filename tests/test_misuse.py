@@ -27,7 +27,7 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime.bus import AsyncBus, Bus
+from drivemap.runtime.client.bus import AsyncBus, Bus
 from drivemap.runtime.errors import (
     DriveError,
     IndexOutOfRange,

@@ -15,9 +15,9 @@ from pymodbus.pdu.register_message import (
     WriteSingleRegisterRequest,
 )
 
+from drivemap.runtime.client.records import record
+from drivemap.runtime.client.serialrx import SerialReceiver, reply_length
 from drivemap.runtime.errors import DeviceException
-from drivemap.runtime.records import record
-from drivemap.runtime.serialrx import SerialReceiver, reply_length
 from drivemap.testing.vserial import FrameFault
 from tests.helpers_client import TIMEOUT, package, serial_server
 from tests.test_client_faults import ascii_frame, rtu

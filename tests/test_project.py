@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from drivemap import output
+from drivemap.backends import output
 from drivemap.cli import main
-from drivemap.schema import SCHEMA_PATH
+from drivemap.frontend.schema import SCHEMA_PATH
 
 
 def run(*argv: str) -> tuple[int, str, str]:
@@ -257,7 +257,7 @@ def test_a_build_killed_between_renames_is_recognised_as_its_own(project: Path,
 def _outputs() -> dict[str, str]:
     from drivemap.build import outputs_by_root
     from drivemap.compiler import compile_map
-    from drivemap.project import load_project
+    from drivemap.frontend.project import load_project
 
     project = load_project()
     grouped = outputs_by_root(project, [compile_map(p) for p in project.map_files()])
@@ -267,13 +267,13 @@ def _outputs() -> dict[str, str]:
 def test_behaviours_come_from_the_project(project: Path) -> None:
     (project / "pyproject.toml").write_text('[tool.drivemap]\nbehaviours = ["plant_sim"]\n', "utf-8")
     (project / "plant_sim.py").write_text(
-        "from drivemap.behaviours import Behaviour, register\n\n\n"
+        "from drivemap.runtime.sim.behaviours import Behaviour, register\n\n\n"
         "@register('acme')\nclass Acme(Behaviour):\n"
         "    def on_start(self, unit):\n        unit.sim.marker = 'acme behaviour ran'\n", "utf-8")
     ok("new", "acme")
     from drivemap.build import simulator_factory
     from drivemap.compiler import compile_map
-    from drivemap.project import load_project
+    from drivemap.frontend.project import load_project
 
     sim = simulator_factory(compile_map(project / "maps" / "acme.yaml"), load_project())([1])
     assert type(sim.behaviour).__name__ == "Acme"
@@ -282,7 +282,7 @@ def test_behaviours_come_from_the_project(project: Path) -> None:
 
 
 def test_seed_behaviours_come_from_entry_points() -> None:
-    from drivemap.behaviours import behaviour_class
+    from drivemap.runtime.sim.behaviours import behaviour_class
 
-    assert behaviour_class("ev").__module__ == "drivemap.behaviours.ev"
+    assert behaviour_class("ev").__module__ == "drivemap.runtime.sim.behaviours.ev"
     assert behaviour_class("no_such_model").__name__ == "Behaviour"

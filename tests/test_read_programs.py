@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
-import drivemap.runtime.aclient as aclient_mod
-import drivemap.runtime.client as client_mod
-import drivemap.runtime.common as common_mod
-from drivemap.runtime.core import Core
+import drivemap.runtime.client.async_client as aclient_mod
+import drivemap.runtime.client.base as common_mod
+import drivemap.runtime.client.sync_client as client_mod
+from drivemap.runtime.client.sansio import Core
 from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
 from tests.helpers_client import package, serial_server, tcp_server

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from drivemap.runtime.errors import DriveTimeout
-from drivemap.runtime.simulator import SimulatorError
+from drivemap.runtime.sim.simulator import SimulatorError
 from tests.helpers_client import TIMEOUT, package, serial_server, tcp_server
 
 vfd = package("vfd1000")
@@ -96,7 +96,7 @@ def test_simulator_refuses_a_quirk_the_map_does_not_list() -> None:
 def test_simulate_option_reaches_the_simulator() -> None:
     import argparse
 
-    from drivemap.runtime import simcli
+    from drivemap.runtime.sim import cli as simcli
 
     parser = argparse.ArgumentParser()
     simcli.add_arguments(parser, with_model=True)

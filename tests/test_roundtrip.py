@@ -19,7 +19,7 @@ answers the printed bytes.
 
 Besides the project's maps, the synthetic maps in ``tests/maps/`` (every construct of the map
 language, frames computed with pymodbus) run here too, through their generated package built in
-memory (:func:`drivemap.inmemory.load_package`).
+memory (:func:`drivemap.backends.python.inmemory.load_package`).
 """
 
 from __future__ import annotations
@@ -36,13 +36,13 @@ from typing import Any
 
 import pytest
 
-from drivemap import frames
+from drivemap.backends.python.inmemory import load_package
 from drivemap.compiler import compile_map, map_paths
-from drivemap.inmemory import load_package
-from drivemap.model import Example, Model
-from drivemap.runtime.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
+from drivemap.frontend import frames
+from drivemap.model.nodes import Example, Model
+from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing import VirtualSerialLine
 
 TEST_MAPS = sorted((Path(__file__).resolve().parent / "maps").glob("*.yaml"))

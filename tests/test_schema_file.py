@@ -9,7 +9,7 @@ from typing import Any
 import jsonschema
 import pytest
 
-from drivemap.schema import SCHEMA_PATH
+from drivemap.frontend.schema import SCHEMA_PATH
 
 ROOT = Path(__file__).resolve().parent.parent
 TOP_LEVEL = ROOT / "schemas" / "drivemap.schema.json"

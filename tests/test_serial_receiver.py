@@ -1,5 +1,5 @@
-"""The sync serial receiver (:mod:`drivemap.runtime.serialrx`) reads the replies on the default path,
-with the stale-reply guard (:mod:`drivemap.runtime.staleguard`) on or automatic (issue 18.3).
+"""The sync serial receiver (:mod:`drivemap.runtime.client.serialrx`) reads the replies on the default path,
+with the stale-reply guard (:mod:`drivemap.runtime.client.staleguard`) on or automatic (issue 18.3).
 
 Every test checks :attr:`SerialReceiver.handled` (replies the receiver read itself, not through
 pymodbus's polling receive) besides the values and counters, for RTU and ASCII:
@@ -29,10 +29,10 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime import staleguard
+from drivemap.runtime.client import staleguard
+from drivemap.runtime.client.serialrx import SerialReceiver
 from drivemap.runtime.errors import DeviceException
-from drivemap.runtime.serialrx import SerialReceiver
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import FrameFault, VirtualSerialLine
 from tests.helpers_client import package, simulator
 from tests.test_client_faults import ascii_frame, rtu

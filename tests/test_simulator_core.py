@@ -14,8 +14,8 @@ from typing import Any
 
 import pytest
 
-from drivemap.behaviours import Behaviour, behaviour_class, behaviour_for
-from drivemap.runtime.simulator import Simulator, SimulatorError
+from drivemap.runtime.sim.behaviours import Behaviour, behaviour_class, behaviour_for
+from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 
 MODELS = ["ev", "v2", "edx", "vfd1000"]
 
@@ -442,7 +442,7 @@ def _examples() -> list[Any]:
 
 @pytest.mark.parametrize("model, ex", _examples())
 def test_printed_example_answered_exactly(model: Any, ex: Any) -> None:
-    from drivemap.frames import parse
+    from drivemap.frontend.frames import parse
 
     request = parse(ex.wire_request, ex.mode)
     units = [1, 2] if ex.meaning.broadcast else [ex.meaning.unit]

@@ -4,14 +4,14 @@ corrupt frame, and still answers a valid request afterwards.
 Two levels:
 
 * pure (hypothesis, cheap): ``Simulator.handle(unit, pdu)`` never raises for any bytes, and the
-  server's framers (pymodbus's RTU/ASCII framers as :mod:`drivemap.runtime.simserve` extends
+  server's framers (pymodbus's RTU/ASCII framers as :mod:`drivemap.runtime.sim.serve` extends
   them) never raise for any byte stream and only ever hand over a request whose own CRC/LRC is
   right;
 * on the line: 10,000 frames (random bytes, random ``:``-hex lines, and valid requests - from
   the maps' printed examples and generated from the spec - mutated by bit flips, truncation,
   extension, wrong unit ids, garbage before and between frames) go over a
   :class:`~drivemap.testing.vserial.VirtualSerialLine` to a generated simulator served by
-  :class:`~drivemap.runtime.simserve.ThreadedSimServer` in RTU and in ASCII.
+  :class:`~drivemap.runtime.sim.serve.ThreadedSimServer` in RTU and in ASCII.
 
 Line fuzz, how it stays fast: frames are written in batches with a few milliseconds between them
 (frames that get no answer cost no timeout); each batch ends with a valid probe request, and the
@@ -40,8 +40,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymodbus.framer import FramerAscii, FramerRTU
 
-from drivemap.runtime import simserve
-from drivemap.runtime.simulator import Simulator
+from drivemap.runtime.sim import serve as simserve
+from drivemap.runtime.sim.simulator import Simulator
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 from drivemap.testing.vserial import VirtualSerialLine
 
@@ -195,7 +195,7 @@ def check_reply(reply: bytes, requests: list[bytes], units: list[int]) -> None:
 def printed_examples(model: str) -> list[bytes]:
     """unit + PDU of every legible printed example request of the map (none if it does not compile)."""
     from drivemap.compiler import compile_map, map_paths
-    from drivemap.frames import parse
+    from drivemap.frontend.frames import parse
 
     bodies: list[bytes] = []
     for path in map_paths():

@@ -25,9 +25,9 @@ from pymodbus.client import AsyncModbusTcpClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerRTU
 
-from drivemap.runtime.simcli import parse_tcp
-from drivemap.runtime.simserve import SimServer, ThreadedSimServer, is_loopback
-from drivemap.runtime.simulator import SimulatorError
+from drivemap.runtime.sim.cli import parse_tcp
+from drivemap.runtime.sim.serve import SimServer, ThreadedSimServer, is_loopback
+from drivemap.runtime.sim.simulator import SimulatorError
 from drivemap.testing.vserial import VirtualSerialLine
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -5,7 +5,7 @@
   no longer swallow the reads' replies;
 * an MBAP header that cannot start a frame (protocol id, length 0/1/255+, random bytes) or a frame
   announced longer than it is closes the connection at once (or after
-  :data:`~drivemap.runtime.simtcp.PARTIAL_FRAME_TIMEOUT_S` without a byte): the client sees the end
+  :data:`~drivemap.runtime.sim.tcp.PARTIAL_FRAME_TIMEOUT_S` without a byte): the client sees the end
   of the connection, never silence; a new connection is served at once;
 * malformed PDUs (03h with extra bytes, 06h one byte short, 10h whose byte count does not match)
   get the exception the map's exception_policy names, or the standard code where the map says the
@@ -27,8 +27,8 @@ from typing import Any
 import pytest
 from pymodbus.framer import FramerAscii, FramerRTU
 
-from drivemap.runtime.simtcp import PARTIAL_FRAME_TIMEOUT_S
-from drivemap.runtime.simulator import STANDARD_CODES
+from drivemap.runtime.sim.simulator import STANDARD_CODES
+from drivemap.runtime.sim.tcp import PARTIAL_FRAME_TIMEOUT_S
 from tests.helpers_client import package, serial_server, tcp_server
 
 READ = bytes.fromhex("03 0002 0001")  # ev: motor_speed (0x0002), one register

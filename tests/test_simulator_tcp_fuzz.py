@@ -20,7 +20,7 @@ that happens to swallow exactly the next request cannot be told from a well-form
 lists that under "Not promised".
 
 Frames run 24 connections at a time from asyncio clients against a
-:class:`~drivemap.runtime.simserve.ThreadedSimServer`; seeds are fixed; every wait is bounded by
+:class:`~drivemap.runtime.sim.serve.ThreadedSimServer`; seeds are fixed; every wait is bounded by
 the map's timeout and the whole run by :data:`RUN_LIMIT_S`. The tally shows both outcomes occur
 (kept and closed) and that malformed PDUs were answered with exceptions.
 """
@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from drivemap.runtime.bus import DEFAULT_RESPONSE_TIMEOUT_S
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.client.bus import DEFAULT_RESPONSE_TIMEOUT_S
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.runtime.spec import DeviceSpec
 
 RUNS = [("ev", 5000), ("edx", 5000)]

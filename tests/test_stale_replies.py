@@ -16,7 +16,7 @@ values change before every read, so a duplicate taken for an answer shows as a w
 
 The paced line and its simulator run in a process of their own (as a device does), so the client's
 timing is not bent by the line emulation sharing its interpreter.
-* :func:`~drivemap.runtime.staleguard.last_reply` keeps the last of several complete frames.
+* :func:`~drivemap.runtime.client.staleguard.last_reply` keeps the last of several complete frames.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ import pytest
 from pymodbus.framer import FramerAscii, FramerRTU
 from pymodbus.pdu import DecodePDU
 
-from drivemap.runtime import staleguard
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.client import staleguard
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
 from tests.helpers_client import package, simulator
 
@@ -62,7 +62,7 @@ def line_with_duplicates(baud: int, pace: bool) -> Iterator[tuple[Any, VirtualSe
 #: its stdin closes.
 DEVICE = """
 import importlib, sys
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
 baud = int(sys.argv[1])
 sim = importlib.import_module("drivemap_models.ev.simulator").Simulator(units=[1])

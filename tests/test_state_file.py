@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime.simulator import SimulatorError, StateFileError
+from drivemap.runtime.sim.simulator import SimulatorError, StateFileError
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from drivemap.runtime.bus import Bus
+from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.errors import InvalidValue
-from drivemap.runtime.simserve import ThreadedSimServer
+from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap_models.ev import Client
 from drivemap_models.ev.simulator import Simulator
 

@@ -13,14 +13,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from .diagnostics import CompileError, Diagnostic, Location
-from .exporters import available
-from .exporters.base import Exporter, OptionError, Options
-from .exporters.docs import DocsExporter
-from .exporters.python import PythonExporter
-from .inmemory import load_spec
-from .model import Model
-from .project import Project, display
+from drivemap.backends.exporters import available
+from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.exporters.docs import DocsExporter
+from drivemap.backends.exporters.python import PythonExporter
+from drivemap.backends.python.inmemory import load_spec
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend.project import Project, display
+from drivemap.model.nodes import Model
 
 __all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "simulator_factory"]
 
@@ -120,8 +120,8 @@ def export_files(exporter: Exporter, model: Model, project: Project, values: Map
 def simulator_factory(model: Model, project: Project) -> Any:
     """A simulator factory for a compiled map (no build needed): its spec rendered in memory and
     the behaviour the project or an installed distribution registers for the model id."""
-    from .behaviours import behaviour_for, load_modules
-    from .runtime.simulator import Simulator
+    from drivemap.runtime.sim.behaviours import behaviour_for, load_modules
+    from drivemap.runtime.sim.simulator import Simulator
 
     root = str(project.root)
     if project.behaviours and root not in sys.path:
@@ -149,6 +149,6 @@ def render_tree(models: Sequence[Model], options: Options | None = None) -> dict
 
 def write_tree(root: Path, files: Mapping[str, str], *, force: bool = False) -> None:
     """Write ``files`` into ``root`` as ``drivemap build`` does (manifest, staged, pruned)."""
-    from . import output
+    from drivemap.backends import output
 
     output.write(output.plan(root, files, prune=True, force=force))

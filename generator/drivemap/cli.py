@@ -1,7 +1,7 @@
 """The ``drivemap`` command: validate | build | check | examples | export | new | simulate | schema |
 gateway, and at the drive (:mod:`drivemap.live`): read | write | watch | scan | verify.
 
-Every verb acts on the project of the working directory (:mod:`drivemap.project`); explicit paths
+Every verb acts on the project of the working directory (:mod:`drivemap.frontend.project`); explicit paths
 and flags win over its ``[tool.drivemap]`` settings. Every bad input ends in ``path:line:col:
 error: ...`` lines and exit status 1, never a traceback.
 """
@@ -16,10 +16,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from . import __version__
-from .diagnostics import CompileError, Diagnostic, Location
-from .model import Model
-from .project import Project, display, load_project
+from drivemap import __version__
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend.project import Project, display, load_project
+from drivemap.model.nodes import Model
 
 
 class UsageError(Exception):
@@ -45,7 +45,7 @@ def _project(args: argparse.Namespace, maps: Sequence[str] | None = None) -> Pro
 
 
 def _compile(files: Sequence[Path]) -> tuple[list[Model], list[Diagnostic]]:
-    from .compiler import compile_map
+    from drivemap.compiler import compile_map
 
     models: list[Model] = []
     errors: list[Diagnostic] = []
@@ -100,8 +100,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_build(args: argparse.Namespace) -> int:
-    from . import output
-    from .build import outputs_by_root
+    from drivemap.backends import output
+    from drivemap.build import outputs_by_root
 
     project = _project(args, args.paths)
     models = _project_models(project)
@@ -124,8 +124,8 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from . import output
-    from .build import outputs_by_root
+    from drivemap.backends import output
+    from drivemap.build import outputs_by_root
 
     project = _project(args, args.paths)
     models = _project_models(project)
@@ -144,7 +144,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_examples(args: argparse.Namespace) -> int:
-    from .compiler import compile_map, resolve_map
+    from drivemap.compiler import compile_map, resolve_map
 
     project = _project(args)
     models = [compile_map(resolve_map(args.model, project))] if args.model else _project_models(project)
@@ -162,9 +162,9 @@ def cmd_examples(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from .build import export_files
-    from .compiler import compile_map, resolve_map
-    from .exporters import OptionError, available
+    from drivemap.backends.exporters import OptionError, available
+    from drivemap.build import export_files
+    from drivemap.compiler import compile_map, resolve_map
 
     exporters = available()
     if args.list:
@@ -194,7 +194,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool) -> int:
-    from . import output
+    from drivemap.backends import output
 
     root = target if multi else target.parent
     change = output.plan(root, files if multi else {target.name: next(iter(files.values()))}, prune=False, force=force)
@@ -209,8 +209,8 @@ def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool)
 
 
 def cmd_new(args: argparse.Namespace) -> int:
-    from .render import scaffold
-    from .schema import SCHEMA_PATH
+    from drivemap.backends.render import scaffold
+    from drivemap.frontend.schema import SCHEMA_PATH
 
     folder = Path(args.dir) if args.dir else _project(args).maps_folder()
     target = folder / f"{args.model}.yaml"
@@ -228,7 +228,7 @@ def cmd_new(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from .schema import SCHEMA_PATH
+    from drivemap.frontend.schema import SCHEMA_PATH
 
     if args.print:
         sys.stdout.write(SCHEMA_PATH.read_text(encoding="utf-8"))
@@ -238,9 +238,9 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from .build import simulator_factory
-    from .compiler import compile_map, resolve_map
-    from .runtime.simcli import serve_cli
+    from drivemap.build import simulator_factory
+    from drivemap.compiler import compile_map, resolve_map
+    from drivemap.runtime.sim.cli import serve_cli
 
     project = _project(args)
     model = compile_map(resolve_map(args.model, project))
@@ -250,7 +250,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_gateway(args: argparse.Namespace) -> int:
-    from .gateway.cli import run_cli
+    from drivemap.gateway.cli import run_cli
 
     return run_cli(args, _project(args))
 
@@ -307,16 +307,16 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--print", action="store_true")
     s.set_defaults(func=cmd_schema)
     s = sub.add_parser("simulate", help="serve a model's simulator (a map path is compiled in memory)")
-    from .runtime.simcli import add_arguments
+    from drivemap.runtime.sim.cli import add_arguments
 
     add_arguments(s, with_model=True)
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_simulate)
-    from .live import add_parsers
+    from drivemap.live import add_parsers
 
     add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
     s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
-    from .gateway.cli import add_arguments as gateway_arguments
+    from drivemap.gateway.cli import add_arguments as gateway_arguments
 
     gateway_arguments(s)
     _project_flags(s, out=False)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from . import checks, schema
-from .diagnostics import CompileError, Diagnostic, Location
-from .load import load_file
-from .model import Model
-from .model_build import build_model
-from .project import Project, display, load_project
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend import checks, schema
+from drivemap.frontend.load import load_file
+from drivemap.frontend.project import Project, display, load_project
+from drivemap.model.build import build_model
+from drivemap.model.nodes import Model
 
 #: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does
 #: not have is looked up here.

@@ -26,9 +26,9 @@ import os
 import sys
 from collections.abc import Sequence
 
-from drivemap.behaviours import Behaviour, behaviour_for
-from drivemap.runtime import simcli
-from drivemap.runtime.simulator import Simulator as SimulatorBase
+from drivemap.runtime.sim import cli as simcli
+from drivemap.runtime.sim.behaviours import Behaviour, behaviour_for
+from drivemap.runtime.sim.simulator import Simulator as SimulatorBase
 
 from .spec import SPEC
 

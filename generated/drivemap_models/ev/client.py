@@ -34,7 +34,7 @@ from drivemap.runtime.client import (
     WriteOnly,
     WriteOnlyArray,
 )
-from drivemap.runtime.codec import (
+from drivemap.runtime.client.codec import (
     Codec,
     DriveEnum,
     EnumCodec,
@@ -44,8 +44,8 @@ from drivemap.runtime.codec import (
     FloatCodec,
     IntCodec,
 )
+from drivemap.runtime.client.records import record
 from drivemap.runtime.errors import DeviceException
-from drivemap.runtime.records import record
 
 from .spec import SPEC
 

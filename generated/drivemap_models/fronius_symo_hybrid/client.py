@@ -24,7 +24,7 @@ from drivemap.runtime.client import (
     ReadWriteCommand,
     SnapshotBase,
 )
-from drivemap.runtime.codec import (
+from drivemap.runtime.client.codec import (
     Codec,
     DriveEnum,
     EnumCodec,

@@ -23,7 +23,7 @@ from drivemap.runtime.client import (
     ReadWrite,
     SnapshotBase,
 )
-from drivemap.runtime.codec import (
+from drivemap.runtime.client.codec import (
     Codec,
     IeeeCodec,
     IntCodec,

@@ -5,7 +5,7 @@
         snap = drive.read_all()
 """
 
-from drivemap.runtime.bus import AsyncBus, Bus
+from drivemap.runtime.client.bus import AsyncBus, Bus
 from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,

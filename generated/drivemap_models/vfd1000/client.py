@@ -23,7 +23,7 @@ from drivemap.runtime.client import (
     SnapshotBase,
     WriteOnly,
 )
-from drivemap.runtime.codec import (
+from drivemap.runtime.client.codec import (
     Codec,
     DriveEnum,
     EnumCodec,

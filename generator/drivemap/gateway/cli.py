@@ -10,12 +10,12 @@ import signal
 import sys
 from typing import TYPE_CHECKING
 
-from ..diagnostics import CompileError, Diagnostic, Location
+from drivemap.diagnostics import CompileError, Diagnostic, Location
 
 if TYPE_CHECKING:
-    from ..project import Project
-    from .config import GatewayConfig
-    from .service import Gateway
+    from drivemap.frontend.project import Project
+    from drivemap.gateway.config import GatewayConfig
+    from drivemap.gateway.service import Gateway
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -57,7 +57,7 @@ def run_cli(args: argparse.Namespace, project: Project) -> int:
                         stream=sys.stderr)
     if args.log_level != "debug":  # asyncua narrates its address space at INFO
         logging.getLogger("asyncua").setLevel(logging.WARNING)
-    from .config import load_config
+    from drivemap.gateway.config import load_config
 
     cfg = load_config(args.config, project)
     _check_extras(cfg)
@@ -69,13 +69,13 @@ def run_cli(args: argparse.Namespace, project: Project) -> int:
 
 
 async def _check(cfg: GatewayConfig) -> None:
-    from .service import Gateway
+    from drivemap.gateway.service import Gateway
 
     print("\n".join(summary(cfg, Gateway(cfg))))
 
 
 async def _serve(cfg: GatewayConfig) -> None:
-    from .service import Gateway
+    from drivemap.gateway.service import Gateway
 
     gateway = Gateway(cfg)
     stop = asyncio.Event()

@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .. import schema
-from ..compiler import compile_map, resolve_map
-from ..diagnostics import CompileError, Diagnostic
-from ..load import Document, PathT, load_file
-from ..model import Model
-from ..project import Project, display, load_project
+from drivemap.compiler import compile_map, resolve_map
+from drivemap.diagnostics import CompileError, Diagnostic
+from drivemap.frontend import schema
+from drivemap.frontend.load import Document, PathT, load_file
+from drivemap.frontend.project import Project, display, load_project
+from drivemap.model.nodes import Model
 
 #: The configuration schema shipped with the package (a link to ``schemas/gateway.schema.json``).
 SCHEMA_PATH = Path(__file__).resolve().parent.parent / "data" / "gateway.schema.json"

@@ -24,10 +24,18 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..model import Model, Register
-from ..runtime.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
-from ..runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
-from .config import DeviceConfig, PollGroup
+from drivemap.gateway.config import DeviceConfig, PollGroup
+from drivemap.model.nodes import Model, Register
+from drivemap.runtime.client.codec import (
+    BoolCodec,
+    EnumCodec,
+    FieldsCodec,
+    FlagCodec,
+    StringCodec,
+    check_raw,
+    unwrap,
+)
+from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
 PRESS = "PRESS"

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from .. import __version__
-from ..model import Model, Register
-from .device import PRESS, Device
+from drivemap import __version__
+from drivemap.gateway.device import PRESS, Device
+from drivemap.model.nodes import Model, Register
 
 #: Units the map may print -> (Home Assistant unit, device_class, state_class).
 _UNITS: dict[str, tuple[str, str | None, str]] = {

@@ -32,10 +32,10 @@ from typing import Any
 
 import aiomqtt
 
-from ..runtime.errors import DriveError
-from .config import MqttConfig
-from .device import Command, Device
-from .discovery import discovery_messages
+from drivemap.gateway.config import MqttConfig
+from drivemap.gateway.device import Command, Device
+from drivemap.gateway.discovery import discovery_messages
+from drivemap.runtime.errors import DriveError
 
 log = logging.getLogger("drivemap.gateway.mqtt")
 

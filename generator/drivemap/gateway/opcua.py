@@ -35,8 +35,10 @@ from asyncua.server.address_space import AttributeService
 from asyncua.server.internal_server import InternalServer
 from asyncua.server.server import Server
 
-from ..model import Register
-from ..runtime.errors import (
+from drivemap.gateway.config import OpcuaConfig, OpcuaUser
+from drivemap.gateway.device import Device
+from drivemap.model.nodes import Register
+from drivemap.runtime.errors import (
     AccessError,
     DeviceException,
     DriveError,
@@ -46,8 +48,6 @@ from ..runtime.errors import (
     UnknownRegister,
     ValueOutOfRange,
 )
-from .config import OpcuaConfig, OpcuaUser
-from .device import Device
 
 log = logging.getLogger("drivemap.gateway.opcua")
 #: asyncua's ``ua`` namespace, used untyped (its stubs do not export the generated names).

@@ -1,8 +1,8 @@
 """The running gateway: packages in memory, one bus and one task per line, the MQTT and OPC UA sides.
 
 ``drivemap gateway CONFIG.yaml`` loads the configuration (:func:`drivemap.gateway.config.load_config`),
-builds each model's generated package in memory (:func:`drivemap.inmemory.load_package`), one
-:class:`~drivemap.runtime.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
+builds each model's generated package in memory (:func:`drivemap.backends.python.inmemory.load_package`), one
+:class:`~drivemap.runtime.client.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
 and runs every :class:`~drivemap.gateway.lines.Line` in parallel with the MQTT bridge and the OPC UA
 server until SIGINT/SIGTERM.
 """
@@ -13,12 +13,12 @@ import asyncio
 import logging
 from typing import Any
 
-from ..inmemory import load_package
-from ..model import Model
-from ..runtime.bus import AsyncBus
-from .config import BusConfig, GatewayConfig
-from .device import Command, Device
-from .lines import Fanout, Line
+from drivemap.backends.python.inmemory import load_package
+from drivemap.gateway.config import BusConfig, GatewayConfig
+from drivemap.gateway.device import Command, Device
+from drivemap.gateway.lines import Fanout, Line
+from drivemap.model.nodes import Model
+from drivemap.runtime.client.bus import AsyncBus
 
 log = logging.getLogger("drivemap.gateway")
 
@@ -60,12 +60,12 @@ class Gateway:
         self.opcua: Any = None
         self.started = asyncio.Event()
         if cfg.mqtt is not None:
-            from .mqtt import MqttBridge
+            from drivemap.gateway.mqtt import MqttBridge
 
             self.mqtt = MqttBridge(cfg.mqtt, cfg.name, self.devices, self.submit)
             self.sink.sinks.append(self.mqtt)
         if cfg.opcua is not None:
-            from .opcua import OpcuaBridge
+            from drivemap.gateway.opcua import OpcuaBridge
 
             self.opcua = OpcuaBridge(cfg.opcua, cfg.name, self.devices, self.submit)
             self.sink.sinks.append(self.opcua)

@@ -12,7 +12,7 @@ import argparse
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register the live verbs on the ``drivemap`` command's sub-parsers."""
-    from . import read, scan, verify, watch, write
+    from drivemap.live import read, scan, verify, watch, write
 
     for module in (read, write, watch, scan, verify):
         module.add_parser(sub)

@@ -17,9 +17,7 @@ import termios
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ..runtime.bus import Bus
-from ..runtime.errors import DeviceException, DriveTimeout, TransportError
-from .errors import (
+from drivemap.live.errors import (
     EXIT_CONNECT,
     EXIT_DEVICE_EXCEPTION,
     EXIT_GARBLED,
@@ -27,7 +25,9 @@ from .errors import (
     EXIT_NO_ANSWER,
     LiveError,
 )
-from .target import Target
+from drivemap.live.target import Target
+from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 
 PARITIES = {"none": "none", "n": "none", "even": "even", "e": "even", "odd": "odd", "o": "odd"}
 _LETTER = {"none": "N", "even": "E", "odd": "O"}

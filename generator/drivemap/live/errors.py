@@ -25,7 +25,7 @@ import logging
 import sys
 from collections.abc import Callable
 
-from ..runtime.errors import DriveError
+from drivemap.runtime.errors import DriveError
 
 EXIT_OK = 0
 EXIT_INPUT = 1

@@ -5,11 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..model import Register
-from ..runtime.bus import Bus
-from ..runtime.client import _run
-from ..runtime.errors import DeviceException, DriveTimeout, TransportError
-from .target import Target
+from drivemap.live.target import Target
+from drivemap.model.nodes import Register
+from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.sync_client import _run
+from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 
 #: Requests a fingerprint sends at most per map (the planner's first batches).
 MAX_REQUESTS = 8
@@ -51,7 +51,7 @@ def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str,
 
 def _decoded_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int]) -> str | None:
     """Strings and bools fit as read; floats and scaled values are checked against min/max decoded."""
-    from .fmt import decode
+    from drivemap.live.fmt import decode
 
     if reg.type in ("string", "bool"):
         return None

@@ -14,10 +14,10 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from ..model import Register
-from ..runtime.errors import ScaleUnavailable
-from .target import Target
-from .values import to_text
+from drivemap.live.target import Target
+from drivemap.live.values import to_text
+from drivemap.model.nodes import Register
+from drivemap.runtime.errors import ScaleUnavailable
 
 COLUMNS = ("name", "value", "unit", "meaning", "raw", "address", "param")
 

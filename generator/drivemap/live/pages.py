@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ..model import Register
-from .session import Session
+from drivemap.live.session import Session
+from drivemap.model.nodes import Register
 
 Cell = tuple[Register, int]
 

@@ -22,18 +22,25 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from ..diagnostics import CompileError
-from ..runtime.bus import Bus
-from ..runtime.client import Core
-from ..runtime.errors import DeviceException, DriveTimeout, TransportError
-from ..runtime.planner import read_function
-from ..runtime.spec import DeviceSpec
-from .connection import PARITIES, Link, add_connection_arguments, check_serial_device, open_bus, resolve_link
-from .errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
-from .fingerprint import Fit, fingerprint
-from .fmt import console
-from .session import read_words
-from .target import Target, load_target, project_of
+from drivemap.diagnostics import CompileError
+from drivemap.live.connection import (
+    PARITIES,
+    Link,
+    add_connection_arguments,
+    check_serial_device,
+    open_bus,
+    resolve_link,
+)
+from drivemap.live.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.live.fingerprint import Fit, fingerprint
+from drivemap.live.fmt import console
+from drivemap.live.session import read_words
+from drivemap.live.target import Target, load_target, project_of
+from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.planner import read_function
+from drivemap.runtime.client.sync_client import Core
+from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
+from drivemap.runtime.spec import DeviceSpec
 
 STANDARD_BAUDRATES = (9600, 19200, 38400, 57600, 115200)
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from ..model import Register
-from .errors import EXIT_INPUT, LiveError
-from .target import Target
-from .values import locate_error, lookup
+from drivemap.live.errors import EXIT_INPUT, LiveError
+from drivemap.live.target import Target
+from drivemap.live.values import locate_error, lookup
+from drivemap.model.nodes import Register
 
 Cell = tuple[Register, int]
 

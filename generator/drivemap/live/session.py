@@ -1,6 +1,6 @@
 """A connected client of one model on one link, and the reads the live verbs share.
 
-The reads go through the generated client's runtime (:mod:`drivemap.runtime.client`): the same
+The reads go through the generated client's runtime (:mod:`drivemap.runtime.client.sync_client`): the same
 planner, codecs, page handling, timing and retries as a program using the client. Raw words for
 addresses the map does not name (reserved ranges, probes) go through :meth:`Bus.exchange`.
 """
@@ -11,16 +11,16 @@ import argparse
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from ..model import Register
-from ..runtime.bus import Bus, Exchange
-from ..runtime.client import Core, _run
-from ..runtime.core import READ_REQUESTS
-from ..runtime.errors import DriveError
-from ..runtime.planner import Key, ReadRequest, read_function
-from ..runtime.spec import READ_CODES
-from .connection import Link, open_bus, resolve_link, run
-from .errors import EXIT_INPUT, LiveError
-from .target import Target
+from drivemap.live.connection import Link, open_bus, resolve_link, run
+from drivemap.live.errors import EXIT_INPUT, LiveError
+from drivemap.live.target import Target
+from drivemap.model.nodes import Register
+from drivemap.runtime.client.bus import Bus, Exchange
+from drivemap.runtime.client.planner import Key, ReadRequest, read_function
+from drivemap.runtime.client.sansio import READ_REQUESTS
+from drivemap.runtime.client.sync_client import Core, _run
+from drivemap.runtime.errors import DriveError
+from drivemap.runtime.spec import READ_CODES
 
 
 class Session:

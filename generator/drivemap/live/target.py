@@ -13,12 +13,12 @@ from functools import cached_property
 from types import ModuleType
 from typing import Any
 
-from ..compiler import compile_map, resolve_map
-from ..diagnostics import CompileError, Diagnostic, Location
-from ..load import load_file
-from ..model import Model, Register
-from ..project import Project, load_project
-from ..runtime.spec import DeviceSpec
+from drivemap.compiler import compile_map, resolve_map
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend.load import load_file
+from drivemap.frontend.project import Project, load_project
+from drivemap.model.nodes import Model, Register
+from drivemap.runtime.spec import DeviceSpec
 
 
 @dataclass
@@ -76,7 +76,7 @@ def project_of(maps: Sequence[str] | None) -> Project:
 
 def load_target(name: str, project: Project | None = None) -> Target:
     """Compile ``name`` (model id or map path) and load its generated package in memory."""
-    from ..inmemory import load_package
+    from drivemap.backends.python.inmemory import load_package
 
     model = compile_map(resolve_map(name, project or load_project()))
     return Target(model, load_package(model))

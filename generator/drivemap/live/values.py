@@ -21,12 +21,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..diagnostics import CompileError
-from ..model import Register
-from ..runtime.codec import EnumCodec, FieldsCodec, FlagCodec, FloatCodec, IntCodec
-from ..runtime.core import Deferred
-from ..runtime.errors import DriveError
-from .target import Target, command_line_error, register_note
+from drivemap.diagnostics import CompileError
+from drivemap.live.target import Target, command_line_error, register_note
+from drivemap.model.nodes import Register
+from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, FloatCodec, IntCodec
+from drivemap.runtime.client.sansio import Deferred
+from drivemap.runtime.errors import DriveError
 
 _NAME = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
 

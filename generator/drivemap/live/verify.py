@@ -17,16 +17,16 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from ..runtime.errors import DeviceException, TransportError
-from .connection import add_connection_arguments, explain
-from .errors import EXIT_DISAGREE, EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
-from .fmt import console
-from .pages import Cell, current_pages, on_shown_page, restore, selectors
-from .session import Session, session_for
-from .target import load_target, project_of
-from .verify_checks import Results, check_alone, check_batches, check_reserved
-from .verify_report import Header, report_paths, write_report
-from .verify_write import candidates, check_writes
+from drivemap.live.connection import add_connection_arguments, explain
+from drivemap.live.errors import EXIT_DISAGREE, EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.live.fmt import console
+from drivemap.live.pages import Cell, current_pages, on_shown_page, restore, selectors
+from drivemap.live.session import Session, session_for
+from drivemap.live.target import load_target, project_of
+from drivemap.live.verify_checks import Results, check_alone, check_batches, check_reserved
+from drivemap.live.verify_report import Header, report_paths, write_report
+from drivemap.live.verify_write import candidates, check_writes
+from drivemap.runtime.errors import DeviceException, TransportError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -12,11 +12,11 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from ..model import Register
-from ..runtime.errors import DeviceException, DriveError, DriveTimeout
-from ..runtime.planner import Key, ReadRequest
-from .fingerprint import value_problem
-from .session import Session
+from drivemap.live.fingerprint import value_problem
+from drivemap.live.session import Session
+from drivemap.model.nodes import Register
+from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout
 
 Cell = tuple[Register, int]
 #: How far around an address that fails verify looks for a register the map does not list.
@@ -212,7 +212,7 @@ def check_reserved(session: Session, results: Results, pages: dict[str, int], ti
 
 
 def read_limit(session: Session) -> int:
-    from ..runtime.planner import read_function
+    from drivemap.runtime.client.planner import read_function
 
     code = read_function(session.target.spec) or 0x03
     fc = session.target.spec.function(code)

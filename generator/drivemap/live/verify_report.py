@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import EXIT_INPUT, LiveError
-from .verify_checks import Finding, Results
+from drivemap.live.errors import EXIT_INPUT, LiveError
+from drivemap.live.verify_checks import Finding, Results
 
 MARKER_MD = "<!-- written by drivemap verify -->"
 MARKER_JSON = "drivemap verify"

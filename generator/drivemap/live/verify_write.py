@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ..model import Register
-from ..runtime.errors import DeviceException, DriveError, DriveTimeout
-from .session import Session
-from .verify_checks import Cell, Finding, Results, failure_text
+from drivemap.live.session import Session
+from drivemap.live.verify_checks import Cell, Finding, Results, failure_text
+from drivemap.model.nodes import Register
+from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout
 
 
 def candidates(session: Session, cells: list[Cell], eeprom: bool, results: Results) -> list[Cell]:

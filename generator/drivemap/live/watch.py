@@ -22,14 +22,14 @@ from rich.console import Group
 from rich.live import Live
 from rich.text import Text
 
-from ..runtime.errors import DeviceException, TransportError
-from .connection import add_connection_arguments, explain
-from .errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
-from .fmt import Row, console, rows_of, table
-from .pages import Cell, current_pages, on_shown_page, selectors
-from .selection import add_selection_arguments, positionals, select_cells
-from .session import Session, describe_keys, keys_of, session_for
-from .target import load_target, project_of
+from drivemap.live.connection import add_connection_arguments, explain
+from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.live.fmt import Row, console, rows_of, table
+from drivemap.live.pages import Cell, current_pages, on_shown_page, selectors
+from drivemap.live.selection import add_selection_arguments, positionals, select_cells
+from drivemap.live.session import Session, describe_keys, keys_of, session_for
+from drivemap.live.target import load_target, project_of
+from drivemap.runtime.errors import DeviceException, TransportError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -15,17 +15,17 @@ from pymodbus.framer import FramerAscii, FramerRTU, FramerSocket
 from pymodbus.pdu import DecodePDU, ModbusPDU
 from rich.table import Table
 
-from ..model import Register
-from ..runtime.bus import Exchange
-from ..runtime.core import Core, Deferred, Op
-from ..runtime.errors import DriveError
-from .connection import Link, add_connection_arguments, resolve_link
-from .errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
-from .fmt import console, rows_of
-from .selection import positionals
-from .session import Session, check_unit, session_for
-from .target import Target, load_target, project_of
-from .values import Assignment, parse_assignments, to_text
+from drivemap.live.connection import Link, add_connection_arguments, resolve_link
+from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.live.fmt import console, rows_of
+from drivemap.live.selection import positionals
+from drivemap.live.session import Session, check_unit, session_for
+from drivemap.live.target import Target, load_target, project_of
+from drivemap.live.values import Assignment, parse_assignments, to_text
+from drivemap.model.nodes import Register
+from drivemap.runtime.client.bus import Exchange
+from drivemap.runtime.client.sansio import Core, Deferred, Op
+from drivemap.runtime.errors import DriveError
 
 REFLECT = {
     "immediate": "now",

@@ -1,0 +1,110 @@
+"""``drivemap export MODEL --format json``: the normalized model (a stable contract)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from drivemap.compiler import load_model
+from drivemap.frontend.frames import export_form
+from drivemap.model.nodes import Model, Register
+
+
+def _number(value: float | None) -> float | int | None:
+    if value is None:
+        return None
+    return int(value) if float(value).is_integer() else value
+
+
+def _default(value: float | str | None) -> float | int | str | bool | None:
+    if isinstance(value, (str, bool)):
+        return value
+    return _number(value)
+
+
+def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
+    enum = None
+    if reg.enum:
+        enum = {v.name: v.value for v in model.enum(reg.enum).values}
+    bits = [{"name": b.name, "offset": b.offset, "width": b.width} for b in reg.bits] or None
+    out = []
+    for i in range(reg.count):
+        out.append(
+            {
+                "name": reg.element_name(i),
+                "address": reg.element_address(i),
+                "param": reg.element_param(i),
+                "access": reg.access,
+                "type": reg.type,
+                "scale": _number(reg.scale),
+                "offset": _number(reg.offset),
+                "unit": reg.unit,
+                "min": _number(reg.min),
+                "max": _number(reg.max),
+                "default": _default(reg.default_at(i)),
+                "reflect": None if reg.reflect == "unknown" else reg.reflect,
+                "storage": None if reg.storage == "unknown" else reg.storage,
+                "broadcast": reg.broadcast,
+                "enum": enum,
+                "bits": bits,
+                "page": {"selector": reg.page.selector, "value": reg.page.value} if reg.page else None,
+                "table": reg.table,
+                "length": reg.words,
+                "word_order": reg.word_order,
+                "byte_order": reg.byte_order,
+                "encoding": reg.encoding if reg.type == "string" else None,
+                "scale_register": reg.scale_register,
+                "not_available": list(reg.not_available) or None,
+            }
+        )
+    return out
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, bytes):
+        return value.hex().upper()
+    return value
+
+
+def export(model: Model) -> dict[str, Any]:
+    """The export contract of one compiled model."""
+    return {
+        "model": model.device.model,
+        "title": model.device.title,
+        "protocol": _plain(model.protocol),
+        "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
+        "reserved": [
+            {
+                "start": r.start,
+                "end": r.end,
+                "readable": r.readable,
+                "writable": r.writable,
+                "page": {"selector": r.page.selector, "value": r.page.value} if r.page else None,
+                "kind": r.kind,
+                "source": r.source,
+            }
+            for r in model.reserved
+        ],
+        "known_issues": [_plain(issue) for issue in model.known_issues],
+        "examples": [
+            {
+                "name": ex.name,
+                "source": ex.source,
+                "mode": ex.mode,
+                "request": export_form(ex.request, ex.mode),
+                "response": export_form(ex.response, ex.mode),
+                "status": ex.status,
+                "erratum": ex.erratum,
+            }
+            for ex in model.examples
+        ],
+    }
+
+
+def export_model(model: str) -> dict[str, Any]:
+    """Compile ``maps/<model>.yaml`` and return its export contract."""
+    return export(load_model(model))

@@ -1,0 +1,91 @@
+"""The exporter plugin interface: every output drivemap writes goes through it.
+
+An exporter turns the immutable :class:`~drivemap.model.nodes.Model` into files (relative path ->
+text). drivemap's own outputs (the typed Python package, the Markdown docs, the JSON contract) are
+exporters exactly like a third party's, which registers its class under the entry-point group
+``drivemap.exporters`` in its own distribution::
+
+    [project.entry-points."drivemap.exporters"]
+    mytool = "mypackage.export:MyToolExporter"
+
+and is then listed by ``drivemap export --list`` and run by ``drivemap export MODEL --format mytool``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+from drivemap.model.nodes import Model
+
+__all__ = ["Exporter", "OptionError", "Options"]
+
+
+class OptionError(ValueError):
+    """An exporter option that cannot be used (``drivemap export`` reports it as a usage error,
+    ``drivemap build`` at the ``[[tool.drivemap.exports]]`` entry that gave it)."""
+
+
+@dataclass(frozen=True)
+class Options:
+    """What an exporter knows besides the model: the project's settings and its own options.
+
+    ``package`` is the generated package's import name, ``root`` the project root, ``out`` and
+    ``docs`` the folders of the generated package and docs; ``values`` holds the exporter's own
+    command-line options (``add_arguments``) by their ``dest`` names.
+    """
+
+    package: str = "generated"
+    root: Path = field(default_factory=Path.cwd)
+    out: Path = field(default_factory=lambda: Path.cwd() / "generated")
+    docs: Path = field(default_factory=lambda: Path.cwd() / "generated" / "docs")
+    values: Mapping[str, Any] = field(default_factory=dict)
+
+    def source(self, model: Model) -> str:
+        """The map's path relative to the project root (posix), or its file name outside it.
+
+        Generated headers use this, so output does not depend on the working directory.
+        """
+        full = Path(model.path).resolve()
+        try:
+            return full.relative_to(self.root.resolve()).as_posix()
+        except ValueError:
+            return full.name
+
+    def get(self, key: str, default: Any = None) -> Any:
+        value = self.values.get(key, default)
+        return default if value is None else value
+
+
+class Exporter:
+    """Base class of exporters. Subclasses set ``name`` and ``help`` and implement ``render``.
+
+    ``suffix`` is the extension of a single-file output (``drivemap export -o`` names the file);
+    ``multi_file`` exporters write a folder (``-o DIR``).
+    """
+
+    name: ClassVar[str] = ""
+    help: ClassVar[str] = ""
+    suffix: ClassVar[str] = ""
+    multi_file: ClassVar[bool] = False
+
+    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+        """Add this exporter's own options (use ``--long-names``; their ``dest`` keys reach ``Options.values``)."""
+
+    def render(self, model: Model, options: Options) -> dict[str, str]:
+        """Files of one model: relative path -> text (deterministic: same model, same bytes)."""
+        raise NotImplementedError
+
+    def render_collection(self, models: Sequence[Model], options: Options) -> dict[str, str]:
+        """Files about all the models together (an index, a package ``__init__``); none by default."""
+        return {}
+
+    def render_all(self, models: Sequence[Model], options: Options) -> dict[str, str]:
+        files: dict[str, str] = {}
+        for model in models:
+            files.update(self.render(model, options))
+        files.update(self.render_collection(models, options))
+        return files

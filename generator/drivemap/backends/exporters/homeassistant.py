@@ -1,0 +1,385 @@
+"""The ``homeassistant`` exporter: a Home Assistant package with a ``modbus:`` hub and its entities.
+
+One entity per register element: a modbus ``sensor`` (data type, swap, scale, offset, precision,
+unit, device/state class from the unit), a ``template`` sensor that turns an enum value into its
+label, a ``template`` binary sensor per one-bit field (a multi-bit field: a template sensor), a
+modbus ``switch`` per command (a write-only enum register: one switch per value). Arrays whose
+elements fit one read are one sensor with ``virtual_count`` (one request for the whole array).
+Read-only registers are never writable; writable settings are sensors too (the modbus integration
+has no number entity; write them with the ``modbus.write_register`` action).
+
+Issue 14 types: f32/f64/u64/s64 -> float32/float64/uint64/int64, string -> string with ``count`` =
+length; low-first words -> ``swap: word``, low-first bytes -> ``swap: byte`` (both: ``word_byte``);
+input registers -> ``input_type: input``; a coil or discrete input -> a modbus ``binary_sensor``
+(``input_type: coil``/``discrete_input``), a writable coil -> a ``switch`` with ``write_type: coil``
+that reads its state back (``verify``); ``not_available`` -> ``nan_value`` (the integration takes one
+value and compares it with the decoded integer; floats and strings have none, a NaN float reads as
+unavailable anyway). A scale register (value x 10^factor) has no equivalent in the integration: the
+modbus sensor is named ``<name> raw`` and a template sensor ``<name>`` multiplies it by 10^factor,
+unavailable while either is (the header of the export lists them).
+
+Key names follow the current Home Assistant release; ``--ha-version X.Y`` writes an older
+release's names where they differ (``KEYS``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from collections.abc import Mapping
+from typing import Any
+
+from drivemap.backends.exporters._yaml import Hex, dump, header
+from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.views import integrations as iv
+from drivemap.backends.views.common import header as generated_header
+from drivemap.model.nodes import READ_CODES, Model, Register
+from drivemap.runtime.client.planner import MODBUS_MAX_READ
+
+__all__ = ["DATA_TYPES", "KEYS", "HomeAssistantExporter"]
+
+#: Home Assistant's current release line (its key names are the default).
+CURRENT = (2026, 11)
+OLDEST = (2022, 1)
+
+#: drivemap type -> the modbus integration's data_type (a string reads ``count`` = length registers).
+DATA_TYPES: dict[str, str] = {
+    "u16": "uint16", "s16": "int16", "bool": "uint16",
+    "u32": "uint32", "s32": "int32",
+    "u64": "uint64", "s64": "int64",
+    "f32": "float32", "f64": "float64",
+    "string": "string",
+}
+#: drivemap register table -> the entity's input_type.
+INPUT_TYPES = {"holding": "holding", "input": "input", "coil": "coil", "discrete": "discrete_input"}
+
+
+def swap_of(reg: Register) -> str | None:
+    """The integration's ``swap``: ``word`` reverses the words (low word first), ``byte`` swaps the
+    bytes of each word (low byte first), ``word_byte`` both; one-word types and strings only ``byte``."""
+    words = reg.words > 1 and reg.type != "string" and reg.word_order == "low_first"
+    byte = reg.byte_order == "low_first"
+    if words and byte:
+        return "word_byte"
+    return "word" if words else "byte" if byte else None
+
+
+#: Key names by release: the first release that reads a name -> {our key: its name}. 2023.10 added
+#: ``device_address`` and ``virtual_count`` (home-assistant/core #100399, #100398); the current
+#: release still reads ``slave``/``slave_count`` but documents the new names.
+KEYS: tuple[tuple[tuple[int, int], dict[str, str]], ...] = (
+    ((2023, 10), {"device_address": "device_address", "virtual_count": "virtual_count"}),
+    (OLDEST, {"device_address": "slave", "virtual_count": "slave_count"}),
+)
+
+_PARITY = {"none": "N", "even": "E", "odd": "O"}
+
+
+def _version(text: str | None) -> tuple[int, int]:
+    if text is None:
+        return CURRENT
+    match = re.fullmatch(r"(\d{4})\.(\d{1,2})(?:\.\d+)?", str(text))
+    if not match:
+        raise OptionError(f"--ha-version: expected YEAR.MONTH (e.g. 2024.3), got {text!r}")
+    version = (int(match.group(1)), int(match.group(2)))
+    if version < OLDEST:
+        raise OptionError(f"--ha-version: releases before {OLDEST[0]}.{OLDEST[1]} used another modbus: layout")
+    return version
+
+
+def keys_for(version: tuple[int, int]) -> dict[str, str]:
+    for first, names in KEYS:
+        if version >= first:
+            return names
+    raise AssertionError("KEYS covers every accepted version")
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
+
+
+def jinja_literal(value: Any) -> str:
+    """A value as a Jinja literal that no label can break out of: JSON with every non-ASCII
+    character and every character Jinja or YAML treat specially written as a \\u escape."""
+    text = json.dumps(value, ensure_ascii=True, sort_keys=True)
+    out, in_string, escaped = [], False, False
+    for ch in text:
+        if in_string and not escaped and ch in "{}%#'":
+            out.append(f"\\u{ord(ch):04x}")
+            continue
+        out.append(ch)
+        if escaped:
+            escaped = False
+        elif ch == "\\":
+            escaped = True
+        elif ch == '"':
+            in_string = not in_string
+    return "".join(out)
+
+
+class HomeAssistantExporter(Exporter):
+    name = "homeassistant"
+    help = "Home Assistant package: a modbus: hub (serial or TCP) with sensors and switches, template labels and bits"
+    suffix = ".yaml"
+
+    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+        parser.add_argument("--hub-name", default=None, help="name of the modbus hub (default: the model id)")
+        where = parser.add_mutually_exclusive_group()
+        where.add_argument("--tcp", default=None, metavar="HOST:PORT", help="Modbus TCP (a gateway or the device)")
+        where.add_argument("--rtu-over-tcp", default=None, metavar="HOST:PORT", help="RTU frames over TCP")
+        where.add_argument("--serial", default=None, metavar="DEV", help="serial device (default: /dev/ttyUSB0)")
+        parser.add_argument("--ha-version", default=None, metavar="X.Y",
+                            help=f"write the key names of this Home Assistant release (default: {CURRENT[0]}.{CURRENT[1]})")
+        iv.add_selection_arguments(parser)
+        iv.add_serial_arguments(parser)
+
+    def render(self, model: Model, options: Options) -> dict[str, str]:
+        values = options.values
+        version = _version(values.get("ha_version"))
+        sel = iv.select(model, values)
+        build = _Build(model, sel, keys_for(version), values)
+        hub = build.hub()
+        doc: dict[str, Any] = {"modbus": [hub]}
+        if build.templates_sensor or build.templates_binary:
+            block: dict[str, Any] = {}
+            if build.templates_sensor:
+                block["sensor"] = build.templates_sensor
+            if build.templates_binary:
+                block["binary_sensor"] = build.templates_binary
+            doc["template"] = [block]
+        lines = [
+            generated_header(model, options),
+            f"{model.device.title} - Home Assistant {version[0]}.{version[1]} key names",
+            "A package: put it in packages/ (homeassistant: packages: !include_dir_named packages)",
+            "or paste its modbus: and template: keys into configuration.yaml.",
+            *build.notes,
+        ]
+        return {f"{model.name}.homeassistant.yaml": header(lines) + dump(doc)}
+
+
+class _Build:
+    """The entities of one export (kept apart from the exporter class so each step stays short)."""
+
+    def __init__(self, model: Model, sel: iv.Selection, keys: Mapping[str, str], values: Mapping[str, Any]) -> None:
+        self.model, self.sel, self.keys, self.values = model, sel, keys, values
+        self.sensors: list[dict[str, Any]] = []
+        self.switches: list[dict[str, Any]] = []
+        self.binary_sensors: list[dict[str, Any]] = []
+        self.templates_sensor: list[dict[str, Any]] = []
+        self.templates_binary: list[dict[str, Any]] = []
+        self.notes: list[str] = []
+        self._entities()
+
+    # ---------------------------------------------------------------- the hub
+
+    def hub(self) -> dict[str, Any]:
+        name = self.values.get("hub_name") or self.model.name
+        hub: dict[str, Any] = {"name": str(name)}
+        if self.values.get("tcp") or self.values.get("rtu_over_tcp"):
+            host, port = iv.tcp_endpoint(self.values.get("tcp") or self.values["rtu_over_tcp"])
+            hub.update({"type": "tcp" if self.values.get("tcp") else "rtuovertcp", "host": host, "port": port})
+        else:
+            line = iv.serial_settings(self.model, self.values)
+            hub.update({"type": "serial", "method": line.mode, "port": self.values.get("serial") or "/dev/ttyUSB0",
+                        "baudrate": line.baudrate, "bytesize": line.data_bits, "parity": _PARITY[line.parity],
+                        "stopbits": line.stop_bits})
+        t = self.model.protocol.timing
+        if t.response_timeout_ms is not None:
+            hub["timeout"] = _number((iv.timing_ms(t.response_timeout_ms) or 0) / 1000)
+        wait = max([v for v in (t.inter_frame_gap_ms, *self._write_delays()) if v is not None], default=None)
+        if wait is not None:
+            hub["message_wait_milliseconds"] = iv.timing_ms(wait)
+        if self.sensors:
+            hub["sensors"] = self.sensors
+        if self.binary_sensors:
+            hub["binary_sensors"] = self.binary_sensors
+        if self.switches:
+            hub["switches"] = self.switches
+        return hub
+
+    def _write_delays(self) -> list[float]:
+        return [p.reg.write_delay_ms for p in self.sel.points if p.writable and p.reg.write_delay_ms is not None]
+
+    # ---------------------------------------------------------------- entities
+
+    def _entities(self) -> None:
+        done: set[str] = set()
+        for point in self.sel.points:
+            reg = point.reg
+            if reg.name in done:
+                continue
+            if reg.bit_table:
+                self._bit(point)
+                continue
+            if point.is_command:
+                self.switches.append(self._switch(point, point.key, reg.command_value or 0))
+                continue
+            if reg.enum and not reg.readable and point.writable:
+                for item in self.model.enum(reg.enum).values:
+                    self.switches.append(self._switch(point, f"{point.key} {item.name}", item.value))
+                continue
+            if not reg.readable:
+                self.notes.append(f"not exported: {point.cell.name} is write-only (use the modbus.write_register action)")
+                continue
+            group = [p for p in self.sel.points if p.reg.name == reg.name]
+            if (reg.is_array and len(group) == reg.count and reg.stride == 1 and reg.type != "string"
+                    and reg.count * reg.words <= self._max_read(reg.table)):
+                self.sensors.append(self._sensor(point, virtual=reg.count - 1))
+                done.add(reg.name)
+                targets = group
+            else:
+                self.sensors.append(self._sensor(point, virtual=0))
+                targets = [point]
+            for p in targets:
+                self._derived(p)
+        self.notes.extend(self.sel.omitted_lines())
+        for p in self.sel.points:
+            if p.selector:
+                self.notes.append(f"{p.key} is a page selector: exported read-only (writing it changes what the "
+                                  "paged entities read)")
+        scaled = sorted({p.reg.name for p in self.sel.points if p.reg.scale_register and p.reg.readable})
+        if scaled:
+            self.notes.append("scale registers (value x 10^factor, SunSpec): the modbus integration has no such "
+                              "option; each '<name> raw' modbus sensor is the unscaled value and a template sensor "
+                              f"'<name>' multiplies it by 10^<its factor register>: {', '.join(scaled)}")
+
+    def _max_read(self, table: str) -> int:
+        fc = self.model.protocol.function(READ_CODES.get(table, 0x03))
+        return fc.max_quantity if fc is not None and fc.max_quantity else MODBUS_MAX_READ
+
+    def _bit(self, point: iv.Point) -> None:
+        """A coil or discrete input: a binary_sensor, a writable coil a switch (which reads it back)."""
+        reg = point.reg
+        name = self.entity_name(point)
+        entry: dict[str, Any] = {"name": name, "unique_id": slug(name), "address": Hex(point.address),
+                                 self.keys["device_address"]: self.sel.unit}
+        if point.writable:
+            entry.update({"write_type": "coil", "command_on": 1, "command_off": 0})
+            if reg.readable:
+                entry["verify"] = {"input_type": "coil"}
+            self.switches.append(entry)
+        elif reg.readable:
+            entry.update({"input_type": INPUT_TYPES[reg.table], "scan_interval": point.interval})
+            self.binary_sensors.append(entry)
+
+    def entity_name(self, point: iv.Point) -> str:
+        """The name Home Assistant shows (element 0 of an array keeps the plain name, as virtual_count does)."""
+        base = f"{self.sel.prefix} {point.reg.name}"
+        return f"{base} {point.index}" if point.reg.is_array and point.index else base
+
+    def entity_id(self, point: iv.Point) -> str:
+        return f"sensor.{slug(self.entity_name(point))}"
+
+    def _sensor(self, point: iv.Point, virtual: int) -> dict[str, Any]:
+        reg = point.reg
+        name = self.entity_name(point) + (" raw" if reg.scale_register else "")
+        entry: dict[str, Any] = {
+            "name": name,
+            "unique_id": slug(name),
+            "address": Hex(point.address),
+            self.keys["device_address"]: self.sel.unit,
+            "input_type": INPUT_TYPES[reg.table],
+            "data_type": DATA_TYPES[reg.type],
+        }
+        if reg.type == "string":
+            entry["count"] = reg.length
+        swap = swap_of(reg)
+        if swap:
+            entry["swap"] = swap
+        if virtual:
+            entry[self.keys["virtual_count"]] = virtual
+        if reg.type == "string":
+            entry["scan_interval"] = point.interval
+            return entry
+        if reg.not_available and not reg.is_float:
+            # the integration compares the decoded value (signed for s16/s32/s64) with one value
+            entry["nan_value"] = reg.not_available[0]
+            if len(reg.not_available) > 1:
+                self.notes.append(f"{point.cell.name}: the integration takes one nan_value; not available as well: "
+                                  + ", ".join(hex(v) for v in reg.not_available[1:]))
+        if reg.scale != 1:
+            entry["scale"] = _number(reg.scale)
+        if reg.offset:
+            entry["offset"] = _number(reg.offset)
+        places = iv.decimals(reg.scale, reg.offset)
+        if places:
+            entry["precision"] = places
+        if reg.scale_register:
+            self._scaled(point, name, places)
+        elif reg.unit and not reg.enum and not reg.bits:
+            entry.update(_unit_keys(reg.unit))
+        entry["scan_interval"] = point.interval
+        return entry
+
+    def _scaled(self, point: iv.Point, raw_name: str, places: int) -> None:
+        """The template sensor of a register with a scale register: raw x 10^factor."""
+        reg = point.reg
+        factor = self.model.register(reg.scale_register or "")
+        raw_id, sf_id = f"sensor.{slug(raw_name)}", f"sensor.{slug(f'{self.sel.prefix} {factor.name}')}"
+        state = (f"{{% set sf = states('{sf_id}') | int %}}{{% set v = states('{raw_id}') | float %}}"
+                 f"{{{{ (v * 10 ** sf) | round({places} - sf if sf < 0 else {places}) }}}}")
+        entry: dict[str, Any] = {"name": self.entity_name(point), "unique_id": slug(self.entity_name(point)),
+                                 "state": state,
+                                 "availability": f"{{{{ has_value('{raw_id}') and has_value('{sf_id}') }}}}"}
+        if reg.unit and not reg.enum and not reg.bits:
+            entry.update(_unit_keys(reg.unit))
+        self.templates_sensor.append(entry)
+
+    def _switch(self, point: iv.Point, key: str, value: int) -> dict[str, Any]:
+        # command_off repeats the command: turning the switch off never writes a value the map does not document
+        return {
+            "name": f"{self.sel.prefix} {key}",
+            "unique_id": slug(f"{self.sel.prefix} {key}"),
+            "address": Hex(point.address),
+            self.keys["device_address"]: self.sel.unit,
+            "write_type": "holding",
+            "command_on": value,
+            "command_off": value,
+        }
+
+    def _derived(self, point: iv.Point) -> None:
+        """Template entities over a register's sensor: the enum label, each bit field."""
+        source = self.entity_id(point)
+        available = f"{{{{ has_value('{source}') }}}}"
+        if point.reg.enum:
+            self.templates_sensor.append({
+                "name": f"{self.entity_name(point)} label",
+                "unique_id": slug(f"{self.entity_name(point)} label"),
+                "state": _label_template(source, "v", self.sel.enum_labels(point)),
+                "availability": available,
+            })
+        for bit in point.reg.bits:
+            name = f"{self.entity_name(point)} {bit.name}"
+            uid = slug(name)
+            value = f"((states('{source}') | int(0)) // {1 << bit.offset}) % {1 << bit.width}"
+            if bit.width == 1:
+                self.templates_binary.append({"name": name, "unique_id": uid, "state": f"{{{{ {value} == 1 }}}}",
+                                              "availability": available})
+            elif bit.enum:
+                self.templates_sensor.append({"name": name, "unique_id": uid, "availability": available,
+                                              "state": _label_template(source, value, self.sel.enum_labels_of(bit.enum),
+                                                                       expression=True)})
+            else:
+                self.templates_sensor.append({"name": name, "unique_id": uid, "state": f"{{{{ {value} }}}}",
+                                              "availability": available})
+
+
+def _unit_keys(unit: str) -> dict[str, Any]:
+    out: dict[str, Any] = {"unit_of_measurement": unit}
+    device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, None))
+    if device_class:
+        out["device_class"] = device_class
+    if state_class:
+        out["state_class"] = state_class
+    return out
+
+
+def _label_template(source: str, value: str, labels: tuple[tuple[int, str], ...], expression: bool = False) -> str:
+    mapping = jinja_literal({str(v): label for v, label in labels})
+    raw = f"({value}) | string" if expression else f"states('{source}')"
+    return f"{{% set labels = {mapping} %}}{{% set v = {raw} %}}{{{{ labels.get(v, v) }}}}"
+
+
+def _number(value: float) -> int | float:
+    return int(value) if float(value).is_integer() else float(value)

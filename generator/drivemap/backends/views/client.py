@@ -1,0 +1,326 @@
+"""View of ``generated/<model>/client.py`` and ``generated/<model>/__init__.py``: the typed client.
+
+Everything the templates need is computed here: class names (checked against keywords, each
+other and the fixed names of the package), the Python value type of every register, the runtime
+codec and accessor class for it, docstrings and the exact imports (so generated code stays
+ruff-clean).
+"""
+
+from __future__ import annotations
+
+import keyword
+from dataclasses import dataclass
+from typing import Any
+
+from drivemap.backends.exporters.base import Options
+from drivemap.backends.python.names import FIXED_NAMES, exception_classes
+from drivemap.backends.python.names import bit_attribute as _attr
+from drivemap.backends.views.common import header
+from drivemap.model.nodes import Bit, Model, Register, camel
+
+
+def _num(value: float | None) -> str:
+    if value is None:
+        return "—"
+    return str(int(value)) if float(value).is_integer() else repr(float(value))
+
+
+def _value(value: float | str | None) -> str:
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, bool):
+        return str(value)
+    return _num(value)
+
+
+def bits_kind(reg: Register) -> str | None:
+    """``flags`` (IntFlag: single bits only), ``fields`` (frozen dataclass) or None."""
+    if not reg.bits:
+        return None
+    if reg.multibit or any(b.enum for b in reg.bits):
+        return "fields"
+    return "flags"
+
+
+def base_type(reg: Register) -> str:
+    """The Python type of the register's value, not-available aside."""
+    if reg.enum:
+        return reg.enum
+    if reg.bits:
+        return reg.bits_class or camel(reg.name)
+    if reg.type == "bool":
+        return "bool"
+    if reg.type == "string":
+        return "str"
+    return "int" if reg.is_integer else "float"
+
+
+def value_type(reg: Register) -> str:
+    """The accessor's type: :func:`base_type`, Optional only where the map lists not_available values."""
+    return f"{base_type(reg)} | None" if reg.optional else base_type(reg)
+
+
+def layout(reg: Register) -> str | None:
+    """The byte layout of a multi-byte value on the wire: ``ABCD`` is the most significant byte first."""
+    if reg.type in ("string", "bool") or reg.bit_table:
+        return None
+    letters = "ABCDEFGH"[: 2 * reg.words]
+    words = [letters[i:i + 2] for i in range(0, len(letters), 2)]
+    if reg.word_order == "low_first":
+        words.reverse()
+    if reg.byte_order == "low_first":
+        words = [w[::-1] for w in words]
+    return " ".join(words)
+
+
+def _field_type(bit: Bit) -> str:
+    if bit.enum:
+        return bit.enum
+    return "bool" if bit.width == 1 else "int"
+
+
+@dataclass(frozen=True)
+class AccessorView:
+    name: str
+    type: str
+    base: str
+    sync_class: str
+    async_class: str
+    codec: str
+    doc: list[str]
+    broadcast: bool
+    readable: bool
+    is_array: bool
+
+
+def _type_text(reg: Register) -> str:
+    if reg.type == "string":
+        return f"string of {reg.length} registers ({2 * reg.length} bytes, {reg.encoding})"
+    shown = layout(reg)
+    if shown and reg.words > 1 or (shown and reg.byte_order == "low_first"):
+        return f"{reg.type} (bytes on the wire: {shown})"
+    return reg.type
+
+
+def _doc(model: Model, reg: Register) -> list[str]:
+    lines = [reg.label or reg.description or reg.name]
+    if reg.label and reg.description:
+        lines.append(reg.description)
+    table = {"holding": "Address", "input": "Input register", "coil": "Coil", "discrete": "Discrete input"}[reg.table]
+    where = f"{table} 0x{reg.address:04X} (Modicon {reg.modicon})"
+    if reg.is_array:
+        where += f", {reg.count} elements, stride {reg.stride}"
+    if reg.param:
+        where += f"; parameter {reg.param}"
+    if reg.element_params and reg.is_array:
+        where += f" ({', '.join(reg.element_params)})"
+    elif reg.element_param_format and reg.is_array:
+        where += f" (element i: {reg.element_param(0)} … {reg.element_param(reg.count - 1)})"
+    lines.append(where + f"; {_type_text(reg)}, access {reg.access}.")
+    unit = f" {reg.unit}" if reg.unit else ""
+    scale = f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else "")
+    if reg.scale_register:
+        scale += f" x 10^{reg.scale_register} (read with it)"
+    lines.append(f"Unit:{unit or ' none'}; {scale}; range {_num(reg.min)} .. {_num(reg.max)}{unit}.")
+    if reg.not_available:
+        shown = ", ".join(f"0x{v:X}" if v >= 0 else str(v) for v in reg.not_available)
+        lines.append(f"Not available: raw {shown} reads as None.")
+    defaults = [d for d in reg.defaults]
+    dtext = ", ".join(_value(d) for d in defaults) if any(d is not None for d in defaults) else "—"
+    lines.append(f"Default: {dtext}; reflect: {reg.reflect}; storage: {reg.storage}"
+                 + (f" (write delay {_num(reg.write_delay_ms)} ms)" if reg.write_delay_ms else "") + ".")
+    if reg.page:
+        lines.append(f"Page: valid while {reg.page.selector} = {reg.page.value}.")
+    if reg.command_value is not None:
+        lines.append(f"Command: writing {reg.command_value} executes it.")
+    if reg.broadcast:
+        lines.append("May be written by broadcast.")
+    if reg.running_advice is not None:
+        lines.append(f"While the drive runs the manual advises: {reg.running_advice.text()}; "
+                     "writing it then gives a RunningWriteWarning.")
+    lines.append(f"Manual: {reg.source}.")
+    return lines
+
+
+def _codec(model: Model, reg: Register) -> tuple[set[str], str]:
+    """(codec classes, constructor expression)."""
+    classes, expr = _plain_codec(reg)
+    if reg.optional:
+        return classes | {"OptionalCodec"}, f"OptionalCodec({expr})"
+    return classes, expr
+
+
+def _plain_codec(reg: Register) -> tuple[set[str], str]:
+    spec = f"SPEC.register({reg.name!r})"
+    kind = bits_kind(reg)
+    if reg.enum:
+        return {"EnumCodec"}, f"EnumCodec({spec}, {reg.enum})"
+    if kind == "flags":
+        return {"FlagCodec"}, f"FlagCodec({spec}, {base_type(reg)})"
+    if kind == "fields":
+        fields = ", ".join(
+            f"Field({_attr(b.name)!r}, {b.name!r}" + (f", {b.enum})" if b.enum else ")") for b in reg.bits
+        )
+        return {"FieldsCodec"}, f"FieldsCodec({spec}, {base_type(reg)}, ({fields},))"
+    if reg.type == "bool":
+        return {"BoolCodec"}, f"BoolCodec({spec})"
+    if reg.type == "string":
+        return {"StringCodec"}, f"StringCodec({spec})"
+    if reg.is_float:
+        return {"IeeeCodec"}, f"IeeeCodec({spec})"
+    if reg.scale_register:
+        return {"ScaledCodec"}, f"ScaledCodec({spec}, SPEC.register({reg.scale_register!r}))"
+    if reg.is_integer:
+        return {"IntCodec"}, f"IntCodec({spec})"
+    return {"FloatCodec"}, f"FloatCodec({spec})"
+
+
+def _access_class(reg: Register, asynchronous: bool) -> str:
+    base = {"r": "ReadOnly", "w": "WriteOnly", "rw": "ReadWrite"}[reg.access]
+    if reg.command_value is not None and not reg.is_array:  # .execute(); writes of other values refused
+        base = {"w": "Command", "rw": "ReadWriteCommand"}.get(reg.access, base)
+    return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
+
+
+def _check_names(model: Model, names: list[tuple[str, str]]) -> None:
+    seen: dict[str, str] = {}
+    for name, what in names:
+        if name in FIXED_NAMES:
+            raise ValueError(f"{model.path}: {what} {name!r} clashes with a name of the generated package")
+        if keyword.iskeyword(name) or not name.isidentifier():
+            raise ValueError(f"{model.path}: {what} {name!r} is not a usable class name")
+        if name in seen and seen[name] != what:
+            raise ValueError(f"{model.path}: {what} {name!r} clashes with {seen[name]} {name!r}")
+        seen[name] = what
+
+
+def _isort_key(name: str) -> tuple[int, str]:
+    """ruff/isort order inside ``from x import (...)``: CONSTANTS, Classes, functions."""
+    return (0 if name.isupper() else 1 if name[:1].isupper() else 2, name)
+
+
+def _bit_classes(model: Model) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(IntFlag classes, dataclass records) of the map's bit fields."""
+    flags: list[dict[str, Any]] = []
+    records: list[dict[str, Any]] = []
+    seen_bits: set[str] = set()
+    for reg in model.registers:
+        kind = bits_kind(reg)
+        cls = base_type(reg)
+        if kind is None or reg.enum or cls in seen_bits:
+            continue
+        seen_bits.add(cls)
+        doc = f"Bits of {reg.name} (0x{reg.address:04X}, {reg.source})."
+        if kind == "flags":
+            flags.append({"name": cls, "doc": doc,
+                          "members": [{"name": b.name, "value": f"0x{b.mask:04X}", "doc": b.label} for b in reg.bits]})
+        else:
+            records.append({"name": cls, "doc": doc, "fields": [
+                {"name": _attr(b.name), "type": _field_type(b),
+                 "doc": f"{b.label} (bit{'s' if b.width > 1 else ''} {b.offset}"
+                        + (f"..{b.offset + b.width - 1}" if b.width > 1 else "") + ")"}
+                for b in reg.bits]})
+    for rec in records:
+        names = [f["name"] for f in rec["fields"]]
+        if len(set(names)) != len(names):
+            raise ValueError(f"{model.path}: bit names of {rec['name']} collide once lower-cased")
+    return flags, records
+
+
+def _exceptions(model: Model) -> list[dict[str, str]]:
+    exceptions = []
+    classes = exception_classes([(ex.name, ex.code) for ex in model.protocol.exceptions])
+    for ex, cls in zip(model.protocol.exceptions, classes, strict=True):
+        exceptions.append({"name": cls, "code": f"0x{ex.code:02X}", "code_name": ex.name, "meaning": ex.meaning,
+                           "source": ex.source})
+    return exceptions
+
+
+def _accessors(model: Model) -> tuple[list[AccessorView], list[dict[str, str]], set[str]]:
+    """(accessor views, codec variables, codec classes used)."""
+    accessors: list[AccessorView] = []
+    codecs: list[dict[str, str]] = []
+    codec_classes: set[str] = set()
+    for reg in model.registers:
+        classes, expr = _codec(model, reg)
+        codec_classes.update(classes)
+        var = f"_codec_{reg.name}"
+        codecs.append({"var": var, "name": reg.name, "expr": expr})
+        accessors.append(AccessorView(
+            name=reg.name, type=value_type(reg), base=base_type(reg), sync_class=_access_class(reg, False),
+            async_class=_access_class(reg, True), codec=var, doc=_doc(model, reg),
+            broadcast=reg.broadcast and reg.writable, readable=reg.readable, is_array=reg.is_array,
+        ))
+    return accessors, codecs, codec_classes
+
+
+#: Names every generated package exports besides its own classes.
+PACKAGE_NAMES = frozenset({
+    "SPEC", "Bus", "AsyncBus", "DriveError", "DeviceException", "DriveTimeout", "ValueOutOfRange",
+    "ReadOnlyRegister", "WriteOnlyRegister", "WrongPage", "NotBroadcastable", "BroadcastRead",
+    "InvalidValue", "UnknownRegister", "UnsupportedFunction", "TransportError", "PartialWrite",
+    "ScaleUnavailable", "IndexOutOfRange", "InvalidArgument",
+})
+
+
+def context(model: Model, options: Options) -> dict[str, Any]:
+    enums = [
+        {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
+         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
+        for e in model.enums
+    ]
+    flags, records = _bit_classes(model)
+    exceptions = _exceptions(model)
+    _check_names(model, [(e["name"], "enum") for e in enums] + [(f["name"], "bit-field class") for f in flags]
+                 + [(r["name"], "bit-field class") for r in records] + [(e["name"], "exception class") for e in exceptions])
+    accessors, codecs, codec_classes = _accessors(model)
+    if any(r["fields"] for r in records):
+        codec_classes.add("Field")
+
+    # a broadcast client only where some register may be written by broadcast; else the runtime's
+    # ClientBase.broadcast refuses with the map's reason (broadcast_refusal)
+    has_broadcast = model.protocol.broadcast_address is not None and any(a.broadcast for a in accessors)
+    bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
+    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "Command" if "Command" in a.sync_class else "WriteOnly")
+                      for a in bcast]
+    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncCommand" if "Command" in a.sync_class
+                        else "AsyncWriteOnly") for a in bcast]
+
+    runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
+    for a in accessors:
+        runtime_names.update({a.sync_class, a.async_class})
+    runtime_names.update(cls for _, cls in broadcast_sync + broadcast_async)
+
+    snapshot_fields = [
+        {"name": a.name, "type": f"tuple[{a.base} | None, ...] | None" if a.is_array else f"{a.base} | None"}
+        for a in accessors if a.readable
+    ]
+    all_names = (["AsyncBroadcastClient", "BroadcastClient"] if has_broadcast else []) + [
+        "AsyncClient", "Client", "CODECS", "EXCEPTIONS", "Snapshot",
+    ] + [e["name"] for e in enums] + [f["name"] for f in flags] + [r["name"] for r in records] + [
+        e["name"] for e in exceptions]
+    return {
+        "header": header(model, options),
+        "package": options.package,
+        "model": model,
+        "title": model.device.title,
+        "enums": enums,
+        "flags": flags,
+        "records": records,
+        "exceptions": exceptions,
+        "accessors": accessors,
+        "codecs": codecs,
+        "codec_imports": sorted(codec_classes | {"Codec"} | ({"DriveEnum"} if enums else set())),
+        "runtime_imports": sorted(runtime_names),
+        "need_enum": bool(flags),
+        "need_dataclasses": True,
+        "has_broadcast": has_broadcast,
+        "broadcast_address": model.protocol.broadcast_address,
+        "broadcast_sync": broadcast_sync,
+        "broadcast_async": broadcast_async,
+        "snapshot_fields": snapshot_fields,
+        "client_all": sorted(all_names, key=lambda n: (n.lower(), n)),
+        "package_all": sorted(set(all_names) | PACKAGE_NAMES, key=lambda n: (n.lower(), n)),
+        "client_exports": sorted(all_names, key=_isort_key),
+        "loopback": model.protocol.function(0x08) is not None,
+    }

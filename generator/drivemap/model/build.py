@@ -1,0 +1,275 @@
+"""Build the immutable :class:`~drivemap.model.nodes.Model` from a document that passed the schema and the checks.
+
+The constructors trust their input (the checks ran first); every default the map may leave out is
+filled in here, so the model never has a missing value.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from drivemap.model import modicon
+from drivemap.model.nodes import (
+    Bit,
+    Checksum,
+    CommandRef,
+    CommError,
+    Device,
+    Enum,
+    EnumValue,
+    Example,
+    ExceptionCode,
+    FunctionCode,
+    Group,
+    KnownIssue,
+    LengthRange,
+    LrcExample,
+    Manual,
+    Meaning,
+    Model,
+    Page,
+    PolicyCase,
+    Port,
+    PortSetting,
+    Protocol,
+    Register,
+    RegType,
+    ReplyQuirk,
+    Reserved,
+    RunningAdvice,
+    RunningState,
+    Status,
+    Timing,
+    Value,
+    default_type,
+    normalize_raw,
+    type_words,
+)
+
+__all__ = ["build_model"]
+
+
+def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int]) -> Model:
+    """Turn a checked document into the model (``statuses``: example name -> status)."""
+    p = data["protocol"]
+    enums = tuple(
+        Enum(
+            name,
+            tuple(EnumValue(v["value"], v["name"], v["label"], v.get("notes")) for v in e["values"]),
+            e["source"],
+            e.get("notes"),
+        )
+        for name, e in data.get("enums", {}).items()
+    )
+    groups = tuple(Group(g["name"], g["title"], g["source"], g.get("notes")) for g in data.get("groups", ()))
+    registers = [_register(p, r, lines) for r in data["registers"]]
+    reserved = tuple(
+        Reserved(
+            x["start"], x["end"], x.get("readable"), x.get("writable", False),
+            Page(x["page"]["selector"], x["page"]["value"]) if x.get("page") else None,
+            x["source"], x.get("notes"), kind=x.get("kind", "reserved"), table=x.get("table", "holding"),
+        )
+        for x in data.get("reserved", ())
+    )
+    issues = tuple(
+        KnownIssue(k["title"], k["source"], k["printed"], k.get("corrected"), k["chosen"], k["reason"], tuple(k.get("affects", ())))
+        for k in data.get("known_issues", ())
+    )
+    model = Model(
+        path=path, device=_device(data["device"]), protocol=_protocol(p), enums=enums, groups=groups,
+        registers=tuple(registers), reserved=reserved, known_issues=issues,
+        examples=tuple(_example(e, statuses[e["name"]]) for e in data["examples"]),
+    )
+    model._by_name.update({r.name: r for r in registers})
+    return model
+
+
+def _device(dev: dict[str, Any]) -> Device:
+    man = dev["manual"]
+    return Device(
+        model=dev["model"],
+        title=dev["title"],
+        vendor=dev.get("vendor"),
+        manual=Manual(
+            man["file"], man.get("document"), man.get("revision"), man.get("date"), man["language"],
+            tuple(man.get("cross_check", ())),
+        ),
+        coverage=dev.get("coverage"),
+        source=dev["source"],
+        notes=dev.get("notes"),
+    )
+
+
+def _timing(t: dict[str, Any]) -> Timing:
+    proc = t.get("processing_ms")
+    return Timing(
+        silent_interval_chars=t.get("silent_interval_chars"),
+        silent_interval_floor_ms=t.get("silent_interval_floor_ms"),
+        silent_interval_floor_above_bps=t.get("silent_interval_floor_above_bps"),
+        processing_ms=(proc["min"], proc["max"]) if proc else None,
+        inter_frame_gap_ms=t.get("inter_frame_gap_ms"),
+        broadcast_gap_ms=t.get("broadcast_gap_ms"),
+        response_timeout_ms=t.get("response_timeout_ms"),
+        retries=t.get("retries"),
+        source=t["source"],
+        notes=t.get("notes"),
+    )
+
+
+def _checksum(ck: dict[str, Any] | None) -> Checksum | None:
+    if not ck:
+        return None
+    lx = ck.get("lrc_example")
+    return Checksum(
+        ck["crc_first_byte_label"], ck.get("crc_second_byte_label"),
+        LrcExample(bytes.fromhex(lx["data"]), lx["lrc"], lx.get("ascii"), lx["source"]) if lx else None,
+        ck["source"], ck.get("notes"),
+    )
+
+
+def _port(x: dict[str, Any]) -> Port:
+    return Port(
+        name=x["name"], modes=tuple(x["modes"]), default_mode=x.get("default_mode"),
+        baudrates=tuple(x["baudrates"]), default_baudrate=x.get("default_baudrate"),
+        parity=tuple(x["parity"]), default_parity=x.get("default_parity"),
+        data_bits=tuple(x["data_bits"]), stop_bits=tuple(x["stop_bits"]),
+        default_stop_bits=x.get("default_stop_bits"), fixed_unit=x.get("fixed_unit"),
+        set_by=x["set_by"],
+        settings=tuple(
+            PortSetting(s["what"], s["how"], s.get("when"), s["source"], s.get("notes"))
+            for s in x.get("settings", ())
+        ),
+        source=x["source"], notes=x.get("notes"),
+    )
+
+
+def _lengths(item: dict[str, int] | None) -> LengthRange | None:
+    return LengthRange(item["min"], item["max"]) if item else None
+
+
+def _protocol(p: dict[str, Any]) -> Protocol:
+    cfg = p.get("configuration")
+    return Protocol(
+        modes=tuple(p["modes"]),
+        unit_min=p["unit_ids"]["min"],
+        unit_max=p["unit_ids"]["max"],
+        unit_source=p["unit_ids"]["source"],
+        broadcast_address=p.get("broadcast_address"),
+        ports=tuple(_port(x) for x in p["ports"]),
+        function_codes=tuple(
+            FunctionCode(
+                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
+                _lengths(f.get("request_bytes")), _lengths(f.get("response_bytes")), f["source"], f.get("notes"),
+                broadcast_reason=f.get("broadcast_reason"),
+            )
+            for f in p["function_codes"]
+        ),
+        exceptions=tuple(
+            ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"),
+                          documented=e.get("documented", True))
+            for e in p["exceptions"]
+        ),
+        comm_errors=tuple(
+            CommError(e["code"], e["name"], e["meaning"], e["source"], e.get("notes")) for e in p.get("comm_errors", ())
+        ),
+        exception_policy=tuple(
+            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("exception_policy", {}).items()
+        ),
+        comm_error_policy=tuple(
+            PolicyCase(k, v.get("code"), v["source"], v.get("reason")) for k, v in p.get("comm_error_policy", {}).items()
+        ),
+        comm_error_history=p.get("comm_error_history"),
+        timing=_timing(p["timing"]),
+        max_frame_bytes=p.get("max_frame_bytes"),
+        configuration=CommandRef(cfg["register"], cfg["value"]) if cfg else None,
+        checksum=_checksum(p.get("checksum")),
+        source=p["source"],
+        notes=p.get("notes"),
+        max_gap=p.get("max_gap", 0),
+        running_state=_running_state(p.get("running_state")),
+        reply_quirks=tuple(ReplyQuirk(q["quirk"], q["source"], q["reason"]) for q in p.get("reply_quirks", ())),
+    )
+
+
+def _example(e: dict[str, Any], status: Status) -> Example:
+    m = e["meaning"]
+    err = e.get("erratum") or {}
+    return Example(
+        name=e["name"], title=e.get("title"), source=e["source"], mode=e["mode"],
+        request=e.get("request"), response=e.get("response"),
+        meaning=Meaning(
+            unit=m["unit"], operation=m["operation"], address=m.get("address"), quantity=m.get("quantity"),
+            values=tuple(m.get("values", {}).items()), raw=tuple(m.get("raw", ())),
+            loopback=tuple(m.get("loopback", ())), exception=m.get("exception"),
+            broadcast=m.get("broadcast", False),
+        ),
+        preset=tuple((e.get("preset") or {}).items()),
+        inject_exception=e.get("inject_exception"),
+        corrected_request=err.get("request"), corrected_response=err.get("response"),
+        erratum=err.get("reason"), illegible=e.get("illegible"), notes=e.get("notes"),
+        status=status,
+    )
+
+
+def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Register:
+    table, address = modicon.locate(r)
+    rtype: RegType = r.get("type", default_type(table))
+    length = r.get("length", 1)
+    default = r.get("default")
+    defaults: tuple[Value, ...] = tuple(default) if isinstance(default, list) else (default,)
+    writable = "w" in r.get("access", "r")
+    not_available = tuple(
+        raw for raw in (normalize_raw(rtype, table, length, v) for v in r.get("not_available", ())) if raw is not None
+    )
+    given = r.get("register")
+    return Register(
+        name=r["name"], address=address, param=r.get("param"), param_rule=r.get("param_rule"),
+        label=r.get("label"), description=r.get("description"), group=r["group"],
+        type=rtype, word_order=r.get("word_order"), access=r.get("access", "r"),
+        scale=r.get("scale", 1), offset=r.get("offset", 0), unit=r.get("unit"),
+        min=r.get("min"), max=r.get("max"), defaults=defaults,
+        reflect=r.get("reflect", "unknown"), storage=r.get("storage", "unknown"),
+        write_delay_ms=r.get("write_delay_ms"), enum=r.get("enum"),
+        bits=tuple(
+            Bit(b["name"], b["offset"], b.get("width", 1), b["label"], b.get("enum"), b.get("notes"))
+            for b in r.get("bits", ())
+        ),
+        flags_name=r.get("flags_name"), count=r.get("count", 1), stride=r.get("stride", 1),
+        element_params=tuple(r.get("element_params", ())),
+        page=Page(r["page"]["selector"], r["page"]["value"]) if r.get("page") else None,
+        command_value=r["command"]["value"] if r.get("command") else None,
+        broadcast=r.get("broadcast", writable and not r.get("scale_register")
+                        and _broadcast_writable(p, table, type_words(rtype, length))),
+        refuse_while_running=r.get("refuse_while_running", False),
+        source=r["source"], notes=r.get("notes"),
+        table=table, byte_order=r.get("byte_order", "high_first"), length=length,
+        encoding=r.get("encoding", "ascii"), scale_register=r.get("scale_register"),
+        not_available=not_available, min_read=r.get("min_read"),
+        modicon_given=None if given is None else str(given),
+        line=lines.get(r["name"], 0),
+        running_advice=_running_advice(r.get("running_advice")),
+        element_param_format=r.get("element_param_format"),
+    )
+
+
+def _broadcast_writable(protocol: dict[str, Any], table: str, words: int) -> bool:
+    """A register may be broadcast when the function code used to write it allows broadcast."""
+    if protocol.get("broadcast_address") is None:
+        return False
+    codes = {f["code"]: f.get("broadcast") for f in protocol["function_codes"]}
+    single, multiple = (0x05, 0x0F) if table == "coil" else (0x06, 0x10)
+    if words == 1 and codes.get(single) is True:
+        return True
+    return codes.get(multiple) is True
+
+
+def _running_state(item: dict[str, Any] | None) -> RunningState | None:
+    if not item:
+        return None
+    return RunningState(item["register"], tuple(item["values"]), item["source"], item.get("notes"))
+
+
+def _running_advice(item: dict[str, Any] | None) -> RunningAdvice | None:
+    if not item:
+        return None
+    return RunningAdvice(item["advice"], item.get("instead"), item["source"])

@@ -1,0 +1,653 @@
+"""The immutable, typed model every template and the runtime read.
+
+Built from a document that passed the schema and the semantic checks (:mod:`checks`), so
+constructors here trust their input. Everything is frozen; collections are tuples.
+"""
+
+from __future__ import annotations
+
+import keyword
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal
+
+from drivemap.model import modicon
+from drivemap.model.modicon import Table
+from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
+
+Access = Literal["r", "w", "rw"]
+RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
+Mode = Literal["rtu", "ascii", "tcp"]
+Status = Literal["verified", "erratum", "illegible"]
+#: An example's or a default's value: a number, true/false (bool registers), text (strings) or None.
+Value = float | str | None
+
+#: Raw bounds of the integer types (the runtime's table) and of a bool in a bit table.
+TYPE_BOUNDS: dict[str, tuple[int, int]] = {**_INTEGER_BOUNDS, "bool": (0, 1)}
+#: Words (registers) of each fixed-size type; a string has ``length`` words; coils and discrete
+#: inputs are one bit each.
+TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
+                              "f64": 4}
+INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
+SIGNED_TYPES = frozenset({"s16", "s32", "s64"})
+FLOAT_TYPES = frozenset({"f32", "f64"})
+#: Largest finite magnitude of each float type.
+FLOAT_MAX: dict[str, float] = {"f32": 3.4028234663852886e38, "f64": 1.7976931348623157e308}
+BIT_TABLES = frozenset({"coil", "discrete"})
+#: The read function code of each table.
+READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
+
+
+def default_type(table: str) -> RegType:
+    """The type a register has when the map gives none: bool in bit tables, else u16."""
+    return "bool" if table in BIT_TABLES else "u16"
+
+
+def type_words(rtype: str, length: int = 1) -> int:
+    """Words of a type (``length`` for strings)."""
+    return length if rtype == "string" else TYPE_WORDS[rtype]
+
+
+def raw_bounds(rtype: str, table: str, length: int = 1) -> tuple[int, int]:
+    """Bounds of a register's raw value: integers signed for s16/s32/s64; floats and strings as their
+    unsigned bit patterns; a bool is one bit in a bit table, a whole word in a register."""
+    if rtype in TYPE_BOUNDS and not (rtype == "bool" and table not in BIT_TABLES):
+        return TYPE_BOUNDS[rtype]
+    return 0, (1 << (16 * type_words(rtype, length))) - 1
+
+
+def normalize_raw(rtype: str, table: str, length: int, value: int) -> int | None:
+    """A raw value given as printed (``0x8000`` or ``-32768`` for an s16) as the register's raw value;
+    None when it fits neither form."""
+    lo, hi = raw_bounds(rtype, table, length)
+    if lo <= value <= hi:
+        return value
+    bits = 16 * type_words(rtype, length)
+    if rtype in SIGNED_TYPES and (1 << (bits - 1)) <= value < (1 << bits):
+        return value - (1 << bits)
+    return None
+
+
+def camel(name: str) -> str:
+    """``digital_speed_ram`` -> ``DigitalSpeedRam``."""
+    return "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
+
+
+def is_keyword(name: str) -> bool:
+    return keyword.iskeyword(name) or keyword.issoftkeyword(name)
+
+
+@dataclass(frozen=True)
+class Manual:
+    file: str
+    document: str | None
+    revision: str | None
+    date: str | None
+    language: str
+    cross_check: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Device:
+    model: str
+    title: str
+    vendor: str | None
+    manual: Manual
+    coverage: str | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class PortSetting:
+    what: str
+    how: str
+    when: str | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class Port:
+    name: str
+    modes: tuple[str, ...]
+    default_mode: str | None
+    baudrates: tuple[int, ...]
+    default_baudrate: int | None
+    parity: tuple[str, ...]
+    default_parity: str | None
+    data_bits: tuple[int, ...]
+    stop_bits: tuple[int, ...]
+    default_stop_bits: int | None
+    fixed_unit: int | None
+    set_by: str
+    settings: tuple[PortSetting, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class LengthRange:
+    min: int
+    max: int
+
+
+@dataclass(frozen=True)
+class FunctionCode:
+    code: int
+    name: str
+    max_quantity: int | None
+    broadcast: bool | None
+    request_bytes: LengthRange | None
+    response_bytes: LengthRange | None
+    source: str
+    notes: str | None
+    broadcast_reason: str | None = None
+
+
+@dataclass(frozen=True)
+class ExceptionCode:
+    code: int
+    name: str
+    meaning: str
+    comm_errors: tuple[int, ...]
+    source: str
+    notes: str | None
+    #: False: assumed by the map (source "map choice"), not printed in the manual
+    documented: bool = True
+
+
+@dataclass(frozen=True)
+class CommError:
+    code: int
+    name: str
+    meaning: str
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class PolicyCase:
+    case: str
+    code: int | None
+    source: str
+    reason: str | None
+
+
+@dataclass(frozen=True)
+class Timing:
+    silent_interval_chars: float | None
+    silent_interval_floor_ms: float | None
+    silent_interval_floor_above_bps: int | None
+    processing_ms: tuple[float, float] | None
+    inter_frame_gap_ms: float | None
+    broadcast_gap_ms: float | None
+    response_timeout_ms: float | None
+    retries: int | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class LrcExample:
+    data: bytes
+    lrc: int
+    ascii: str | None
+    source: str
+
+
+@dataclass(frozen=True)
+class Checksum:
+    crc_first_byte_label: str
+    crc_second_byte_label: str | None
+    lrc_example: LrcExample | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class CommandRef:
+    register: str
+    value: int
+
+
+@dataclass(frozen=True)
+class RunningState:
+    """How the drive reports that it runs: ``register`` shows one of ``values`` (raw)."""
+
+    register: str
+    values: tuple[int, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class RunningAdvice:
+    """Advice (not a refusal) the manual gives for writes while the drive runs."""
+
+    advice: str
+    instead: str | None
+    source: str
+
+    def text(self) -> str:
+        return self.advice + (f" (write {self.instead} instead)" if self.instead else "") + f" [{self.source}]"
+
+
+@dataclass(frozen=True)
+class ReplyQuirk:
+    """A non-standard reply form the device may send (``protocol.reply_quirks``)."""
+
+    quirk: str
+    source: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Protocol:
+    modes: tuple[str, ...]
+    unit_min: int
+    unit_max: int
+    unit_source: str
+    broadcast_address: int | None
+    ports: tuple[Port, ...]
+    function_codes: tuple[FunctionCode, ...]
+    exceptions: tuple[ExceptionCode, ...]
+    comm_errors: tuple[CommError, ...]
+    exception_policy: tuple[PolicyCase, ...]
+    comm_error_policy: tuple[PolicyCase, ...]
+    comm_error_history: str | None
+    timing: Timing
+    max_frame_bytes: int | None
+    configuration: CommandRef | None
+    checksum: Checksum | None
+    source: str
+    notes: str | None
+    running_state: RunningState | None = None
+    reply_quirks: tuple[ReplyQuirk, ...] = ()
+    max_gap: int = 0
+    """Undocumented words the read planner may read across (0: none)."""
+
+    def function(self, code: int) -> FunctionCode | None:
+        for fc in self.function_codes:
+            if fc.code == code:
+                return fc
+        return None
+
+    def policy(self, case: str) -> PolicyCase | None:
+        for item in self.exception_policy:
+            if item.case == case:
+                return item
+        return None
+
+    def comm_policy(self, case: str) -> PolicyCase | None:
+        for item in self.comm_error_policy:
+            if item.case == case:
+                return item
+        return None
+
+
+@dataclass(frozen=True)
+class EnumValue:
+    value: int
+    name: str
+    label: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class Enum:
+    name: str
+    values: tuple[EnumValue, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class Bit:
+    name: str
+    offset: int
+    width: int
+    label: str
+    enum: str | None
+    notes: str | None
+
+    @property
+    def mask(self) -> int:
+        return ((1 << self.width) - 1) << self.offset
+
+
+@dataclass(frozen=True)
+class Page:
+    selector: str
+    value: int
+
+
+@dataclass(frozen=True)
+class Group:
+    name: str
+    title: str
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class Register:
+    """One register, or one array of registers (``count`` > 1)."""
+
+    name: str
+    address: int
+    param: str | None
+    param_rule: str | None
+    label: str | None
+    description: str | None
+    group: str
+    type: RegType
+    word_order: str | None
+    access: Access
+    scale: float
+    offset: float
+    unit: str | None
+    min: float | None
+    max: float | None
+    defaults: tuple[Value, ...]
+    reflect: str
+    storage: str
+    write_delay_ms: float | None
+    enum: str | None
+    bits: tuple[Bit, ...]
+    flags_name: str | None
+    count: int
+    stride: int
+    element_params: tuple[str, ...]
+    page: Page | None
+    command_value: int | None
+    broadcast: bool
+    refuse_while_running: bool
+    source: str
+    notes: str | None
+    table: Table = "holding"
+    byte_order: str = "high_first"
+    length: int = 1
+    """Registers of a string (1 for every other type)."""
+    encoding: str = "ascii"
+    scale_register: str | None = None
+    not_available: tuple[int, ...] = ()
+    """Raw values (as the register's raw value: signed for s16/s32/s64) that mean "no value"."""
+    min_read: int | None = None
+    modicon_given: str | None = None
+    """The Modicon number as the map gives it (``register:``), else None."""
+    line: int = 0
+    running_advice: RunningAdvice | None = None
+    #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
+    element_param_format: str | None = None
+
+    @property
+    def words(self) -> int:
+        """Words on the wire (bits for coils and discrete inputs)."""
+        return type_words(self.type, self.length)
+
+    @property
+    def signed(self) -> bool:
+        return self.type in SIGNED_TYPES
+
+    @property
+    def bit_table(self) -> bool:
+        return self.table in BIT_TABLES
+
+    @property
+    def is_float(self) -> bool:
+        return self.type in FLOAT_TYPES
+
+    @property
+    def optional(self) -> bool:
+        """Whether the client may read None (the map lists not_available values)."""
+        return bool(self.not_available)
+
+    @property
+    def modicon(self) -> str:
+        """The Modicon number of the register (of element 0 for arrays)."""
+        return modicon.number(self.table, self.address)
+
+    def element_modicon(self, index: int) -> str:
+        return modicon.number(self.table, self.element_address(index))
+
+    @property
+    def is_array(self) -> bool:
+        return self.count > 1
+
+    @property
+    def readable(self) -> bool:
+        return "r" in self.access
+
+    @property
+    def writable(self) -> bool:
+        return "w" in self.access
+
+    @property
+    def bits_class(self) -> str | None:
+        if not self.bits:
+            return None
+        return self.flags_name or camel(self.name)
+
+    @property
+    def multibit(self) -> bool:
+        return any(b.width > 1 for b in self.bits)
+
+    @property
+    def is_integer(self) -> bool:
+        """Engineering values are ints: an integer type whose scale and offset are whole numbers and
+        that has no scale register."""
+        return (self.type in INTEGER_TYPES and self.scale_register is None and float(self.scale).is_integer()
+                and float(self.offset).is_integer())
+
+    def element_address(self, index: int) -> int:
+        return self.address + index * self.stride
+
+    def element_name(self, index: int) -> str:
+        return f"{self.name}[{index}]" if self.is_array else self.name
+
+    def element_param(self, index: int) -> str | None:
+        if self.element_params:
+            return self.element_params[index]
+        if self.element_param_format is not None:
+            return self.element_param_format.format(index=index, address=self.element_address(index))
+        return self.param if index == 0 else None
+
+    def default_at(self, index: int) -> Value:
+        if len(self.defaults) == 1:
+            return self.defaults[0]
+        return self.defaults[index]
+
+    def raw_bounds(self) -> tuple[int, int]:
+        return raw_bounds(self.type, self.table, self.length)
+
+    def cells(self) -> Iterator[Cell]:
+        for i in range(self.count):
+            yield Cell(self, i)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One element of a register (the register itself when it is not an array)."""
+
+    register: Register
+    index: int
+
+    @property
+    def name(self) -> str:
+        return self.register.element_name(self.index)
+
+    @property
+    def address(self) -> int:
+        return self.register.element_address(self.index)
+
+    @property
+    def addresses(self) -> range:
+        return range(self.address, self.address + self.register.words)
+
+
+@dataclass(frozen=True)
+class Reserved:
+    start: int
+    end: int
+    readable: bool | None
+    writable: bool
+    page: Page | None
+    source: str
+    notes: str | None
+    #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed
+    kind: str = "reserved"
+    table: Table = "holding"
+
+
+@dataclass(frozen=True)
+class KnownIssue:
+    title: str
+    source: str
+    printed: str
+    corrected: str | None
+    chosen: str
+    reason: str
+    affects: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Meaning:
+    unit: int
+    operation: str
+    address: int | None
+    quantity: int | None
+    values: tuple[tuple[str, Value], ...]
+    raw: tuple[int, ...]
+    loopback: tuple[int, ...]
+    exception: int | None
+    broadcast: bool
+
+
+@dataclass(frozen=True)
+class Example:
+    name: str
+    title: str | None
+    source: str
+    mode: Literal["rtu", "ascii"]
+    request: str | None
+    response: str | None
+    meaning: Meaning
+    preset: tuple[tuple[str, Value], ...]
+    inject_exception: int | None
+    corrected_request: str | None
+    corrected_response: str | None
+    erratum: str | None
+    illegible: str | None
+    notes: str | None
+    status: Status
+
+    @property
+    def wire_request(self) -> str | None:
+        """The frame as it really is on the line: corrected where an erratum says so."""
+        return self.corrected_request if self.corrected_request is not None else self.request
+
+    @property
+    def wire_response(self) -> str | None:
+        return self.corrected_response if self.corrected_response is not None else self.response
+
+
+@dataclass(frozen=True)
+class Model:
+    path: str
+    device: Device
+    protocol: Protocol
+    enums: tuple[Enum, ...]
+    groups: tuple[Group, ...]
+    registers: tuple[Register, ...]
+    reserved: tuple[Reserved, ...]
+    known_issues: tuple[KnownIssue, ...]
+    examples: tuple[Example, ...]
+    _by_name: dict[str, Register] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.device.model
+
+    def register(self, name: str) -> Register:
+        return self._by_name[name]
+
+    def enum(self, name: str) -> Enum:
+        for item in self.enums:
+            if item.name == name:
+                return item
+        raise KeyError(name)
+
+    def cells(self) -> Iterator[Cell]:
+        for reg in self.registers:
+            yield from reg.cells()
+
+    def cell(self, name: str) -> Cell:
+        """``digital_speed[3]`` or ``motor_state``."""
+        base, _, rest = name.partition("[")
+        reg = self._by_name[base]
+        index = int(rest.rstrip("]")) if rest else 0
+        if not 0 <= index < reg.count or (rest == "") == reg.is_array:
+            raise KeyError(name)
+        return Cell(reg, index)
+
+    def group_registers(self, group: str) -> tuple[Register, ...]:
+        return tuple(r for r in self.registers if r.group == group)
+
+    def status_counts(self) -> dict[str, int]:
+        counts = {"verified": 0, "erratum": 0, "illegible": 0}
+        for ex in self.examples:
+            counts[ex.status] += 1
+        return counts
+
+
+__all__ = [
+    "Access",
+    "BIT_TABLES",
+    "Bit",
+    "Cell",
+    "Checksum",
+    "CommError",
+    "CommandRef",
+    "Device",
+    "Enum",
+    "EnumValue",
+    "Example",
+    "ExceptionCode",
+    "FLOAT_MAX",
+    "FLOAT_TYPES",
+    "FunctionCode",
+    "Group",
+    "INTEGER_TYPES",
+    "KnownIssue",
+    "LengthRange",
+    "LrcExample",
+    "Manual",
+    "Meaning",
+    "Mode",
+    "Model",
+    "Page",
+    "PolicyCase",
+    "Port",
+    "PortSetting",
+    "Protocol",
+    "READ_CODES",
+    "RegType",
+    "Register",
+    "ReplyQuirk",
+    "Reserved",
+    "RunningAdvice",
+    "RunningState",
+    "SIGNED_TYPES",
+    "Status",
+    "TYPE_BOUNDS",
+    "TYPE_WORDS",
+    "Timing",
+    "Value",
+    "camel",
+    "default_type",
+    "is_keyword",
+    "normalize_raw",
+    "raw_bounds",
+    "type_words",
+]

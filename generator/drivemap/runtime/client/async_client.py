@@ -1,0 +1,180 @@
+"""The asyncio client base (:class:`AsyncClientBase`): the API of
+:class:`~drivemap.runtime.client.sync_client.ClientBase`, awaited, on an :class:`~drivemap.runtime.client.bus.AsyncBus`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, Self, TypeVar
+
+from pymodbus.pdu import ModbusPDU
+
+from drivemap.runtime.client import rawio
+from drivemap.runtime.client.accessors import (
+    AsyncReadWrite,
+    AsyncWriteOnly,
+    Readable,
+    _Array,
+    encode_for_write,
+)
+from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal
+from drivemap.runtime.client.bus import AsyncBus, Stats
+from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.quirks import accept as accept_reply_quirks
+from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
+from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister
+
+T = TypeVar("T")
+
+
+class AsyncClientBase(_Common[S]):
+    """Asyncio client of one unit on an :class:`AsyncBus` (same API, awaited)."""
+
+    _ASYNC = True
+
+    def __init__(self, bus: AsyncBus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
+                 _owns_bus: bool = False) -> None:
+        spec = self.SPEC
+        if not _broadcast and not spec.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
+                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
+        self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
+        self._owns_bus = _owns_bus
+        self._setup(unit, page_policy, _broadcast, bus.stats)
+
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, unit: int = 1, *, timeout: float | None = None,
+            retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        return cls(AsyncBus.tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy,
+                   _owns_bus=True)
+
+    @classmethod
+    def rtu_over_tcp(cls, host: str, port: int, unit: int = 1, *, timeout: float | None = None,
+                     retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        return cls(AsyncBus.rtu_over_tcp(host, port, timeout=timeout, retries=retries), unit,
+                   page_policy=page_policy, _owns_bus=True)
+
+    @classmethod
+    def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
+               page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
+        bus = AsyncBus.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
+        return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
+
+    @classmethod
+    def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncClientBase[Any]:
+        """A client that writes to every unit at once (generated when the map allows a broadcast write).
+
+        Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
+        raise broadcast_refusal(cls.SPEC)
+
+    @property
+    def stats(self) -> Stats:
+        return self.bus.stats
+
+    async def connect(self) -> None:
+        await self.bus.connect()
+
+    def close(self) -> None:
+        if self._owns_bus:
+            self.bus.close()
+
+    async def __aenter__(self) -> Self:
+        await self.connect()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.close()
+
+    async def _read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
+        core = self._core
+        core.check_readable(keys)
+        plan = self._plan_for(keys)
+        async with self.bus.lock:
+            return await arun(self.bus, core.read_raw(keys, plan, checked=True))
+
+    async def _write_raw_items(self, items: Sequence[RawItem]) -> None:
+        op = self._core.write_raw(items)
+        async with self.bus.lock:
+            await arun(self.bus, op)
+
+    async def read(self, *accessors: Readable) -> S:
+        program = self._programs.get(accessors)
+        if program is None:
+            program = self._read_program(accessors)
+        return await program(self)  # type: ignore[no-any-return]
+
+    async def read_all(self) -> S:
+        """See :meth:`ClientBase.read_all` (pages visited and restored under ``page_policy="raise"``)."""
+        return await (self._all_program or self._read_all_program())(self)  # type: ignore[no-any-return]
+
+    def _general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
+                 finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:
+        """The asyncio twin of :meth:`ClientBase._general`."""
+        visit = how == "visit"
+
+        def operation(core: Core, now: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
+            return core.read_visiting_pages(keys, now) if visit else core.read_raw(keys, now, checked=True)
+
+        async def general(client: AsyncClientBase[Any]) -> Any:
+            core = client._core
+            now = core.plan_with_holes(keys) if core.holes else plan
+            async with client.bus.lock:
+                return finish(client, await arun(client.bus, operation(core, now)))
+
+        async def fallback(client: AsyncClientBase[Any], replies: Sequence[ModbusPDU]) -> Any:
+            return finish(client, await arun_replay(client.bus, operation(client._core, plan), replies))
+
+        return general, fallback
+
+    async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
+        await self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
+
+    async def read_by_name(self, name: str) -> Any:
+        acc = self.accessor(name)
+        self._core.check_readable(acc.keys)
+        return await acc.read()
+
+    async def write_by_name(self, name: str, value: Any) -> None:
+        acc = self.accessor(name)
+        if isinstance(acc, _Array):
+            if not hasattr(acc, "write"):
+                raise ReadOnlyRegister(f"{name} is read-only")
+            await self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
+            return
+        self._core.check_write(acc.key)
+        await self._write_raw_items([(acc.key, self._by_name_value(acc, value))])
+
+    async def read_modify_write(self, accessor: AsyncReadWrite[T], update: Callable[[T], T]) -> T:
+        """Read, update and write back; other callers on the bus wait until it is done."""
+        self._core.check_write(accessor.key)
+        keys = accessor.read_keys
+        codec = accessor.codec
+        async with self.bus.lock:
+            raw = await arun(self.bus, self._core.read_raw(keys, self._plan_for(keys)))
+            scale = codec.scale_key
+            value = codec.decode(raw[accessor.key]) if scale is None else codec.decode_scaled(raw[accessor.key],
+                                                                                                raw.get(scale))
+            new = update(value)
+            await arun(self.bus, self._core.write_raw([(accessor.key, encode_for_write(codec, new))]))
+            return new
+
+    async def apply_configuration(self) -> None:
+        op = self._core.apply_configuration()
+        async with self.bus.lock:
+            await arun(self.bus, op)
+
+    async def loopback(self, data: int = 0xA537) -> int:
+        op = self._core.loopback(data)
+        async with self.bus.lock:
+            return await arun(self.bus, op)
+
+    async def read_registers(self, table: str, address: int, count: int) -> list[int]:
+        """The asyncio twin of :meth:`ClientBase.read_registers`."""
+        rawio.check_read(self._core.spec, table, address, count, self._core.broadcast)
+        op = rawio.read_registers(self._core, table, address, count)
+        async with self.bus.lock:
+            return await arun(self.bus, op)
+
+
+__all__ = ["AsyncClientBase"]

@@ -1,0 +1,250 @@
+"""The client runtime that generated ``Client`` / ``AsyncClient`` classes build on.
+
+Protocol behaviour lives in :class:`~drivemap.runtime.client.sansio.Core`, written once as generators
+("sans I/O"); :class:`ClientBase` runs its operations on a :class:`Bus`,
+:class:`~drivemap.runtime.client.async_client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
+caller's input happens before the first request is yielded, so a bad value never sends a byte.
+The fault-free path of reads and single writes runs compiled programs
+(:mod:`drivemap.runtime.client.programs`, :mod:`drivemap.runtime.client.writes`) that fall back to the same
+operations for everything else.
+
+Generated packages subclass the bases, declare one typed accessor per register
+(:mod:`drivemap.runtime.client.accessors`: :class:`ReadOnly`, :class:`WriteOnly`, :class:`ReadWrite` and
+their ``Array`` and ``Async`` forms; read-only accessors have no ``write``) and a frozen
+``Snapshot`` dataclass for :meth:`ClientBase.read`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, Self, TypeVar
+
+from pymodbus.pdu import ModbusPDU
+
+from drivemap.runtime.client import rawio
+from drivemap.runtime.client.accessors import (
+    AsyncCommand,
+    AsyncReadOnly,
+    AsyncReadOnlyArray,
+    AsyncReadWrite,
+    AsyncReadWriteArray,
+    AsyncReadWriteCommand,
+    AsyncWriteOnly,
+    AsyncWriteOnlyArray,
+    Command,
+    Readable,
+    ReadOnly,
+    ReadOnlyArray,
+    ReadWrite,
+    ReadWriteArray,
+    ReadWriteCommand,
+    SnapshotBase,
+    WriteOnly,
+    WriteOnlyArray,
+    _Array,
+    encode_for_write,
+)
+from drivemap.runtime.client.async_client import AsyncClientBase
+from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal, broadcast_unit
+from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
+from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.quirks import accept as accept_reply_quirks
+from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
+from drivemap.runtime.errors import DriveError, InvalidValue, PartialWrite, ReadOnlyRegister
+
+T = TypeVar("T")
+_run = run
+
+
+class ClientBase(_Common[S]):
+    """Synchronous client of one unit on a :class:`Bus`."""
+
+    def __init__(self, bus: Bus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
+                 _owns_bus: bool = False) -> None:
+        spec = self.SPEC
+        if not _broadcast and not spec.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
+                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
+        self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)
+        self._owns_bus = _owns_bus
+        self._setup(unit, page_policy, _broadcast, bus.stats)
+
+    # constructors
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, unit: int = 1, *, timeout: float | None = None,
+            retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        """A client with its own Modbus TCP connection."""
+        return cls(Bus.tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy, _owns_bus=True)
+
+    @classmethod
+    def rtu_over_tcp(cls, host: str, port: int, unit: int = 1, *, timeout: float | None = None,
+                     retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        """A client behind a serial gateway that passes RTU frames over TCP."""
+        return cls(Bus.rtu_over_tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy,
+                   _owns_bus=True)
+
+    @classmethod
+    def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
+               page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
+        """A client with its own serial line (mode, baud rate, parity: the map's defaults unless overridden)."""
+        bus = Bus.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
+        return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
+
+    @classmethod
+    def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> ClientBase[Any]:
+        """A client that writes to every unit at once (generated when the map allows a broadcast write).
+
+        Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
+        raise broadcast_refusal(cls.SPEC)
+
+    @property
+    def stats(self) -> Stats:
+        """Counters of the bus (shared by every client on it), adaptive-read splits included."""
+        return self.bus.stats
+
+    def connect(self) -> None:
+        self.bus.connect()
+
+    def close(self) -> None:
+        """Close the bus if this client opened it."""
+        if self._owns_bus:
+            self.bus.close()
+
+    def __enter__(self) -> Self:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # plumbing used by accessors
+    def _read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
+        core = self._core
+        core.check_readable(keys)
+        plan = self._plan_for(keys)
+        with self.bus.lock:
+            return _run(self.bus, core.read_raw(keys, plan, checked=True))
+
+    def _write_raw_items(self, items: Sequence[RawItem]) -> None:
+        with self.bus.lock:
+            _run(self.bus, self._core.write_raw(items))
+
+    # public API
+    def read(self, *accessors: Readable) -> S:
+        """Read the given registers together, in the fewest requests the map allows."""
+        program = self._programs.get(accessors)
+        if program is None:
+            program = self._read_program(accessors)
+        return program(self)  # type: ignore[no-any-return]
+
+    def read_all(self) -> S:
+        """Read every readable register (plan computed once per client class).
+
+        Paged registers: with ``page_policy="raise"`` (the default) it switches the page selector to
+        each page it needs and then puts it back to the page it found (also when a read fails);
+        with ``"switch"`` it leaves the last page selected."""
+        return (self._all_program or self._read_all_program())(self)  # type: ignore[no-any-return]
+
+    def _general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
+                 finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:
+        """The general read of ``keys`` (the core's operation; with holes, the client's plan), and
+        the same after a read program's replies (the bus lock held): see :mod:`.programs`."""
+        visit = how == "visit"
+
+        def operation(core: Core, now: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
+            return core.read_visiting_pages(keys, now) if visit else core.read_raw(keys, now, checked=True)
+
+        def general(client: ClientBase[Any]) -> Any:
+            core = client._core
+            now = core.plan_with_holes(keys) if core.holes else plan
+            with client.bus.lock:
+                return finish(client, _run(client.bus, operation(core, now)))
+
+        def fallback(client: ClientBase[Any], replies: Sequence[ModbusPDU]) -> Any:
+            return finish(client, run_replay(client.bus, operation(client._core, plan), replies))
+
+        return general, fallback
+
+    def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
+        """Write several registers; contiguous ones go out in one 10h request where the map allows it.
+
+        If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
+        self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
+
+    def read_by_name(self, name: str) -> Any:
+        """``client.read_by_name("digital_speed[0]")``: the engineering value (tuple for a whole array)."""
+        acc = self.accessor(name)
+        self._core.check_readable(acc.keys)
+        return acc.read()
+
+    def write_by_name(self, name: str, value: Any) -> None:
+        """``client.write_by_name("digital_speed[0]", 1000)``; ints are accepted for enums and flags."""
+        acc = self.accessor(name)
+        if isinstance(acc, _Array):
+            if not hasattr(acc, "write"):
+                raise ReadOnlyRegister(f"{name} is read-only")
+            self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
+            return
+        self._core.check_write(acc.key)
+        self._write_raw_items([(acc.key, self._by_name_value(acc, value))])
+
+    def read_modify_write(self, accessor: ReadWrite[T], update: Callable[[T], T]) -> T:
+        """Read a register, apply ``update`` to its value and write the result, holding the bus."""
+        self._core.check_write(accessor.key)
+        with self.bus.lock:
+            value = accessor.read()
+            new = update(value)
+            accessor.write(new)
+            return new
+
+    def apply_configuration(self) -> None:
+        """Send the map's configuration command; clears :attr:`pending_configuration`."""
+        with self.bus.lock:
+            _run(self.bus, self._core.apply_configuration())
+
+    def loopback(self, data: int = 0xA537) -> int:
+        """Diagnostics 08h sub-function 0: the device echoes ``data``."""
+        with self.bus.lock:
+            return _run(self.bus, self._core.loopback(data))
+
+    def read_registers(self, table: str, address: int, count: int) -> list[int]:
+        """``count`` words (0/1 per coil or discrete input) of ``table`` from ``address``, as the
+        device sends them, in one request; checked before the wire (:mod:`drivemap.runtime.client.rawio`)."""
+        rawio.check_read(self._core.spec, table, address, count, self._core.broadcast)
+        op = rawio.read_registers(self._core, table, address, count)
+        with self.bus.lock:
+            return _run(self.bus, op)
+
+
+__all__ = [
+    "AsyncBus",
+    "AsyncClientBase",
+    "AsyncCommand",
+    "AsyncReadOnly",
+    "AsyncReadOnlyArray",
+    "AsyncReadWrite",
+    "AsyncReadWriteArray",
+    "AsyncReadWriteCommand",
+    "AsyncWriteOnly",
+    "AsyncWriteOnlyArray",
+    "Bus",
+    "ClientBase",
+    "Command",
+    "Core",
+    "DriveError",
+    "PagePolicy",
+    "PartialWrite",
+    "ReadOnly",
+    "ReadOnlyArray",
+    "ReadWrite",
+    "ReadWriteArray",
+    "ReadWriteCommand",
+    "SnapshotBase",
+    "Stats",
+    "WriteOnly",
+    "WriteOnlyArray",
+    "broadcast_refusal",
+    "broadcast_unit",
+]

@@ -1,0 +1,116 @@
+"""The command line of a simulator: ``drivemap simulate MODEL`` and ``python -m <package>.simulator``.
+
+Both take the same options (:func:`add_arguments`), build the simulator from a factory (a generated
+``Simulator`` class), serve it with :class:`~drivemap.runtime.sim.serve.SimServer` until Ctrl-C or
+SIGTERM and exit 0, or print one error line and exit 1 (a state file's errors are located:
+``path:line:col: error: ...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import signal
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from drivemap.runtime.sim.serve import SimServer
+from drivemap.runtime.sim.simulator import Simulator, SimulatorError, StateFileError
+
+__all__ = ["SimulatorFactory", "add_arguments", "main", "parse_tcp", "serve_cli"]
+
+#: ``factory(units, state_file=..., realistic_timing=...)`` -> Simulator (a generated ``Simulator`` class).
+SimulatorFactory = Callable[..., Simulator]
+
+
+def parse_tcp(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``[::1]:5020`` for IPv6) -> (host, port)."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise SimulatorError(f"--tcp wants HOST:PORT, not {text!r}")
+    return host.strip("[]"), int(port)
+
+
+def serve_cli(args: argparse.Namespace) -> int:
+    """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0 (1 on an error, located when it can be)."""
+    try:
+        return run(args.factory, args)
+    except StateFileError as exc:  # already located: path:line:col: error: ...
+        print(exc, file=sys.stderr)
+        return 1
+    except (SimulatorError, RuntimeError, OSError) as exc:
+        print(f"drivemap simulate: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
+    """Build the simulator from parsed options and serve it in the foreground."""
+    kwargs: dict[str, Any] = {"state_file": args.state, "realistic_timing": args.realistic_timing}
+    if getattr(args, "refuse_advised_while_running", False):
+        kwargs["refuse_advised_while_running"] = True
+    if getattr(args, "reply_quirks", None):
+        kwargs["reply_quirks"] = args.reply_quirks
+    sim = factory(args.units or [1], **kwargs)
+    server = SimServer(
+        sim,
+        tcp=parse_tcp(args.tcp) if args.tcp else None,
+        serial=args.serial,
+        mode=args.mode,
+        baudrate=args.baudrate,
+        allow_remote=args.allow_remote,
+    )
+    asyncio.run(_serve_until_signal(server))
+    return 0
+
+
+async def _serve_until_signal(server: SimServer) -> None:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    await server.start()
+    try:
+        print(server.describe(), flush=True)
+        await stop.wait()
+    finally:
+        await server.stop()
+        print(f"{server.sim.spec.model} simulator stopped", flush=True)
+
+
+def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
+    """The options of ``drivemap simulate`` (also used by generated ``simulator.py`` modules)."""
+    if with_model:
+        parser.add_argument("model")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--tcp", metavar="HOST:PORT")
+    where.add_argument("--serial", metavar="DEVICE")
+    parser.add_argument("--mode", choices=["rtu", "ascii"], default=None)
+    parser.add_argument("--baudrate", type=int, default=None)
+    parser.add_argument("--unit", type=int, action="append", dest="units")
+    parser.add_argument("--state", default=None, help="JSON file keeping EEPROM-class registers across restarts")
+    parser.add_argument("--realistic-timing", action="store_true")
+    parser.add_argument("--refuse-advised-while-running", action="store_true",
+                        help="also refuse (busy) writes the manual only advises against while the motor runs")
+    parser.add_argument("--reply-quirk", action="append", dest="reply_quirks", metavar="QUIRK",
+                        help="answer in a non-standard reply form the map lists (e.g. two_byte_byte_count)")
+    parser.add_argument("--allow-remote", action="store_true", help="allow binding to a non-loopback address")
+
+
+def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = None) -> int:
+    """Entry point of a generated ``simulator.py``: same options as ``drivemap simulate``."""
+    module = getattr(factory, "__module__", "") or f"{model}.simulator"
+    parser = argparse.ArgumentParser(prog=f"python -m {module}", description=f"Run the {model} simulator.")
+    add_arguments(parser, with_model=False)
+    args = parser.parse_args(argv)
+    args.model = model
+    try:
+        return run(factory, args)
+    except StateFileError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    except (SimulatorError, RuntimeError, OSError) as exc:
+        print(f"{model} simulator: error: {exc}", file=sys.stderr)
+        return 1

@@ -1,0 +1,67 @@
+"""The simulator's EEPROM persistence: its ``--state`` file loaded completely or refused, and saved
+without losing what this run does not simulate (the file rules live in :mod:`.simstate`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from drivemap.runtime.client.codec import raw_bounds
+from drivemap.runtime.sim import state as simstate
+from drivemap.runtime.sim.unit import SimulatorError
+
+if TYPE_CHECKING:
+    from drivemap.runtime.sim.unit import Unit
+    from drivemap.runtime.spec import DeviceSpec, RegisterSpec
+
+__all__ = ["Persistence", "StateFileError"]
+
+
+class StateFileError(SimulatorError):
+    """A ``--state`` file that cannot be read fully; ``str()`` is ``path:line:col: error: message``.
+
+    The file is left untouched (see :mod:`drivemap.runtime.sim.state`)."""
+
+
+class Persistence:
+    """Mixin of :class:`~drivemap.runtime.sim.simulator.Simulator`: saving and loading ``state_file``."""
+
+    spec: DeviceSpec
+    state_file: Path | None
+    units: dict[int, Unit]
+    _cells: dict[str, tuple[RegisterSpec, int]]
+    _dirty: bool
+    _state: simstate.StateFile | None
+
+    def _eeprom_cells(self) -> list[str]:
+        return [name for name, (reg, _) in self._cells.items() if reg.storage == "eeprom"]
+
+    def _save_if_dirty(self) -> None:
+        if self._dirty and self.state_file is not None:
+            self._write_state(self.state_file)
+        self._dirty = False
+
+    def _write_state(self, path: Path) -> None:
+        """Save the EEPROM cells of the simulated units over the loaded file (see :mod:`.simstate`)."""
+        if self._state is None:
+            self._state = self._state_file(path)
+        cells = self._eeprom_cells()
+        self._state.save({uid: {name: unit.values[name] for name in cells} for uid, unit in self.units.items()})
+
+    def _state_file(self, path: Path) -> simstate.StateFile:
+        bounds = {name: raw_bounds(self._cells[name][0]) for name in self._eeprom_cells()}
+        return simstate.StateFile(path, self.spec.model, bounds, self.spec.valid_unit)
+
+    def _load_state(self, path: Path) -> None:
+        """Load the file completely (units not simulated now and unknown cells are kept for the next write)
+        or refuse it with :class:`StateFileError`, leaving it untouched."""
+        state = self._state_file(path)
+        try:
+            values = state.load()
+        except simstate.StateProblem as exc:
+            raise StateFileError(str(exc)) from None
+        self._state = state
+        for uid, cells in values.items():
+            unit = self.units.get(uid)
+            if unit is not None:
+                unit.values.update(cells)

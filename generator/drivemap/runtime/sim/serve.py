@@ -1,0 +1,499 @@
+"""Serve a :class:`~drivemap.runtime.sim.simulator.Simulator` with pymodbus: TCP, RTU or ASCII.
+
+pymodbus does the transports, the framing and the CRC/LRC; every request PDU goes, through
+``custom_pdu`` request classes registered for every function code 01h-7Fh, to
+:meth:`Simulator.handle`, which answers in the device's dialect (vendor exception codes such as
+51h-55H or 20h included: pymodbus's ``ExceptionResponse`` carries any code byte). Requests the
+device must not answer (other units, broadcasts, error cases whose code is null) leave through
+pymodbus's ``ignore_missing_devices`` path, so nothing is sent.
+
+Two small framer subclasses watch the serial line: a frame with a bad CRC/LRC is dropped by
+pymodbus (no reply) and reported to the simulator (ev records 84h); in RTU, bytes followed by
+more than the 3.5-character silence without forming a frame are dropped, as a device does.
+
+With realistic timing, a reply leaves the simulator's processing time after the request arrived:
+on a serial line counted from the moment the framer found the complete request (on TCP from the
+moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.bus.sleep_until`), since
+``asyncio.sleep`` alone wakes up to a millisecond late.
+
+Use from code::
+
+    sim = Simulator(SPEC, units=[1, 2])
+    with ThreadedSimServer(sim, tcp=("127.0.0.1", 0)) as server:
+        host, port = server.address
+        ...
+
+or ``async with SimServer(sim, serial=port, mode="rtu") as server: ...``; from the shell,
+``drivemap simulate MODEL --tcp 127.0.0.1:5020`` (:mod:`drivemap.runtime.sim.cli`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import socket
+import threading
+import time
+from types import TracebackType
+from typing import Any, ClassVar
+
+from pymodbus.exceptions import NoSuchIdException
+from pymodbus.framer import FramerAscii, FramerRTU, FramerType
+from pymodbus.pdu import DecodePDU, ModbusPDU
+from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.simulator import SimData, SimDevice
+
+from drivemap.runtime.client.bus import sleep_until
+from drivemap.runtime.sim.simulator import Simulator, SimulatorError
+from drivemap.runtime.sim.tcp import SimTcpServer
+
+__all__ = ["SimServer", "ThreadedSimServer", "is_loopback", "request_decoder"]
+
+_PARITY = {None: "N", "none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
+_DEFAULT_BAUDRATE = 9600
+#: RTU request sizes of standard function codes (unit + PDU + CRC); None = byte count at that position.
+_RTU_FIXED = {0x01: 8, 0x02: 8, 0x03: 8, 0x04: 8, 0x05: 8, 0x06: 8, 0x07: 4, 0x08: 8, 0x0B: 4, 0x0C: 4,
+              0x11: 4, 0x16: 10, 0x18: 6, 0x2B: 7}
+_RTU_COUNT_POS = {0x0F: 6, 0x10: 6, 0x14: 2, 0x15: 2, 0x17: 10}
+_RTU_MAX = 256
+
+
+class _Arrival:
+    """When the serial framer of one server last found a complete request (0.0: not yet, or taken)."""
+
+    __slots__ = ("at",)
+
+    def __init__(self) -> None:
+        self.at = 0.0
+
+    def take(self, now: float, within: float) -> float:
+        """The arrival time of the request being handled (``now`` when unknown or stale)."""
+        at, self.at = self.at, 0.0
+        return at if now - within <= at <= now else now
+
+
+class _NoReply(NoSuchIdException):
+    """Raised from a request's datastore_update: pymodbus sends nothing (ignore_missing_devices)."""
+
+
+class _SimResponse(ModbusPDU):
+    """A response PDU built by the simulator (function code + data, exception replies included)."""
+
+    def __init__(self, pdu: bytes = b"\x00") -> None:
+        super().__init__()
+        self.function_code = pdu[0]
+        self.payload = pdu[1:]
+
+    def encode(self) -> bytes:
+        return self.payload
+
+
+class _SimRequest(ModbusPDU):
+    """Any request PDU: kept as bytes and handed to the simulator."""
+
+    simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def __init__(self, dev_id: int = 0, transaction_id: int = 0) -> None:
+        super().__init__(dev_id=dev_id, transaction_id=transaction_id)
+        self.payload = b""
+
+    def decode(self, data: bytes) -> None:
+        self.payload = bytes(data)
+
+    def encode(self) -> bytes:
+        return self.payload
+
+    @classmethod
+    def calculateRtuFrameSize(cls, data: bytes) -> int:  # noqa: N802 (pymodbus API)
+        """Size of the RTU request at the start of ``data`` (0: wait for more bytes)."""
+        code = cls.function_code
+        if code in _RTU_FIXED:
+            return _RTU_FIXED[code]
+        if code in _RTU_COUNT_POS:
+            pos = _RTU_COUNT_POS[code]
+            return data[pos] + pos + 3 if len(data) > pos else 0
+        # Unknown function code: the frame ends where a CRC fits (a device uses the silence).
+        for size in range(4, min(len(data), _RTU_MAX) + 1):
+            if FramerRTU.compute_CRC(data[: size - 2]) == int.from_bytes(data[size - 2 : size], "big"):
+                return size
+        return len(data) if len(data) >= _RTU_MAX else 0
+
+    async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+        sim = self.simulator
+        delay = sim.reply_delay()
+        arrived = self.arrival.take(time.monotonic(), delay) if delay > 0 else 0.0
+        response = sim.handle(device_id, bytes([self.function_code]) + self.payload)
+        if response is None:
+            raise _NoReply(f"unit {device_id}: no reply")
+        if delay > 0:
+            await sleep_until(arrived + delay)
+        return _SimResponse(response)
+
+
+def _request_classes(sim: Simulator, arrival: _Arrival | None = None) -> list[type[ModbusPDU]]:
+    """One request class per function code 01h-FFh, bound to ``sim`` (registered per server).
+
+    ``arrival`` is shared with the server's serial framer (without one: delays count from handling).
+    Codes 80h-FFh are requests too (a device answers them with its illegal-function exception);
+    only :class:`_SimDecoder` hands them over, pymodbus's own decoder takes them for replies.
+    """
+    arrival = arrival or _Arrival()
+    return [
+        type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim, "arrival": arrival})
+        for code in range(0x01, 0x100)
+    ]
+
+
+class _SimDecoder(DecodePDU):
+    """The server's PDU decoder: function codes 01h-FFh are all requests for the simulator.
+
+    pymodbus decodes a frame with a code of 80h or more as an exception *reply* (a server then
+    answers 04h, device failure); a device answers such a request with its illegal-function
+    exception (Modbus Application Protocol v1.1b3, 7: codes 128-255 are no request codes).
+    """
+
+    def __init__(self, classes: list[type[ModbusPDU]]) -> None:
+        super().__init__(True)
+        for cls in classes:
+            self.register(cls)
+        self._high = {cls.function_code: cls for cls in classes if cls.function_code >= 0x80}
+
+    def lookupPduClass(self, data: bytes) -> type[ModbusPDU] | None:  # noqa: N802 (pymodbus API)
+        high = self._high.get(data[1]) if len(data) > 1 else None
+        return high if high is not None else super().lookupPduClass(data)
+
+    def decode(self, frame: bytes) -> ModbusPDU | None:
+        high = self._high.get(frame[0]) if frame else None
+        if high is None:
+            return super().decode(frame)
+        pdu = high()
+        pdu.decode(frame[1:])
+        return pdu
+
+
+def request_decoder(sim: Simulator, arrival: _Arrival | None = None) -> _SimDecoder:
+    """The decoder a serial server of ``sim`` uses (its request classes, 80h-FFh included)."""
+    return _SimDecoder(_request_classes(sim, arrival))
+
+
+class _WatchRTU(FramerRTU):
+    """pymodbus's RTU framer, plus: report bad CRCs; drop stale partial frames after the silent interval;
+    find a request that follows noise without that silence.
+
+    A frame whose CRC is wrong makes pymodbus drop everything received. When the silence before a
+    request was shorter than the interval the framer measures (the host decides when bytes are seen
+    here, give or take a few milliseconds), the noise and the request arrive together: the framer
+    then looks behind the broken frame for a request to one of the simulated units (or the broadcast
+    address) and takes it when its CRC is right, or keeps its bytes while it is still incomplete.
+    """
+
+    simulator: ClassVar[Simulator]
+    silence: ClassVar[float]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def __init__(self, decoder: Any) -> None:
+        super().__init__(decoder)
+        self._waiting = 0
+        self._since = 0.0
+
+    def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
+        now = time.monotonic()
+        stale = 0
+        whole: tuple[int, int, int, bytes] | None = None
+        if self._waiting and len(data) > self._waiting and now - self._since > self.silence:
+            # these bytes never became a frame before the line went quiet: a new frame starts after
+            # them, unless old and new bytes are one frame that the host delivered in two pieces
+            whole = super().decode(data)
+            if not whole[3]:
+                whole = None
+                stale = self._waiting
+        used, dev_id, tid, frame = whole if whole is not None else super().decode(data[stale:])
+        if frame and not frame[0]:
+            frame = self.EMPTY  # 00h is no function code: no reply, a frame error
+        if used and not frame:
+            self.simulator.frame_error(data[stale] if len(data) > stale else None)
+            skip, found = self._behind_noise(data[stale:])
+            if found is not None:
+                used, dev_id, tid, frame = skip + found[0], found[1], found[2], found[3]
+            elif skip:  # an unfinished request behind the noise: keep its bytes, wait for the rest
+                self._waiting = len(data) - stale - skip
+                self._since = now
+                return stale + skip, 0, 0, self.EMPTY
+        if frame:
+            self.arrival.at = now
+        if used or frame:
+            self._waiting = 0
+            return used + stale, dev_id, tid, frame
+        self._waiting = len(data) - stale
+        self._since = now
+        return stale, dev_id, tid, frame
+
+    def _behind_noise(self, data: bytes) -> tuple[int, tuple[int, int, int, bytes] | None]:
+        """After a broken frame at the start of ``data``: (offset, decoded request) of the first request to a
+        simulated unit with a right CRC, or (offset, None) of the first one still incomplete, or (0, None)."""
+        sim = self.simulator
+        units = set(sim.unit_ids)
+        if sim.spec.broadcast_address is not None:
+            units.add(sim.spec.broadcast_address)
+        for start in range(1, len(data) - 1):
+            if data[start] not in units:
+                continue
+            found = super().decode(data[start:])
+            if found[3] and found[3][0]:
+                return start, found
+            if not found[0]:
+                return start, None  # not complete yet
+        return 0, None
+
+
+class _WatchAscii(FramerAscii):
+    """pymodbus's ASCII framer, fed one frame at a time; frames whose LRC, hex or code is bad are reported.
+
+    Framing follows the Modbus serial line spec (2.5.2.1): a ':' always starts a new frame (the
+    bytes of an unfinished one before it are dropped) and the end marker ends it. Each frame is
+    then decoded by pymodbus alone, so a broken frame never takes the next one with it.
+    """
+
+    simulator: ClassVar[Simulator]
+    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+
+    def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
+        now = time.monotonic()
+        total = 0
+        while True:
+            used, dev_id, tid, frame = self._decode_one(data[total:])
+            total += used
+            if frame:
+                self.arrival.at = now
+            if frame or not used or total >= len(data):
+                return total, dev_id, tid, frame
+
+    def _decode_one(self, data: bytes) -> tuple[int, int, int, bytes]:
+        end = data.find(self.end)
+        if end == -1:
+            last = data.rfind(self.START)  # keep only the frame being received
+            return (last if last != -1 else len(data)), 0, 0, self.EMPTY
+        start = data.rfind(self.START, 0, end)
+        stop = end + len(self.end)
+        if start == -1:
+            return stop, 0, 0, self.EMPTY  # a line without a start: noise
+        candidate = data[start:stop]
+        try:
+            _, dev_id, tid, frame = super().decode(candidate)
+        except ValueError:  # pymodbus parses the unit id outside its try block: non-hex raises
+            dev_id, tid, frame = 0, 0, self.EMPTY
+        if not frame or not frame[0]:  # bad hex/LRC, too short, or 00h
+            try:
+                unit: int | None = bytes.fromhex(candidate[1:3].decode("ascii"))[0]
+            except (ValueError, UnicodeDecodeError, IndexError):
+                unit = None
+            self.simulator.frame_error(unit)
+            frame = self.EMPTY
+        return stop, dev_id, tid, frame
+
+
+def _silence_seconds(sim: Simulator, baudrate: int) -> float:
+    """How long the line must be quiet before unfinished bytes are dropped: the map's silent interval
+    (3.5 characters at ``baudrate``, or its floor above the baud rate the map names; Modbus over
+    Serial Line v1.02, 2.5.1.1).
+
+    When the host delivers one frame in two pieces further apart than this, the framer keeps them
+    together because together they form a frame with a right CRC (see :class:`_WatchRTU`).
+    """
+    timing = sim.spec.timing
+    floor_above = timing.silent_interval_floor_above_bps
+    if floor_above is not None and baudrate > floor_above and timing.silent_interval_floor_ms:
+        return timing.silent_interval_floor_ms / 1000.0
+    chars = timing.silent_interval_chars or 3.5
+    floor = 0.00175 if baudrate > 19200 else 0.0  # the standard's fixed 1.75 ms above 19200 Bd
+    return max(chars * 11 / baudrate, floor)
+
+
+class SimServer:
+    """A running simulator: a pymodbus server on TCP or a serial device, plus a ticker.
+
+    Exactly one of ``tcp=(host, port)`` (port 0 = any free port) and ``serial=DEVICE``.
+    """
+
+    def __init__(
+        self,
+        sim: Simulator,
+        *,
+        tcp: tuple[str, int] | None = None,
+        serial: str | None = None,
+        mode: str | None = None,
+        baudrate: int | None = None,
+        parity: str | None = None,
+        stop_bits: int | None = None,
+        data_bits: int | None = None,
+        allow_remote: bool = False,
+        tick_interval: float = 0.02,
+    ) -> None:
+        if (tcp is None) == (serial is None):
+            raise SimulatorError("give exactly one of tcp=(host, port) and serial=DEVICE")
+        if tcp is not None and not allow_remote and not is_loopback(tcp[0]):
+            raise SimulatorError(f"refusing to listen on non-loopback address {tcp[0]!r} (use --allow-remote)")
+        self.sim = sim
+        self.tcp = tcp
+        self.serial = serial
+        spec_serial = sim.spec.serial
+        self.mode = mode or spec_serial.mode or "rtu"
+        if serial is not None and self.mode not in ("rtu", "ascii"):
+            raise SimulatorError(f"serial mode must be rtu or ascii, not {self.mode!r}")
+        if serial is not None and self.mode not in sim.spec.modes:
+            raise SimulatorError(f"{sim.spec.model} does not speak Modbus {self.mode.upper()} (modes: {', '.join(sim.spec.modes)})")
+        self.baudrate = baudrate or spec_serial.baudrate or _DEFAULT_BAUDRATE
+        self.parity = _PARITY.get(parity if parity is not None else spec_serial.parity, "N")
+        self.stop_bits = stop_bits or spec_serial.stop_bits or 1
+        self.data_bits = data_bits or spec_serial.data_bits or 8
+        self.tick_interval = tick_interval
+        self._server: ModbusTcpServer | ModbusSerialServer | None = None
+        self._ticker: asyncio.Task[None] | None = None
+        self.address: tuple[str, int] | None = None
+
+    def describe(self) -> str:
+        units = ", ".join(str(u) for u in self.sim.unit_ids)
+        if self.address is not None:
+            host, port = self.address
+            shown = f"[{host}]" if ":" in host else host
+            return f"{self.sim.spec.model} simulator listening on tcp {shown}:{port} (units {units})"
+        return (
+            f"{self.sim.spec.model} simulator listening on serial {self.serial} "
+            f"({self.mode}, {self.baudrate} baud, {self.data_bits}{self.parity}{self.stop_bits}, units {units})"
+        )
+
+    async def start(self) -> None:
+        context = [SimDevice(id=uid, simdata=[SimData(0)]) for uid in self.sim.unit_ids]
+        arrival = _Arrival()
+        custom = _request_classes(self.sim, arrival)
+        server: ModbusTcpServer | ModbusSerialServer
+        if self.tcp is not None:
+            server = SimTcpServer(
+                self.sim, context, framer=FramerType.SOCKET, address=self.tcp, ignore_missing_devices=True,
+                custom_pdu=custom,
+            )
+        else:
+            server = ModbusSerialServer(
+                context,
+                framer=FramerType.RTU if self.mode == "rtu" else FramerType.ASCII,
+                port=self.serial or "",
+                baudrate=self.baudrate,
+                parity=self.parity,
+                stopbits=self.stop_bits,
+                bytesize=self.data_bits,
+                ignore_missing_devices=True,
+                custom_pdu=custom,
+            )
+            server.decoder = _SimDecoder(custom)
+            watch: type[FramerRTU] | type[FramerAscii]
+            if self.mode == "rtu":
+                watch = type("SimFramerRTU", (_WatchRTU,), {
+                    "simulator": self.sim, "silence": _silence_seconds(self.sim, self.baudrate), "arrival": arrival})
+            else:
+                watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
+            server.framer = watch
+        await server.serve_forever(background=True)
+        self._server = server
+        if self.tcp is not None:
+            sockets = getattr(server.transport, "sockets", None) or []
+            name = sockets[0].getsockname() if sockets else self.tcp
+            self.address = (str(name[0]), int(name[1]))
+        self._ticker = asyncio.create_task(self._tick_forever())
+
+    async def _tick_forever(self) -> None:
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(self.tick_interval)
+            now = time.monotonic()
+            self.sim.tick(now - last)
+            last = now
+
+    async def stop(self) -> None:
+        if self._ticker is not None:
+            self._ticker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._ticker
+            self._ticker = None
+        if self._server is not None:
+            await self._server.shutdown()  # type: ignore[no-untyped-call]
+            self._server = None
+        self.sim.save_state()
+
+    async def __aenter__(self) -> SimServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+
+class ThreadedSimServer:
+    """A :class:`SimServer` on its own event loop in a background thread (for synchronous code)."""
+
+    def __init__(self, sim: Simulator, **options: Any) -> None:
+        self.server = SimServer(sim, **options)
+        self.sim = sim
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    @property
+    def address(self) -> tuple[str, int] | None:
+        return self.server.address
+
+    def start(self, timeout: float = 10.0) -> ThreadedSimServer:
+        self._thread = threading.Thread(target=self._run, name=f"{self.sim.spec.model}-simulator", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError("simulator server did not start")
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        try:
+            loop.run_until_complete(self.server.start())
+        except BaseException as exc:  # reported to start()
+            self._error = exc
+            self._ready.set()
+            loop.close()
+            return
+        self._ready.set()
+        try:
+            loop.run_forever()
+        finally:
+            loop.run_until_complete(self.server.stop())
+            loop.run_until_complete(loop.shutdown_asyncgens())
+            loop.close()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        if self._loop is not None and self._thread is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(timeout)
+        self._thread = None
+
+    def __enter__(self) -> ThreadedSimServer:
+        return self.start()
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        self.stop()
+
+
+def is_loopback(host: str) -> bool:
+    """True when every address ``host`` names is a loopback address."""
+    if host in ("localhost", "localhost.localdomain"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(str(info[4][0]).split("%")[0]).is_loopback for info in infos)

@@ -1,0 +1,661 @@
+"""The simulator core: a register store per unit id and the device's Modbus dialect.
+
+Everything here is read from a :class:`~drivemap.runtime.spec.DeviceSpec` (the generated
+``SPEC``), never from a map: the exception code of each error case (``exception_policy``), the
+communication error codes a device records (``comm_error_policy``, ``comm_error_history``), which
+function codes exist and which may be broadcast, register access, ranges, pages and storage.
+
+Tables: holding registers answer 03h/06h/10h, input registers 04h, coils 01h/05h/0Fh, discrete
+inputs 02h, each its own address space. Reserved ranges the map marks readable read as 0, and so do
+undocumented words in a gap of at most the map's ``max_gap`` words between documented ones (the map
+says the device reads across them); a read that covers part of a ``min_read`` block is refused like
+an unknown address.
+
+The core works on PDUs (function code + data) and knows nothing about transports;
+:mod:`drivemap.runtime.sim.serve` puts it behind a pymodbus server (TCP, RTU, ASCII).
+Behaviour (what a drive does when it is told to run) lives in :mod:`drivemap.runtime.sim.behaviours`.
+
+Error cases and what the simulator answers (the code comes from the map's exception_policy):
+
+``illegal_function``  function code not listed in the map (or an 08h sub-function other than 0000h)
+``illegal_address``   an address that is neither a register nor a readable reserved address;
+                      a write to a reserved address; a write that covers only part of a multi-word
+                      register; a read that covers only part of a ``min_read`` block
+``illegal_quantity``  quantity 0 or above the function code's ``max_quantity``
+``bad_length``        a PDU whose length does not fit its function (10h byte count != 2 x quantity)
+``out_of_range``      a written value outside the register's type, min/max or enum values
+``read_only``         a write to a register without ``w`` access
+``write_only``        a read of a register without ``r`` access
+``busy``              a write to a ``refuse_while_running`` register while the behaviour says running;
+                      with ``refuse_advised_while_running=True`` (opt-in, off by default) also a write
+                      to a register that only carries the manual's ``running_advice``
+
+A case the map leaves out falls back to a related case (write_only/read_only -> illegal_address,
+bad_length -> illegal_quantity, busy -> out_of_range) and then to the standard Modbus code
+(01h, 02h, 03h, 03h, 02h, 02h, 06h, 03h). A case whose code is ``null`` gets no reply.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from drivemap.runtime.client.codec import raw_bounds
+from drivemap.runtime.client.quirks import encode_read_reply
+from drivemap.runtime.sim import state as simstate
+from drivemap.runtime.sim.persist import Persistence, StateFileError
+from drivemap.runtime.sim.unit import SimulatorError, SimValue, Unit, to_value, unwire_words
+from drivemap.runtime.spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
+
+if TYPE_CHECKING:
+    from drivemap.runtime.sim.behaviours import Behaviour
+
+__all__ = [
+    "CASES",
+    "STANDARD_CODES",
+    "SimValue",
+    "Simulator",
+    "SimulatorError",
+    "StateFileError",
+    "Unit",
+]
+
+#: Standard Modbus exception code of every error case (used when the map names no code).
+STANDARD_CODES: dict[str, int] = {
+    "illegal_function": 0x01,
+    "illegal_address": 0x02,
+    "illegal_quantity": 0x03,
+    "out_of_range": 0x03,
+    "read_only": 0x02,
+    "write_only": 0x02,
+    "busy": 0x06,
+    "bad_length": 0x03,
+}
+CASES = tuple(STANDARD_CODES)
+_FALLBACK = {
+    "write_only": "illegal_address",
+    "read_only": "illegal_address",
+    "bad_length": "illegal_quantity",
+    "busy": "out_of_range",
+}
+#: Largest quantity a standard Modbus PDU can carry, per function code (when the map gives none).
+_STANDARD_MAX_QUANTITY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x06: 1, 0x0F: 1968, 0x10: 123}
+#: The table each read function code reads.
+_READ_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input"}
+#: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
+_MAX_READ_PLANS = 4096
+_PACKERS: dict[int, Callable[..., bytes]] = {}
+#: (cells read, per word: (cell or None for a word read as 0, bit shift in the cell's raw value, swap bytes),
+#: whether any word swaps its bytes)
+_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int, bool], ...], bool]
+
+
+def _packer(count: int) -> Callable[..., bytes]:
+    """``struct.Struct(">{count}H").pack``, made once per count."""
+    pack = _PACKERS.get(count)
+    if pack is None:
+        pack = _PACKERS[count] = struct.Struct(f">{count}H").pack
+    return pack
+
+
+class _Refused(Exception):
+    """Internal: the request hits an error case; the dialect decides the answer."""
+
+    def __init__(self, case: str) -> None:
+        super().__init__(case)
+        self.case = case
+
+
+@dataclass(frozen=True)
+class _Slot:
+    """One 16-bit address (one bit in a bit table) of one register cell."""
+
+    cell: str
+    reg: RegisterSpec
+    index: int
+    word: int  # 0 = first word on the wire
+
+
+def _cell_names(reg: RegisterSpec) -> Iterator[tuple[str, int]]:
+    for i in range(reg.count):
+        yield reg.element_name(i), i
+
+
+def _word_shift(reg: RegisterSpec, word: int) -> int:
+    """Bit shift in the raw value of the ``word``-th word on the wire."""
+    n = reg.words
+    if reg.bit_table or n == 1:
+        return 0
+    canonical = n - 1 - word if reg.word_order == "low_first" else word
+    return 16 * (n - 1 - canonical)
+
+
+def _gap_words(spec: DeviceSpec, documented: frozenset[tuple[str, int]]) -> frozenset[tuple[str, int]]:
+    """Undocumented words between two documented ones at most ``max_gap`` apart (the device reads them)."""
+    if not spec.max_gap:
+        return frozenset()
+    out: set[tuple[str, int]] = set()
+    for table in {t for t, _ in documented}:
+        addresses = sorted(a for t, a in documented if t == table)
+        for low, high in zip(addresses, addresses[1:], strict=False):
+            if 1 < high - low <= spec.max_gap + 1:
+                out.update((table, a) for a in range(low + 1, high))
+    return frozenset(out)
+
+
+def _swapped(word: int, swap: bool) -> int:
+    return ((word & 0xFF) << 8) | (word >> 8) if swap else word
+
+
+class Simulator(Persistence):
+    """A simulated device: one register store per unit id, answering in the device's dialect.
+
+    ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
+    PDU, or ``None`` when the device stays silent (another unit's request, a broadcast, an error
+    case the device does not answer). All methods are thread-safe.
+    """
+
+    def __init__(
+        self,
+        spec: DeviceSpec,
+        units: Sequence[int] = (1,),
+        *,
+        behaviour: Behaviour | None = None,
+        state_file: str | os.PathLike[str] | None = None,
+        realistic_timing: bool = False,
+        refuse_advised_while_running: bool = False,
+        reply_quirks: Sequence[str] = (),
+    ) -> None:
+        """``refuse_advised_while_running``: also answer ``busy`` to writes the manual only advises
+        against while running (``running_advice``); off by default, since the manual does not say
+        the device refuses them (the client warns instead). ``reply_quirks``: answer in these
+        non-standard forms of the map's ``reply_quirks`` (e.g. ``two_byte_byte_count``, as a
+        manual prints a reply) instead of the standard one; none by default."""
+        if behaviour is None:
+            from drivemap.runtime.sim.behaviours import Behaviour
+
+            behaviour = Behaviour()
+        self.spec = spec
+        self.behaviour = behaviour
+        self.realistic_timing = realistic_timing
+        self.refuse_advised_while_running = refuse_advised_while_running
+        self.reply_quirks = tuple(dict.fromkeys(reply_quirks))
+        for quirk in self.reply_quirks:
+            if quirk not in spec.reply_quirks:
+                raise SimulatorError(f"{spec.model}: the map lists no reply quirk {quirk!r} "
+                                     f"(it lists: {', '.join(spec.reply_quirks) or 'none'})")
+        self.state_file = Path(state_file) if state_file is not None else None
+        self._lock = threading.RLock()
+        self._dirty = False
+        self._regs: dict[str, RegisterSpec] = {}
+        self._cells: dict[str, tuple[RegisterSpec, int]] = {}
+        self._by_address: dict[tuple[str, int], list[_Slot]] = {}
+        for reg in spec.registers:
+            self._regs[reg.name] = reg
+            for name, index in _cell_names(reg):
+                self._cells[name] = (reg, index)
+                start = reg.element_address(index)
+                for word in range(reg.words):
+                    self._by_address.setdefault((reg.table, start + word), []).append(_Slot(name, reg, index, word))
+        # (table, address) -> its slot when the first register there has no page (it always wins _resolve)
+        self._static: dict[tuple[str, int], _Slot] = {a: slots[0] for a, slots in self._by_address.items()
+                                                      if slots[0].reg.page is None}
+        # min_read blocks: (table, start, end); words inside that no register covers read as 0
+        self._blocks = tuple((r.table, r.address, r.address + r.min_read) for r in spec.registers
+                             if r.min_read is not None)
+        self._gap_words = _gap_words(spec, frozenset(self._by_address) | frozenset(
+            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1)))
+        # every selector a page depends on: the page state of a unit is their values
+        self._selectors: tuple[str, ...] = tuple(sorted(
+            {r.page.selector for r in spec.registers if r.page is not None}
+            | {r.page.selector for r in spec.reserved if r.page is not None}))
+        # (table, address, quantity, page state) -> read plan (see _read_plan)
+        self._read_plans: dict[tuple[str, int, int, tuple[int, ...]], _ReadPlan | str] = {}
+        unit_ids = list(dict.fromkeys(int(u) for u in units))
+        if not unit_ids:
+            raise SimulatorError("a simulator needs at least one unit id")
+        for uid in unit_ids:
+            if not spec.valid_unit(uid):
+                raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
+        self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
+        self._state: simstate.StateFile | None = None
+        if self.state_file is not None:
+            self._load_state(self.state_file)
+        for unit in self.units.values():
+            self.behaviour.on_start(unit)
+        self._dirty = False
+
+    # ==== public API ========================================================================
+    @property
+    def unit_ids(self) -> list[int]:
+        return list(self.units)
+
+    def unit(self, unit_id: int | None = None) -> Unit:
+        """One unit (the first when ``unit_id`` is None)."""
+        if unit_id is None:
+            return next(iter(self.units.values()))
+        try:
+            return self.units[unit_id]
+        except KeyError:
+            raise SimulatorError(f"unit {unit_id} is not simulated (units: {self.unit_ids})") from None
+
+    def _targets(self, unit: int | None) -> list[Unit]:
+        return list(self.units.values()) if unit is None else [self.unit(unit)]
+
+    def set(self, name: str, value: SimValue, unit: int | None = None) -> None:
+        """Preset a register (engineering value: a number, text, true/false, None for the first
+        not-available value) on one unit or, by default, on every unit.
+
+        A preset is the device's state, not a Modbus write: no dialect checks, no behaviour hook;
+        configuration-class registers are set as already applied.
+        """
+        with self._lock:
+            for target in self._targets(unit):
+                target.set(name, value)
+                if name in target.applied:
+                    target.applied[name] = target.values[name]
+            self._save_if_dirty()
+
+    def set_raw(self, name: str, raw: int, unit: int | None = None) -> None:
+        """Preset a register's raw value (see :meth:`set`)."""
+        with self._lock:
+            for target in self._targets(unit):
+                target.set_raw(name, raw)
+                if name in target.applied:
+                    target.applied[name] = target.values[name]
+            self._save_if_dirty()
+
+    def get(self, name: str, unit: int | None = None) -> SimValue:
+        """Engineering value of a register on one unit (the first by default); None for a not-available value."""
+        with self._lock:
+            return self.unit(unit).get(name)
+
+    def get_raw(self, name: str, unit: int | None = None) -> int:
+        with self._lock:
+            return self.unit(unit).raw(name)
+
+    def inject_exception(self, code: int, unit: int | None = None) -> None:
+        """Answer the next request (to ``unit``, or to any simulated unit) with exception ``code``.
+
+        One-shot: the request is not executed; later requests are served normally.
+        """
+        if not 0 <= code <= 0xFF:
+            raise SimulatorError(f"exception code {code} is not a byte")
+        with self._lock:
+            for target in self._targets(unit):
+                target.injected = code
+
+    def tick(self, dt: float) -> None:
+        """Let ``dt`` seconds of device time pass (behaviour ``on_tick`` on every unit)."""
+        with self._lock:
+            for unit in self.units.values():
+                self.behaviour.on_tick(unit, dt)
+            self._save_if_dirty()
+
+    def advance(self, seconds: float, step: float = 0.01) -> None:
+        """Run :meth:`tick` in steps of ``step`` for ``seconds`` (deterministic tests)."""
+        steps = max(1, math.ceil(seconds / step - 1e-9))
+        for _ in range(steps):
+            self.tick(seconds / steps)
+
+    def reply_delay(self) -> float:
+        """Seconds the real device needs before it answers (0 unless realistic timing is on).
+
+        The map's processing time (midpoint of min..max); without one, its inter-frame gap
+        (v2/edx: a reply comes no sooner than 10 ms after the request).
+        """
+        if not self.realistic_timing:
+            return 0.0
+        t = self.spec.timing
+        if t.processing_ms is not None:
+            return (t.processing_ms[0] + t.processing_ms[1]) / 2000.0
+        if t.inter_frame_gap_ms is not None:
+            return t.inter_frame_gap_ms / 1000.0
+        return 0.0
+
+    def frame_error(self, unit_id: int | None) -> None:
+        """A frame with a bad CRC/LRC or a broken format arrived: no reply; record it if the map says so."""
+        with self._lock:
+            unit = self.units.get(unit_id) if unit_id is not None else None
+            if unit is not None:
+                self._record(unit, "bad_frame")
+
+    def save_state(self) -> None:
+        """Write EEPROM-class registers to the state file now (atomically)."""
+        with self._lock:
+            if self.state_file is not None:
+                self._write_state(self.state_file)
+                self._dirty = False
+
+    def exception_code(self, case: str) -> int | None:
+        """The code this device answers for an error case (None: no reply)."""
+        seen: set[str] = set()
+        current: str | None = case
+        while current is not None and current not in seen:
+            seen.add(current)
+            for item in self.spec.exception_policy:
+                if item.case == current:
+                    return item.code
+            current = _FALLBACK.get(current)
+        return STANDARD_CODES[case]
+
+    # ==== request handling ====================================================================
+    def handle(self, unit_id: int, pdu: bytes, *, always_answer: bool = False) -> bytes | None:
+        """Serve one request PDU addressed to ``unit_id``; the response PDU or None (no reply).
+
+        ``always_answer`` (Modbus TCP): an error case the map leaves unanswered (code null: right on
+        a serial line) gets the Modbus standard code instead of silence. Other units and broadcasts
+        still get no reply.
+        """
+        if not pdu:
+            return None
+        with self._lock:
+            try:
+                if self.spec.broadcast_address is not None and unit_id == self.spec.broadcast_address:
+                    for each in self.units.values():
+                        self.behaviour.on_request(each)
+                    self._broadcast(pdu)
+                    return None
+                unit = self.units.get(unit_id)
+                if unit is None:
+                    return None
+                self.behaviour.on_request(unit)
+                injected = unit.injected
+                if injected is not None:
+                    for other in self.units.values():
+                        if other.injected == injected:
+                            other.injected = None
+                    return bytes([pdu[0] | 0x80, injected])
+                try:
+                    return self._serve(unit, pdu[0], pdu[1:], broadcast=False)
+                except _Refused as refused:
+                    self._record(unit, refused.case)
+                    answer = self.exception_code(refused.case)
+                    if answer is None and always_answer:
+                        answer = STANDARD_CODES[refused.case]
+                    return None if answer is None else bytes([pdu[0] | 0x80, answer])
+            finally:
+                self._save_if_dirty()
+
+    def _broadcast(self, pdu: bytes) -> None:
+        fc = self.spec.function(pdu[0])
+        if fc is None or fc.broadcast is not True or pdu[0] not in (0x05, 0x06, 0x0F, 0x10):
+            return  # the device ignores broadcast requests it cannot execute
+        for unit in self.units.values():
+            try:
+                self._serve(unit, pdu[0], pdu[1:], broadcast=True)
+            except _Refused as refused:
+                self._record(unit, refused.case)
+
+    def _record(self, unit: Unit, case: str) -> None:
+        for item in self.spec.comm_error_policy:
+            if item.case == case:
+                if item.code is not None:
+                    unit.record_comm_error(item.code)
+                return
+
+    def _serve(self, unit: Unit, code: int, data: bytes, *, broadcast: bool) -> bytes:
+        fc = self.spec.function(code)
+        if fc is None:
+            raise _Refused("illegal_function")
+        if code in (0x03, 0x04):
+            return self._read(unit, fc.code, fc.max_quantity, data)
+        if code in (0x01, 0x02):
+            return self._read_bits(unit, fc.code, fc.max_quantity, data)
+        if code == 0x06:
+            return self._write_single(unit, data, broadcast)
+        if code == 0x10:
+            return self._write_multiple(unit, fc.max_quantity, data, broadcast)
+        if code == 0x05:
+            return self._write_coil(unit, data, broadcast)
+        if code == 0x0F:
+            return self._write_coils(unit, fc.max_quantity, data, broadcast)
+        if code == 0x08:
+            return self._loopback(data)
+        raise _Refused("illegal_function")
+
+    def _max_quantity(self, code: int, limit: int | None) -> int:
+        return limit if limit is not None else _STANDARD_MAX_QUANTITY.get(code, 125)
+
+    def _read_request(self, code: int, limit: int | None, data: bytes) -> tuple[int, int]:
+        """(address, quantity) of a read request, checked."""
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        if not 1 <= quantity <= self._max_quantity(code, limit):
+            raise _Refused("illegal_quantity")
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        return address, quantity
+
+    def _plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan:
+        selectors = self._selectors
+        state = tuple(unit.values.get(sel, 0) for sel in selectors) if selectors else ()
+        plan = self._read_plans.get((table, address, quantity, state))
+        if plan is None:
+            plan = self._read_plan(unit, table, address, quantity)
+            if len(self._read_plans) >= _MAX_READ_PLANS:
+                self._read_plans.clear()
+            self._read_plans[(table, address, quantity, state)] = plan
+        if isinstance(plan, str):
+            raise _Refused(plan)
+        return plan
+
+    def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+        address, quantity = self._read_request(code, limit, data)
+        cells, words, swapping = self._plan(unit, _READ_TABLES[code], address, quantity)
+        self.behaviour.on_read(unit, list(cells))
+        values = unit.values
+        if swapping:
+            body = _packer(quantity)(*[0 if cell is None else _swapped((values[cell] >> shift) & 0xFFFF, swap)
+                                       for cell, shift, swap in words])
+        else:
+            body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
+                                       for cell, shift, _ in words])
+        if self.reply_quirks:
+            return encode_read_reply(code, body, self.reply_quirks)
+        return bytes((code, 2 * quantity)) + body
+
+    def _read_bits(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
+        address, quantity = self._read_request(code, limit, data)
+        cells, words, _ = self._plan(unit, _READ_TABLES[code], address, quantity)
+        self.behaviour.on_read(unit, list(cells))
+        values = unit.values
+        packed = bytearray((quantity + 7) // 8)
+        for i, (cell, _, _) in enumerate(words):
+            if cell is not None and values[cell]:
+                packed[i // 8] |= 1 << (i % 8)
+        return bytes((code, len(packed))) + bytes(packed)
+
+    def _read_plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan | str:
+        """What a read of ``quantity`` words at ``address`` of ``table`` returns in the unit's current pages.
+
+        Either the refusal case or (cells read, per word (cell or None for a 0, shift, swap)).
+        Depends only on the spec and the values of the page selectors, so it is cached per page state.
+        """
+        end = address + quantity
+        for btable, start, stop in self._blocks:
+            if btable == table and start < end and address < stop and not (address <= start and stop <= end):
+                return "illegal_address"  # part of a block the device only reads whole
+        words: list[tuple[str | None, int, bool]] = []
+        for addr in range(address, end):
+            slot = self._resolve(unit, table, addr)
+            if slot is None:
+                if not self._reads_as_zero(unit, table, addr):
+                    return "illegal_address"
+                words.append((None, 0, False))
+                continue
+            if not slot.reg.readable:
+                return "write_only"
+            reg = slot.reg
+            words.append((slot.cell, _word_shift(reg, slot.word), reg.byte_order == "low_first" and not reg.bit_table))
+        cells = tuple(dict.fromkeys(cell for cell, _, _ in words if cell is not None))
+        return cells, tuple(words), any(swap for _, _, swap in words)
+
+    def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        word = int.from_bytes(data[2:4], "big")
+        self._write(unit, address, [word], broadcast)
+        return bytes([0x06]) + data
+
+    def _write_multiple(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
+        if len(data) < 5:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        count = data[4]
+        if not 1 <= quantity <= self._max_quantity(0x10, limit):
+            raise _Refused("illegal_quantity")
+        if count != 2 * quantity or len(data) != 5 + count:
+            raise _Refused("bad_length")
+        words = [int.from_bytes(data[5 + 2 * i : 7 + 2 * i], "big") for i in range(quantity)]
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        self._write(unit, address, words, broadcast)
+        return bytes([0x10]) + data[0:4]
+
+    def _write_coil(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
+        if len(data) != 4:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        value = int.from_bytes(data[2:4], "big")
+        if value not in (0x0000, 0xFF00):
+            raise _Refused("out_of_range")
+        self._write(unit, address, [1 if value else 0], broadcast, "coil")
+        return bytes([0x05]) + data
+
+    def _write_coils(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
+        if len(data) < 5:
+            raise _Refused("bad_length")
+        address = int.from_bytes(data[0:2], "big")
+        quantity = int.from_bytes(data[2:4], "big")
+        count = data[4]
+        if not 1 <= quantity <= self._max_quantity(0x0F, limit):
+            raise _Refused("illegal_quantity")
+        if count != (quantity + 7) // 8 or len(data) != 5 + count:
+            raise _Refused("bad_length")
+        if address + quantity > 0x10000:
+            raise _Refused("illegal_address")
+        bits = [(data[5 + i // 8] >> (i % 8)) & 1 for i in range(quantity)]
+        self._write(unit, address, bits, broadcast, "coil")
+        return bytes([0x0F]) + data[0:4]
+
+    def _loopback(self, data: bytes) -> bytes:
+        if len(data) < 2:
+            raise _Refused("bad_length")
+        if int.from_bytes(data[0:2], "big") != 0:
+            raise _Refused("illegal_function")
+        return bytes([0x08]) + data
+
+    def _write(self, unit: Unit, address: int, words: list[int], broadcast: bool, table: str = "holding") -> None:
+        """Validate every word (coil), then apply all of them (a refused request changes nothing)."""
+        changes: list[tuple[str, RegisterSpec, int]] = []
+        i = 0
+        while i < len(words):
+            slot = self._resolve(unit, table, address + i)
+            if slot is None:
+                raise _Refused("illegal_address")
+            reg = slot.reg
+            if slot.word != 0 or i + reg.words > len(words):
+                raise _Refused("illegal_address")  # part of a multi-word register
+            if broadcast and not reg.broadcast:
+                raise _Refused("illegal_address")
+            if not reg.writable:
+                raise _Refused("read_only")
+            raw = words[i] if reg.bit_table else unwire_words(reg, words[i : i + reg.words])
+            changes.append((slot.cell, reg, raw))
+            i += reg.words
+        if any(self._refused_while_running(reg) for _, reg, _ in changes) and self.behaviour.is_running(unit):
+            raise _Refused("busy")
+        for _, reg, raw in changes:
+            if not self._in_range(unit, reg, raw):
+                raise _Refused("out_of_range")
+        for cell, reg, raw in changes:
+            unit.values[cell] = raw
+            if reg.storage == "eeprom":
+                self._dirty = True
+            if (
+                self.spec.configuration is not None
+                and reg.name == self.spec.configuration[0]
+                and raw == self.spec.configuration[1]
+            ):
+                unit.apply_configuration()
+            self.behaviour.on_write(unit, cell, raw)
+
+    def _refused_while_running(self, reg: RegisterSpec) -> bool:
+        """Documented refusals always; the manual's mere advice only when the option asks for it."""
+        return reg.refuse_while_running or (self.refuse_advised_while_running and reg.running_advice is not None)
+
+    def _in_range(self, unit: Unit, reg: RegisterSpec, raw: int) -> bool:
+        low, high = raw_bounds(reg)
+        if not low <= raw <= high:
+            return False
+        if raw in reg.not_available or reg.type in ("string", "bool"):
+            return True
+        if reg.enum_values and raw not in reg.enum_values:
+            return False
+        factor = unit._factor(reg)
+        value = to_value(reg, raw, factor)
+        if not isinstance(value, (int, float)):
+            return True
+        if value != value:  # NaN: only where the map sets no range
+            return reg.min is None and reg.max is None
+        step = abs(reg.scale) * (10.0 ** factor if factor is not None else 1.0)
+        tolerance = 0.0 if reg.type in ("f32", "f64") else step / 2
+        if reg.min is not None and value < reg.min - tolerance:
+            return False
+        if reg.max is not None and value > reg.max + tolerance:
+            return False
+        return True
+
+    # ==== addresses ===========================================================================
+    def _page_ok(self, unit: Unit, page: PageSpec | None) -> bool:
+        if page is None:
+            return True
+        return bool(unit.values.get(page.selector, 0) == page.value)
+
+    def _resolve(self, unit: Unit, table: str, address: int) -> _Slot | None:
+        static = self._static.get((table, address))
+        if static is not None:
+            return static
+        for slot in self._by_address.get((table, address), ()):
+            if self._page_ok(unit, slot.reg.page):
+                return slot
+        return None
+
+    def _reads_as_zero(self, unit: Unit, table: str, address: int) -> bool:
+        """Reserved addresses the map marks readable answer 0, as do undocumented ones in a gap the
+        map's max_gap lets the client read across or in a min_read block; other unknown or unreadable
+        ones are refused."""
+        if any(r.table == table and r.start <= address <= r.end and r.readable is True and self._page_ok(unit, r.page)
+               for r in self.spec.reserved):
+            return True
+        if (table, address) in self._gap_words:
+            return True
+        return any(t == table and s <= address < e for t, s, e in self._blocks)
+
+    # ==== names ===============================================================================
+    def _check_cell(self, name: str) -> str:
+        if name not in self._cells:
+            if name in self._regs:
+                raise SimulatorError(f"{name} is an array; name an element, e.g. {name}[0]")
+            raise SimulatorError(f"{self.spec.model} has no register {name!r}")
+        return name
+
+    def _reg_of(self, name: str) -> RegisterSpec:
+        return self._cells[self._check_cell(name)][0]
+
+    def _bit(self, name: str, bit: str) -> BitSpec:
+        for spec in self._reg_of(name).bits:
+            if spec.name == bit:
+                return spec
+        raise SimulatorError(f"{name} has no bit {bit!r}")
