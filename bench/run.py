@@ -85,7 +85,7 @@ Ratio = time per operation of the generated client / raw pymodbus for the same r
 (median of the per-round ratios; rounds interleave the two clients and alternate their order).
 The model is vfd1000 (no EEPROM write delay, no broadcast gap). Inter-frame gaps and silent
 intervals are serial-line rules: the bus does not keep them on Modbus TCP
-(`generator/drivemap/runtime/busbase.py`, `quiet_after`).""",
+(`generator/drivemap/runtime/client/busbase.py`, `quiet_after`).""",
     "Simulator throughput (TCP loopback)": "",
     "Wire efficiency (paced virtual serial line, 115200 8N1)": """\
 Efficiency = achieved requests/s ÷ physical limit. Goals apply to the generated client (`sync`,
@@ -184,15 +184,15 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   `add_writer` callback (`pymodbus/transport/serialtransport.py`, `write` → `intern_write_ready`: one
   more event-loop turn). Before the fix the simulator waited with a bare `asyncio.sleep(0.004)` from
   the start of `datastore_update`, which the event loop rounds up to the next millisecond (device
-  turnaround 5.2–5.3 ms before, 4.4–4.6 ms now); `generator/drivemap/runtime/simserve.py` now counts from the
+  turnaround 5.2–5.3 ms before, 4.4–4.6 ms now); `generator/drivemap/runtime/sim/serve.py` now counts from the
   request's arrival and waits precisely (`sleep_until`).
 * **Client, sync**: pymodbus's sync serial client notices the end of a reply only by polling
   `in_waiting` every `_recv_interval` = max(4 characters, 1 ms) and returns after a poll that sees no
   new byte (`pymodbus/client/serial.py`, `_wait_for_data`): the "reply end seen" column of the
   `raw-sync` rows, 1.4–2.1 ms at 115200 Bd. drivemap's sync serial bus no longer goes through that
-  poll: `generator/drivemap/runtime/serialrx.py` (`SerialReceiver`, installed as the pymodbus client's
+  poll: `generator/drivemap/runtime/client/serialrx.py` (`SerialReceiver`, installed as the pymodbus client's
   `recv`, pymodbus unpatched) reads the reply length the request implies as it arrives (inter-character
-  timeout); with the stale-reply guard (the default, `generator/drivemap/runtime/staleguard.py`) it
+  timeout); with the stale-reply guard (the default, `generator/drivemap/runtime/client/staleguard.py`) it
   hands every chunk before the reply to the guard with its arrival time and then listens for the
   guard's settle time, max(4 characters, 1 ms), after the last byte, so a frame that follows the
   reply is seen (the guard keeps the last of frames that come back to back). So the `sync` rows'
@@ -203,7 +203,7 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   earlier version of this text said no change above pymodbus could remove the sync loss; that was wrong.
 * **Client, async**: the reply is seen within ≈ 0.2 ms (event loop reader). The bus's quiet time
   used to be an `asyncio.sleep` that the loop rounds up to whole milliseconds (≈ +0.7 ms, still
-  visible in the `raw-async` rows); `generator/drivemap/runtime/bus.py` `sleep_until` now sleeps whole
+  visible in the `raw-async` rows); `generator/drivemap/runtime/client/bus.py` `sleep_until` now sleeps whole
   milliseconds and yields the rest, so "client work + quiet" is ≈ t3.5 + 0.05 ms. The request then
   takes 0.2–0.3 ms to reach the line: pymodbus builds the frame after the wait, and its serial
   transport writes through an `add_writer` callback (one more loop turn) before the relay reads it.
@@ -221,9 +221,9 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
 def _explain_sim(s: Section) -> str:
     return """\
 The generated simulator runs each request through pymodbus's `custom_pdu` path
-(`generator/drivemap/runtime/simserve.py`, `_SimRequest.datastore_update`: an async call per request, the
+(`generator/drivemap/runtime/sim/serve.py`, `_SimRequest.datastore_update`: an async call per request, the
 request kept as bytes, a new `_SimResponse`) and then `Simulator.handle`
-(`generator/drivemap/runtime/simulator.py`), which checks the dialect (function, quantity, pages, access)
+(`generator/drivemap/runtime/sim/simulator.py`), which checks the dialect (function, quantity, pages, access)
 and serves reads from a cached per-(address, quantity, page) plan, where the plain server copies a
 slice of its register list. The profile below is of `Simulator.handle` alone."""
 
@@ -231,11 +231,11 @@ slice of its register list. The profile below is of `Simulator.handle` alone."""
 def _explain_compiler(s: Section) -> str:
     return """\
 Cost per register grows with the map: rendering `client.py` is quadratic. In
-`generator/drivemap/templates/client.py.jinja` (lines 182 and 200) the `BroadcastClient` and
+`generator/drivemap/backends/templates/client.py.jinja` (lines 182 and 200) the `BroadcastClient` and
 `AsyncBroadcastClient` bodies look up each broadcast-writable accessor with
 `accessors | selectattr("name", "equalto", name) | first` — a linear scan per register, so
 O(registers²) Jinja filter calls (`select_or_reject`, `_filter_test_common`, `getitem` at the top of
-the profile below). Fix (in `generator/drivemap/views/client.py`): give the template the accessor objects
+the profile below). Fix (in `generator/drivemap/backends/views/client.py`): give the template the accessor objects
 directly (e.g. `broadcast_sync` as a list of (accessor, class) pairs) or a dict by name. Loading
 (PyYAML's pure-Python scanner with a position table, `generator/drivemap/load.py`) and JSON-Schema validation
 are the largest linear costs; a 10,000-register map (~1.9 MB) is close to the loader's 2 MiB cap

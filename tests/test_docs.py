@@ -501,7 +501,7 @@ def test_snippet_runs_against_the_simulator(model_id: str, pages: dict[str, Page
     pytest.importorskip("drivemap.runtime.sim.simulator", reason="the simulator runtime is not written yet")
     pytest.importorskip("drivemap.runtime.sim.serve", reason="`drivemap simulate` (simserve) is not written yet")
     assert f"{model_id}/client.py" in target_paths, (
-        "the generated client (generator/drivemap/views/client.py) is missing: the page's snippet cannot run")
+        "the generated client (generator/drivemap/backends/views/client.py) is missing: the page's snippet cannot run")
     built_tree: Path = request.getfixturevalue("built_tree")
     section = pages[f"docs/{model_id}.md"].section("How to use it")
     shells = [c for info, c in section.fences if info == "sh"]

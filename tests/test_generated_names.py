@@ -83,3 +83,17 @@ def test_fixed_outputs_and_headings_come_from_the_exporters_and_template() -> No
     assert outputs["docs"] == (frozenset({"{model}.md"}), frozenset({"index.md"}))
     assert "__init__.py" in outputs["python"][1] and "{model}/client.py" in outputs["python"][0]
     assert {"registers", "enums", "bit-fields", "examples", "contents"} <= reserved().headings
+
+
+def test_reserved_data_is_what_the_templates_produce() -> None:
+    """The python back end's reserved names are data; they must equal what rendering a probe map gives.
+
+    When a template or runtime change binds a new name, this fails until
+    ``python tests/reserved_probe.py > generator/drivemap/backends/python/reserved.py`` is run.
+    """
+    import dataclasses
+
+    from tests import reserved_probe
+
+    probe = reserved_probe.reserved()
+    assert dataclasses.astuple(probe) == dataclasses.astuple(reserved()), reserved_probe.module_text(probe)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivemap.backends.export import export_model
+from drivemap.compiler import export_model
 
 MODEL = "edx"
 

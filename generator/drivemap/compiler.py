@@ -1,10 +1,21 @@
-"""The pipeline: load -> schema -> semantic checks -> immutable model."""
+"""The pipeline: load -> schema -> semantic checks -> the exporters' checks -> immutable model.
+
+The front end (:mod:`drivemap.frontend`) knows no back end; the exporters' ``validate`` hooks (the
+python exporter's generated names, the docs exporter's anchors) run here, on the checked document,
+and render nothing.
+"""
 
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
+from drivemap.backends.export import export
+from drivemap.backends.exporters.base import Exporter
+from drivemap.backends.exporters.docs import DocsExporter
+from drivemap.backends.exporters.python import PythonExporter
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import checks, schema
 from drivemap.frontend.load import load_file
@@ -22,8 +33,14 @@ def display_path(path: str | os.PathLike[str]) -> str:
     return display(path)
 
 
-def compile_map(path: str | os.PathLike[str]) -> Model:
-    """Load, validate and check one map; raise :class:`CompileError` with every error found."""
+def default_exporters() -> tuple[Exporter, ...]:
+    """The exporters whose checks every map passes: the outputs ``drivemap build`` always writes."""
+    return (PythonExporter(), DocsExporter())
+
+
+def compile_map(path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
+    """Load, validate and check one map (and run the ``validate`` hook of each of ``exporters``,
+    by default :func:`default_exporters`); raise :class:`CompileError` with every error found."""
     shown = display_path(path)
     doc = load_file(shown)
     if not isinstance(doc.data, dict):
@@ -32,6 +49,8 @@ def compile_map(path: str | os.PathLike[str]) -> Model:
     if errors:
         raise CompileError(errors)
     problems, statuses = checks.check(doc)
+    for exporter in default_exporters() if exporters is None else exporters:
+        problems += checks.located(doc, exporter.validate(doc.data))
     if problems:
         raise CompileError(problems)
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
@@ -74,3 +93,8 @@ def resolve_map(name: str, project: Project) -> Path:
 def load_model(name: str, project: Project | None = None) -> Model:
     """Compile the map of a model id or path (see :func:`resolve_map`)."""
     return compile_map(resolve_map(name, project or load_project()))
+
+
+def export_model(name: str) -> dict[str, Any]:
+    """Compile the map of a model id or path and return its export contract (``--format json``)."""
+    return export(load_model(name))

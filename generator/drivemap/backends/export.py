@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from drivemap.compiler import load_model
 from drivemap.frontend.frames import export_form
 from drivemap.model.nodes import Model, Register
 
@@ -103,8 +102,3 @@ def export(model: Model) -> dict[str, Any]:
             for ex in model.examples
         ],
     }
-
-
-def export_model(model: str) -> dict[str, Any]:
-    """Compile ``maps/<model>.yaml`` and return its export contract."""
-    return export(load_model(model))

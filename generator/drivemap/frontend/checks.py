@@ -5,26 +5,15 @@ Each check reports a located :class:`Diagnostic`; all of a file's errors are col
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from drivemap.backends.python import namecheck
-from drivemap.backends.python.names import FIXED_NAMES
 from drivemap.diagnostics import Diagnostic
 from drivemap.frontend import examplevalues, frames
 from drivemap.frontend.checks_registers import RegisterChecks, table_name
 from drivemap.frontend.load import Document, PathT
 from drivemap.model.nodes import camel, is_keyword
-
-#: Attribute names of the generated clients that a register may not take.
-CLIENT_ATTRIBUTES = frozenset(
-    {
-        "read", "write", "read_all", "read_by_name", "write_by_name", "read_modify_write", "close",
-        "stats", "bus", "unit", "pending_configuration", "pending_power_cycle", "apply_configuration",
-        "registers", "accessor", "tcp", "serial", "rtu_over_tcp", "broadcast", "model", "page_policy",
-        "connect", "plan", "loopback", "write_many", "self", "cls", "holes", "read_registers",
-    }
-)
 
 STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
 OPERATION_CODES = {"read": (1, 2, 3, 4), "write": (5, 6), "write_multiple": (15, 16), "loopback": (8,)}
@@ -48,7 +37,6 @@ class Checker(RegisterChecks):
         self.check_known_issues()
         self.check_examples()
         self.check_running()
-        self.check_generated_names()
         self.check_reserved_pages()
         self.check_example_values()
         return self.diagnostics
@@ -65,11 +53,6 @@ class Checker(RegisterChecks):
         for where, message, options in examplevalues.problems(self.data):
             self.error(where, message, **options)
 
-    def check_generated_names(self) -> None:
-        """Generated names against each other and against what the generated code holds (:mod:`.namecheck`)."""
-        for where, message, options in namecheck.problems(self.data, CLIENT_ATTRIBUTES):
-            self.error(where, message, **options)
-
     def check_device(self) -> None:
         model = self.data["device"]["model"]
         stem = Path(self.doc.path).stem
@@ -81,16 +64,12 @@ class Checker(RegisterChecks):
     def check_enums(self) -> None:
         classes: dict[str, PathT] = {}
         for name in self.data.get("enums", {}):
-            if name in FIXED_NAMES:
-                self.error(("enums", name), f"enum name {name!r} is taken by the generated client package", key=True)
             classes[name] = ("enums", name)
         for i, reg in enumerate(self.data["registers"]):
             if reg.get("bits"):
                 cls = reg.get("flags_name") or camel(reg["name"])
                 where: PathT = ("registers", i, "flags_name" if reg.get("flags_name") else "name")
-                if cls in FIXED_NAMES:
-                    self.error(where, f"bit-field class name {cls!r} is taken by the generated client package")
-                elif cls in classes:
+                if cls in classes:
                     self.error(where, f"bit-field class name {cls!r} clashes with another class of this map",
                                related=classes[cls], note="the other class is defined here",
                                related_key=classes[cls][0] == "enums")
@@ -125,8 +104,6 @@ class Checker(RegisterChecks):
             self.register_names[name] = i
             if is_keyword(name):
                 self.error(where + ("name",), f"register name {name!r} is a Python keyword")
-            elif name in CLIENT_ATTRIBUTES:
-                self.error(where + ("name",), f"register name {name!r} clashes with a client attribute")
             elif name.startswith("_") or "__" in name:
                 self.error(where + ("name",), f"register name {name!r} may not start with or contain '__'")
             if reg["group"] not in groups:
@@ -374,3 +351,14 @@ def check(doc: Document) -> tuple[list[Diagnostic], dict[str, str]]:
     """Run every semantic check; returns diagnostics and each example's status."""
     checker = Checker(doc)
     return checker.run(), checker.statuses
+
+
+def located(doc: Document, problems: Iterable[tuple[PathT, str, dict[str, Any]]]) -> list[Diagnostic]:
+    """Problems found at paths of ``doc`` (an exporter's ``validate`` hook gives them) as diagnostics.
+
+    The options are those of :meth:`CheckerBase.error`: ``key``, ``related``, ``note``, ``related_key``.
+    """
+    checker = Checker(doc)
+    for where, message, options in problems:
+        checker.error(where, message, **options)
+    return checker.diagnostics

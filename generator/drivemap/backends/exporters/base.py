@@ -14,14 +14,17 @@ and is then listed by ``drivemap export --list`` and run by ``drivemap export MO
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
 from drivemap.model.nodes import Model
 
-__all__ = ["Exporter", "OptionError", "Options"]
+#: One exporter-side problem: (path in the map document, message, options of a located error).
+Problem = tuple[tuple[str | int, ...], str, dict[str, Any]]
+
+__all__ = ["Exporter", "OptionError", "Options", "Problem"]
 
 
 class OptionError(ValueError):
@@ -74,6 +77,17 @@ class Exporter:
 
     def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
         """Add this exporter's own options (use ``--long-names``; their ``dest`` keys reach ``Options.values``)."""
+
+    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
+        """Exporter-side checks of a map that passed the front end (schema and semantic checks).
+
+        Yields ``(path, message, options)``: ``path`` is the place in the map document (a tuple of
+        keys and indexes, as ``("registers", 3, "name")``), ``options`` those of a located error
+        (``key``, ``related``, ``note``, ``related_key``). Nothing is rendered here: an exporter checks
+        the names and values its output could not hold (the python exporter: generated names). The
+        pipeline (:func:`drivemap.compiler.compile_map`) locates them in the map's file. None by default.
+        """
+        return ()
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
         """Files of one model: relative path -> text (deterministic: same model, same bytes)."""

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, Options
-from drivemap.backends.render import render_template
-from drivemap.backends.views import docs
+from drivemap.backends.exporters.base import Exporter, Options, Problem
+from drivemap.backends.python import namecheck
 from drivemap.model.nodes import Model
 
 __all__ = ["DocsExporter"]
@@ -18,9 +18,19 @@ class DocsExporter(Exporter):
     suffix = ".md"
     multi_file = True
 
+    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
+        """Headings whose anchors collide on the model's page, and a model id the index file takes."""
+        return namecheck.docs_problems(dict(document))
+
     def render(self, model: Model, options: Options) -> dict[str, str]:
+        from drivemap.backends.render import render_template  # Jinja only when rendering
+        from drivemap.backends.views import docs
+
         name = f"{model.name}.md"
         return {name: render_template(name, "model.md.jinja", docs.context(model, options))}
 
     def render_collection(self, models: Sequence[Model], options: Options) -> dict[str, str]:
+        from drivemap.backends.render import render_template
+        from drivemap.backends.views import docs
+
         return {"index.md": render_template("index.md", "index.md.jinja", docs.index_context(models, options))}

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, Options
-from drivemap.backends.render import render_template
-from drivemap.backends.views import client, common, simulator, spec
+from drivemap.backends.exporters.base import Exporter, Options, Problem
+from drivemap.backends.python import namecheck
 from drivemap.model.nodes import Model
 
 __all__ = ["PythonExporter"]
@@ -17,7 +17,14 @@ class PythonExporter(Exporter):
     help = "typed Python package: <model>/spec.py, client.py, simulator.py (what `drivemap build` writes to out)"
     multi_file = True
 
+    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
+        """The map's names against each other and against what the generated package defines."""
+        return namecheck.python_problems(dict(document))
+
     def render(self, model: Model, options: Options) -> dict[str, str]:
+        from drivemap.backends.render import render_template  # Jinja only when rendering
+        from drivemap.backends.views import client, simulator, spec
+
         m = model.name
         return {
             f"{m}/__init__.py": render_template(f"{m}/__init__.py", "package_init.py.jinja", client.context(model, options)),
@@ -28,6 +35,9 @@ class PythonExporter(Exporter):
         }
 
     def render_collection(self, models: Sequence[Model], options: Options) -> dict[str, str]:
+        from drivemap.backends.render import render_template
+        from drivemap.backends.views import common
+
         context = common.root_context(models, options)
         return {
             "__init__.py": render_template("__init__.py", "generated_init.py.jinja", context),

@@ -26,33 +26,49 @@ import re
 from collections.abc import Iterator
 from typing import Any
 
+from drivemap.backends.escape import md_text
 from drivemap.backends.python.names import FIXED_NAMES, UNKNOWN_MEMBER, bit_attribute, exception_classes
 from drivemap.backends.python.reserved import reserved
+from drivemap.backends.views.format import slug
 from drivemap.frontend.load import PathT
 from drivemap.model.nodes import camel, is_keyword
 
-__all__ = ["problems"]
+__all__ = ["CLIENT_ATTRIBUTES", "docs_problems", "python_problems"]
+
+#: Attribute names of the generated clients that a register may not take.
+CLIENT_ATTRIBUTES = frozenset(
+    {
+        "read", "write", "read_all", "read_by_name", "write_by_name", "read_modify_write", "close",
+        "stats", "bus", "unit", "pending_configuration", "pending_power_cycle", "apply_configuration",
+        "registers", "accessor", "tcp", "serial", "rtu_over_tcp", "broadcast", "model", "page_policy",
+        "connect", "plan", "loopback", "write_many", "self", "cls", "holes", "read_registers",
+    }
+)
 
 Problem = tuple[PathT, str, dict[str, Any]]
 
 
-def problems(data: dict[str, Any], client_attributes: frozenset[str]) -> Iterator[Problem]:
-    """Every generated-name collision of a map that passed the schema.
-
-    ``client_attributes``: the attribute names the register checks already refuse (not repeated here).
-    """
-    yield from _model_id(data)
+def python_problems(data: dict[str, Any]) -> Iterator[Problem]:
+    """Every collision of a map's names with the generated Python package (the python exporter's hook)."""
+    yield from _model_id(data, "python")
     yield from _classes(data)
-    yield from _registers(data, client_attributes)
+    yield from _registers(data)
     yield from _bits(data)
     yield from _enum_members(data)
+
+
+def docs_problems(data: dict[str, Any]) -> Iterator[Problem]:
+    """Every collision of a map's names on its generated docs page (the docs exporter's hook)."""
+    yield from _model_id(data, "docs")
     yield from _groups(data)
     yield from _anchors(data)
 
 
-def _model_id(data: dict[str, Any]) -> Iterator[Problem]:
+def _model_id(data: dict[str, Any], only: str) -> Iterator[Problem]:
     model = data["device"]["model"]
     for exporter, per_model, once in reserved().outputs:
+        if exporter != only:
+            continue
         for pattern in sorted(per_model):
             path = pattern.replace("{model}", model)
             clash = next((f for f in sorted(once) if f == path or f.startswith(path + "/")
@@ -74,16 +90,20 @@ def _classes(data: dict[str, Any]) -> Iterator[Problem]:
     owners: dict[str, tuple[str, PathT]] = {}
     for name in data.get("enums", {}):
         where: PathT = ("enums", name)
-        if name not in FIXED_NAMES:  # those are reported by the enum checks
+        if name in FIXED_NAMES:
+            yield where, f"enum name {name!r} is taken by the generated client package", {"key": True}
+        else:
             if name in taken:
                 yield where, f"enum name {name!r} is a name the generated client module imports or defines", {"key": True}
             elif is_keyword(name):
                 yield where, f"enum name {name!r} is a Python keyword", {"key": True}
         owners.setdefault(name, (f"enum {name}", where))
     for cls, where in _bits_class_names(data):
-        if cls not in FIXED_NAMES and cls in taken:
+        if cls in FIXED_NAMES:
+            yield where, f"bit-field class name {cls!r} is taken by the generated client package", {}
+        elif cls in taken:
             yield where, f"bit-field class name {cls!r} is a name the generated client module imports or defines", {}
-        elif cls not in FIXED_NAMES and is_keyword(cls):
+        elif is_keyword(cls):
             yield where, f"bit-field class name {cls!r} is a Python keyword", {}
         owners.setdefault(cls, (f"the bit-field class of registers[{where[1]}]", where))
     exceptions = data["protocol"]["exceptions"]
@@ -100,17 +120,19 @@ def _classes(data: dict[str, Any]) -> Iterator[Problem]:
         owners.setdefault(cls, (f"exception {exceptions[i]['name']!r}", where))
 
 
-def _registers(data: dict[str, Any], client_attributes: frozenset[str]) -> Iterator[Problem]:
+def _registers(data: dict[str, Any]) -> Iterator[Problem]:
     shadowed = reserved().annotation
     attributes = reserved().client
     seen: set[str] = set()
     for i, reg in enumerate(data["registers"]):
         name = reg["name"]
-        if name in seen or is_keyword(name) or name in client_attributes:
+        if name in seen or is_keyword(name):
             continue  # reported by the register checks
         seen.add(name)
         where: PathT = ("registers", i, "name")
-        if name in shadowed:
+        if name in CLIENT_ATTRIBUTES:
+            yield where, f"register name {name!r} clashes with a client attribute", {}
+        elif name in shadowed:
             yield where, f"register name {name!r} would shadow the builtin {name!r} in the generated classes", {}
         elif name in attributes:
             yield where, f"register name {name!r} clashes with a client attribute", {}
@@ -161,15 +183,12 @@ def _groups(data: dict[str, Any]) -> Iterator[Problem]:
 
 def _anchors(data: dict[str, Any]) -> Iterator[Problem]:
     """Headings of the model's docs page whose anchors collide (a link to one would lead to the other)."""
-    from drivemap.backends.render import _md
-    from drivemap.backends.views.docs import slug
-
     owners: dict[str, tuple[str, PathT | None]] = {a: ("a fixed section of the page", None) for a in reserved().headings}
     headings: list[tuple[str, PathT, dict[str, Any]]] = []
     for i, port in enumerate(data["protocol"]["ports"]):
-        headings.append((f"Port {_md(port['name'])}", ("protocol", "ports", i, "name"), {}))
+        headings.append((f"Port {md_text(port['name'])}", ("protocol", "ports", i, "name"), {}))
     for i, group in enumerate(data.get("groups", ())):
-        headings.append((_md(group["title"]), ("groups", i, "title"), {}))
+        headings.append((md_text(group["title"]), ("groups", i, "title"), {}))
     for name in data.get("enums", {}):
         headings.append((f"Enum {name}", ("enums", name), {"key": True}))
     names = {reg["name"]: i for i, reg in reversed(list(enumerate(data["registers"])))}
@@ -180,7 +199,7 @@ def _anchors(data: dict[str, Any]) -> Iterator[Problem]:
     for name, i in examples.items():
         headings.append((f"Example {name}", ("examples", i, "name"), {}))
     for i, issue in enumerate(data.get("known_issues", ())):
-        headings.append((f"{i + 1}. {_md(issue['title'])}", ("known_issues", i, "title"), {}))
+        headings.append((f"{i + 1}. {md_text(issue['title'])}", ("known_issues", i, "title"), {}))
     for text, where, options in headings:
         anchor = slug(text)
         other = owners.get(anchor)
