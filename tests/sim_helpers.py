@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import socket
 import threading
 from collections.abc import Iterator
 from typing import Any
@@ -15,13 +14,7 @@ from drivemap.backends.exporters.pymodbus_sim import PymodbusSimExporter
 from drivemap.backends.python.inmemory import load_package
 from drivemap.model.nodes import Model
 from drivemap.runtime.sim.simulator import Simulator
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
+from tests.waits import free_port, wait_port
 
 
 def export(model: Model, port: int, **values: Any) -> dict[str, Any]:
@@ -57,24 +50,13 @@ def serve_export(model: Model) -> Iterator[tuple[int, int]]:
 
     server = asyncio.run_coroutine_threadsafe(start(), loop).result(5)
     try:
-        _wait_port(port)
+        wait_port(port, 10.0)
         yield port, unit
     finally:
         asyncio.run_coroutine_threadsafe(server.shutdown(), loop).result(5)
         loop.call_soon_threadsafe(loop.stop)
         thread.join(5)
         loop.close()
-
-
-def _wait_port(port: int, seconds: float = 10.0) -> None:
-    import time
-
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
-            return
-        time.sleep(0.05)
-    raise TimeoutError(f"nothing listens on 127.0.0.1:{port}")
 
 
 def read_back(model: Model, port: int, unit: int) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -11,10 +11,8 @@ import dataclasses
 import os
 import re
 import shlex
-import socket
 import subprocess
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,6 +30,7 @@ from drivemap.build import render_tree, write_tree
 from drivemap.compiler import compile_map, map_paths
 from drivemap.diagnostics import CompileError
 from drivemap.model.nodes import Model
+from tests.waits import free_port, wait_port
 
 ROOT = Path(__file__).resolve().parent.parent
 GENERATED = ROOT / "generated"
@@ -468,23 +467,11 @@ def test_map_text_cannot_break_tables_or_inject_html(models: list[Model]) -> Non
 
 
 def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    return free_port()
 
 
 def _wait_for_port(port: int, proc: subprocess.Popen[bytes], timeout: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            _out, err = proc.communicate(timeout=5)
-            pytest.fail(f"simulator exited with {proc.returncode}:\n{err.decode(errors='replace')}")
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
-                return
-        except OSError:
-            time.sleep(0.05)
-    pytest.fail(f"simulator did not listen on 127.0.0.1:{port} within {timeout} s")
+    wait_port(port, timeout, proc)
 
 
 @pytest.fixture(scope="module")
@@ -498,8 +485,6 @@ def built_tree(tmp_path_factory: pytest.TempPathFactory, models: list[Model]) ->
 @pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_snippet_runs_against_the_simulator(model_id: str, pages: dict[str, Page], target_paths: set[str],
                                             request: pytest.FixtureRequest) -> None:
-    pytest.importorskip("drivemap.runtime.sim.simulator", reason="the simulator runtime is not written yet")
-    pytest.importorskip("drivemap.runtime.sim.serve", reason="`drivemap simulate` (simserve) is not written yet")
     assert f"{model_id}/client.py" in target_paths, (
         "the generated client (generator/drivemap/backends/views/client.py) is missing: the page's snippet cannot run")
     built_tree: Path = request.getfixturevalue("built_tree")

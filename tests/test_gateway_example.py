@@ -14,12 +14,9 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
+from asyncua import Client  # noqa: E402
 
 from tests.helpers_gateway import Broker, Subscriber, free_port, until
-
-asyncua = pytest.importorskip("asyncua", reason="OPC UA is the optional extra drivemap[opcua] (in the test extra)")
-from asyncua import Client  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "docs/examples/plant.yaml"

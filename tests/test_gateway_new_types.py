@@ -110,7 +110,6 @@ async def test_mqtt_values_discovery_and_commands(tmp_path: Path, broker: Broker
 
 
 async def test_opcua_types_of_floats_strings_bools_and_counters(tmp_path: Path) -> None:
-    pytest.importorskip("asyncua", reason="OPC UA is the optional extra drivemap[opcua] (in the test extra)")
     from asyncua import Client, ua
 
     opc = free_port()

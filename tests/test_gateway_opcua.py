@@ -8,12 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from asyncua import Client, ua  # noqa: E402
 
 from tests.helpers_client import tcp_server
 from tests.helpers_gateway import free_port, running, until, write_config
-
-asyncua = pytest.importorskip("asyncua", reason="OPC UA is the optional extra drivemap[opcua] (in the test extra)")
-from asyncua import Client, ua  # noqa: E402
 
 NS = "urn:drivemap:test"
 

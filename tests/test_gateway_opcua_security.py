@@ -13,18 +13,16 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from drivemap.cli import main
-from tests.helpers_client import tcp_server
-from tests.helpers_gateway import free_port, running, until, write_config
-
-asyncua = pytest.importorskip("asyncua", reason="OPC UA is the optional extra drivemap[opcua] (in the test extra)")
 from asyncua import Client, ua  # noqa: E402
 from asyncua.crypto import cert_gen  # noqa: E402
 from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256  # noqa: E402
 from cryptography import x509  # noqa: E402
 from cryptography.hazmat.primitives.serialization import Encoding  # noqa: E402
 from cryptography.x509.oid import ExtendedKeyUsageOID  # noqa: E402
+
+from drivemap.cli import main
+from tests.helpers_client import tcp_server
+from tests.helpers_gateway import free_port, running, until, write_config
 
 NS = "urn:drivemap:test"
 SERVER_URI = "urn:drivemap:gateway:plant"  # what the gateway sets as its application URI

@@ -44,6 +44,7 @@ from drivemap.runtime.sim import serve as simserve
 from drivemap.runtime.sim.simulator import Simulator
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 from drivemap.testing.vserial import VirtualSerialLine
+from tests.waits import wait_until
 
 MODELS = ["ev", "v2", "edx", "vfd1000"]
 BAUDRATE = 19200
@@ -437,12 +438,7 @@ def _probe(spec: DeviceSpec) -> bytes:
 
 
 def _wait(pred: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.001)
-    return pred()
+    return wait_until(pred, timeout, step=0.001)
 
 
 @pytest.mark.parametrize("model, mode, frames", LINE_RUNS, ids=[f"{m}-{mode}-{n}" for m, mode, n in LINE_RUNS])

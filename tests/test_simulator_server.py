@@ -29,6 +29,7 @@ from drivemap.runtime.sim.cli import parse_tcp
 from drivemap.runtime.sim.serve import SimServer, ThreadedSimServer, is_loopback
 from drivemap.runtime.sim.simulator import SimulatorError
 from drivemap.testing.vserial import VirtualSerialLine
+from tests.waits import wait_until
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -43,12 +44,7 @@ def rtu(hexbytes: str) -> bytes:
 
 
 def wait_for(pred: Callable[[], bool], timeout: float = 5.0, step: float = 0.02) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(step)
-    return pred()
+    return wait_until(pred, timeout, step)
 
 
 @contextmanager

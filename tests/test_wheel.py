@@ -12,15 +12,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import socket
 import subprocess
 import sys
-import time
 import venv
 import zipfile
 from pathlib import Path
 
 import pytest
+
+from tests.waits import free_port, wait_port
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED_MAPS = sorted((ROOT / "maps").glob("*.yaml"))
@@ -77,12 +77,6 @@ def ok(bindir: Path, cwd: Path, *argv: str) -> str:
     assert proc.returncode == 0, f"drivemap {' '.join(argv)}:\n{proc.stdout}\n{proc.stderr}"
     assert "Traceback" not in proc.stderr
     return proc.stdout
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def test_the_wheel_carries_the_package_schema_and_seed_maps_only(wheel: Path) -> None:
@@ -169,14 +163,7 @@ def test_seed_maps_schema_and_exports_work_from_an_empty_folder(env: Path, tmp_p
 
 
 def _wait_for(port: int, timeout: float = 20.0) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
-                return
-        except OSError:
-            time.sleep(0.1)
-    pytest.fail(f"simulator did not listen on 127.0.0.1:{port}")
+    wait_port(port, timeout)
 
 
 GATEWAY = """\

@@ -101,7 +101,7 @@ def ensure(name: str) -> Tool:
 
 
 def require(name: str) -> Tool:
-    """:func:`ensure` for tests: a tool that cannot be installed skips the test LOUDLY."""
+    """:func:`ensure` for tests: a tool that cannot be installed FAILS the test (a check not run is no pass)."""
     import pytest
 
     try:
@@ -109,7 +109,7 @@ def require(name: str) -> Tool:
     except ToolUnavailable as exc:
         message = f"TOOL NOT INSTALLED, CHECK NOT RUN: {name} ({TOOLS[name]}): {exc}"
         print(f"\n*** {message}", file=sys.stderr)
-        pytest.skip(message)
+        pytest.fail(message)
 
 
 if __name__ == "__main__":
