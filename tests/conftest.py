@@ -22,15 +22,27 @@ import pytest
 
 from tests.waits import free_port, wait_port, wait_until
 
-#: Test modules whose tests start real servers, ptys, subprocesses, brokers or virtualenvs.
+#: Test modules whose tests start real servers, ptys, subprocesses, brokers, type checkers or
+#: virtualenvs, or run long property-based searches (``pytest --durations=0`` picked them).
 SLOW_MODULES = frozenset({
-    "test_bad_maps_slow",
+    "test_cli", "test_client_faults", "test_client_serial", "test_client_typing", "test_compiler_fuzz", "test_docs",
+    "test_escaping", "test_exporter_plugin", "test_injection", "test_project", "test_roundtrip",
+    "test_serial_receiver", "test_simulator_fuzz", "test_simulator_server", "test_simulator_state",
+    "test_simulator_tcp", "test_simulator_tcp_fuzz", "test_stale_replies", "test_vserial", "test_wheel",
 })
+#: Every module of these families talks to real servers (the live verbs, the gateway, onboarding a device).
+SLOW_PREFIXES = ("test_live_", "test_gateway_", "test_probe", "test_draft", "test_import")
+#: ... except these, which check configurations and run in-process.
+FAST_MODULES = frozenset({"test_gateway_config"})
+
+
+def is_slow(module: str) -> bool:
+    return module not in FAST_MODULES and (module in SLOW_MODULES or module.startswith(SLOW_PREFIXES))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
-        if Path(str(item.fspath)).stem in SLOW_MODULES and "tools" not in item.keywords:
+        if "tools" not in item.keywords and is_slow(Path(str(item.fspath)).stem):
             item.add_marker(pytest.mark.slow)
 
 
