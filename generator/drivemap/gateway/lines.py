@@ -21,9 +21,9 @@ import time
 from collections import deque
 from typing import Any, Protocol
 
-from ..runtime.errors import DriveError, TransportError
-from .config import BusConfig
-from .device import Command, Device, PollState
+from drivemap.gateway.config import BusConfig
+from drivemap.gateway.device import Command, Device, PollState
+from drivemap.runtime.errors import DriveError, TransportError
 
 log = logging.getLogger("drivemap.gateway")
 
@@ -61,10 +61,11 @@ class Fanout:
 
 def outcome(cmd: Command, error: BaseException | None) -> dict[str, Any]:
     """The published result of a command: ok, or the typed error's class name and message."""
+    typed = error is None or isinstance(error, DriveError)
     return {
         "register": cmd.target, "value": cmd.given, "ok": error is None, "source": cmd.source,
-        "error": None if error is None else type(error).__name__,
-        "message": "written" if error is None else str(error),
+        "error": None if error is None else type(error).__name__ if typed else "InternalError",
+        "message": "written" if error is None else str(error) if typed else f"{type(error).__name__}: {error}",
     }
 
 
@@ -85,6 +86,7 @@ class Line:
         self.polls_done = 0
         self.commands_accepted = 0
         self.commands_done = 0
+        self.faults = 0
         self.started = time.monotonic()
 
     def submit(self, cmd: Command) -> None:
@@ -104,7 +106,12 @@ class Line:
                 poll.due = now
         try:
             while not self.stopping:  # a cancellation swallowed below the bus still ends the loop
-                await self._step()
+                try:
+                    await self._step()
+                except Exception:  # noqa: BLE001 - no device or command may stop the line: logged, next step
+                    self.faults += 1
+                    log.exception("%s: unexpected failure; the line goes on", self.name)
+                    await asyncio.sleep(min(1.0, self.backoff_min))
         finally:
             self.bus.close()
 
@@ -185,13 +192,16 @@ class Line:
     async def execute(self, cmd: Command) -> None:
         """Write a checked command, publish its outcome and read the register back."""
         device = cmd.device
-        error: DriveError | None = None
+        error: Exception | None = None
         try:
             if cmd.raw is None:  # scaled by a scale register: the client reads the factor first
                 await cmd.accessor.write(cmd.value)
             else:
                 await cmd.accessor.write_raw(cmd.raw)
         except DriveError as exc:
+            error = exc
+        except Exception as exc:  # noqa: BLE001 - answered like any failed command, and logged
+            log.exception("%s: %s <- %r failed", device.name, cmd.target, cmd.given)
             error = exc
         self.commands_done += 1
         log.info("%s: %s <- %r: %s", device.name, cmd.target, cmd.given, "ok" if error is None else error)
