@@ -50,7 +50,8 @@ name: plant
     timeout: 0.5
     devices:
       - {{name: inv, model: fronius_symo_hybrid, unit: 1, interval: 0.2,
-         publish: [manufacturer, ac_current, ac_current_a, site_energy_total, max_power_setting]}}
+         publish: [manufacturer, ac_current, ac_current_a, site_energy_total, max_power_setting],
+         writable: [max_power_setting]}}
   - name: meter
     tcp: 127.0.0.1:{sdm}
     timeout: 0.5
@@ -60,7 +61,8 @@ name: plant
     tcp: 127.0.0.1:{kinds}
     timeout: 0.5
     devices:
-      - {{name: io, map: {ALLKINDS}, unit: 1, interval: 0.2, publish: [run, door_open, device_name, temperature]}}
+      - {{name: io, map: {ALLKINDS}, unit: 1, interval: 0.2, publish: [run, door_open, device_name, temperature],
+         writable: [run, device_name]}}
 """
 
 
