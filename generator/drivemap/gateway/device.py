@@ -153,7 +153,10 @@ class Device:
         if not self.may_write(reg.name):
             raise ReadOnlyRegister(f"{self.name}.{reg.name}: the gateway configuration does not accept commands for "
                                    "it (list it in the device's writable)")
-        if reg.command_value is not None and text.strip().upper() in (PRESS, ""):
+        if reg.command_value is not None:  # a command register takes PRESS (or its command value) only
+            if text.strip().upper() != PRESS and integer_word(text.strip()) != reg.command_value:
+                raise InvalidValue(f"{reg.name} is a command: send {PRESS} (it writes {reg.command_value}), "
+                                   f"got {show(text)}")
             raw = check_raw(acc.spec, reg.command_value)
             return Command(self, acc.name, acc, raw, text, source)
         value = self.parse_value(reg, acc, text)
@@ -206,7 +209,10 @@ def _bool_value(reg: Register, text: str) -> bool:
 
 
 def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -> Any:
-    word = text.strip().strip('"')
+    """A member by name (any case) or label, or by its value written as a bare ASCII integer (a
+    quoted ``"12"`` is a name, and no member is called that)."""
+    quoted = text.strip().startswith('"')
+    word = _text_value(text.strip()) if quoted else text.strip()
     assert reg.enum is not None
     values = model.enum(reg.enum).values
     for v in values:
@@ -215,7 +221,7 @@ def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -
     labels = [v for v in values if v.label == word]
     if len(labels) == 1:
         return codec.enum_type(labels[0].value)
-    given = integer_word(word)
+    given = None if quoted else integer_word(word)
     if given is None:
         names = ", ".join(v.name for v in values)
         raise InvalidValue(f"{reg.name}: {show(word)} is not a value of {reg.enum} ({names})")
