@@ -86,6 +86,10 @@ def test_enum_states_are_among_the_options(messages: dict[str, dict[str, Any]]) 
     assert render(state["value_template"], "STANDBY") == "STANDBY"
     assert render(state["value_template"], "UNKNOWN_0") == "None"  # HA: unknown, never an invalid option
     assert render(state["value_template"], "null") == "None"
+    parity = messages["sensor/drivemap_plant_conveyor/rs485_comm_settings_parity"]  # an enumerated bit field
+    known = parity["options"][0]
+    assert render(parity["value_template"], json.dumps({"PARITY": known})) == known
+    assert render(parity["value_template"], json.dumps({"PARITY": "UNKNOWN_3"})) == "None"
 
 
 def test_number_states_are_inside_the_range(messages: dict[str, dict[str, Any]]) -> None:

@@ -402,9 +402,9 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         if unusable is not None:
             check.error(where + ("trusted_certificates", i, "certificate"), unusable)
         users.append(OpcuaUser(c["name"], None, path, c.get("write", True)))
-    problem = endpoint_problem(o["endpoint"])
-    if problem is not None:
-        check.error(where + ("endpoint",), problem)
+    bad_endpoint = endpoint_problem(o["endpoint"])
+    if bad_endpoint is not None:
+        check.error(where + ("endpoint",), bad_endpoint)
     lim = o.get("limits", {})
     limits = OpcuaLimits(**{k: lim[k] for k in ("max_connections", "per_source", "anonymous_sessions", "reserve",
                                                  "handshake_timeout") if k in lim})

@@ -70,7 +70,7 @@ def precision(reg: Register) -> int | None:
         return None
     if reg.scale_register is not None:
         return None
-    digits = [-Decimal(repr(float(x))).normalize().as_tuple().exponent for x in (reg.scale, reg.offset or 0)]
+    digits = [-int(Decimal(repr(float(x))).normalize().as_tuple().exponent) for x in (reg.scale, reg.offset or 0)]
     return max(0, *digits)
 
 
@@ -246,8 +246,9 @@ def _bits(b: _Builder, reg: Register, object_id: str, name: str, state: str, ind
         if bit.width == 1 and bit.enum is None:
             b.add("binary_sensor", oid, label, {**fields, "value_template": f"{{{{ 'ON' if {field} else 'OFF' }}}}"})
         elif bit.enum is not None:
-            b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}", "device_class": "enum",
-                                         "options": _enum_names(b.device.model, bit.enum)})
+            options = _enum_names(b.device.model, bit.enum)
+            b.add("sensor", oid, label, {**fields, "value_template": _announced(field, options), "device_class": "enum",
+                                         "options": options})
         else:
             b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}"})
 

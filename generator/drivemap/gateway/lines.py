@@ -23,6 +23,8 @@ from typing import Any, Protocol
 
 from drivemap.gateway.config import BusConfig
 from drivemap.gateway.device import Command, Device, PollState
+from drivemap.gateway.payload import check_exact
+from drivemap.runtime.codec import OptionalCodec
 from drivemap.runtime.errors import DriveError, TransportError
 
 log = logging.getLogger("drivemap.gateway")
@@ -194,8 +196,8 @@ class Line:
         device = cmd.device
         error: Exception | None = None
         try:
-            if cmd.raw is None:  # scaled by a scale register: the client reads the factor first
-                await cmd.accessor.write(cmd.value)
+            if cmd.raw is None:  # scaled by a scale register: the factor is read just before the write
+                await cmd.accessor.write_raw(await self._scaled_raw(cmd))
             else:
                 await cmd.accessor.write_raw(cmd.raw)
         except DriveError as exc:
@@ -213,6 +215,19 @@ class Line:
                 cmd.done.set_exception(error)
         if error is None:
             await self._read_back(device, cmd.target.partition("[")[0])
+
+    async def _scaled_raw(self, cmd: Command) -> int:
+        """The raw value of a command for a register scaled by a scale-factor register: the factor read
+        now, the value encoded with it and refused unless it reads back exactly."""
+        codec = cmd.accessor.codec
+        inner = codec.inner if isinstance(codec, OptionalCodec) else codec
+        assert inner.scale_key is not None
+        factor = await cmd.device.client.accessor(inner.scale_key[0]).read_raw()
+        if cmd.value is None:
+            return int(codec.encode(None))
+        raw = int(codec.encode_scaled(cmd.value, factor))
+        check_exact(inner, cmd.value, raw, factor, scaled=True)
+        return raw
 
     async def _read_back(self, device: Device, name: str) -> None:
         if name not in device.cfg.publish:

@@ -116,7 +116,7 @@ class LimitedServer(Server):
     async def start(self) -> None:
         self.iserver.max_connections = self.admission.max_connections + 1  # admission decides first
         self.iserver.max_pending_activation_seconds = self.admission.handshake_timeout
-        await self._setup_server_nodes()  # type: ignore[no-untyped-call]
+        await self._setup_server_nodes()
         await self.iserver.start()
         try:
             host, port = self._get_bind_socket_info()

@@ -149,13 +149,18 @@ def _close(a: float, b: float) -> bool:
     return a == b or math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-12)
 
 
-def check_exact(codec: Any, value: Any, raw: int) -> None:
-    """Refuse ``value`` when ``raw`` does not read back as exactly ``value`` (the codec rounded it)."""
+def check_exact(codec: Any, value: Any, raw: int, factor: int | None = None, *, scaled: bool = False) -> None:
+    """Refuse ``value`` when ``raw`` does not read back as exactly ``value`` (the codec rounded it);
+    ``scaled``: the register is scaled by a scale-factor register whose raw value is ``factor``."""
     inner = codec.inner if isinstance(codec, OptionalCodec) else codec
     if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
         return
     name = inner.spec.name
-    back = inner.decode(raw)
+
+    def decode(r: int) -> Any:
+        return inner.decode_scaled(r, factor) if scaled else inner.decode(r)
+
+    back = decode(raw)
     if isinstance(inner, IeeeCodec):
         if inner.spec.type == "f32" and shortest_f32(back) == value or back == value:
             return
@@ -163,9 +168,10 @@ def check_exact(codec: Any, value: Any, raw: int) -> None:
                               f"(the nearest is {shortest_f32(back) if inner.spec.type == 'f32' else back})")
     if not isinstance(back, (int, float)) or _close(float(back), float(value)):
         return
-    near = sorted({inner.decode(r) for r in (raw - 1, raw, raw + 1)})
+    near = sorted({decode(r) for r in (raw - 1, raw, raw + 1)})
     below = [v for v in near if v < value]
     above = [v for v in near if v > value]
     nearest = " and ".join(str(v) for v in (below[-1:] + above[:1]))
+    step = f"{inner.spec.scale} x 10^{factor}" if scaled else f"{inner.spec.scale}"
     raise ValueOutOfRange(f"{name}: {value} is not a value the register holds exactly (resolution "
-                          f"{inner.spec.scale}); the nearest are {nearest}")
+                          f"{step}); the nearest are {nearest}")
