@@ -128,3 +128,8 @@ def test_example_without_opcua_is_mqtt_only_and_valid(tmp_path: Path) -> None:
     assert cfg.devices["pump1"].writable == ("communication_setting", "control_command")
     cfg = load_config(path, broker=("10.1.2.3", 1999))
     assert cfg.mqtt is not None and (cfg.mqtt.host, cfg.mqtt.port) == ("10.1.2.3", 1999)
+
+
+def test_example_ships_in_the_wheel() -> None:
+    assert EXAMPLE.parent.name == "data" and EXAMPLE.parent.parent.name == "drivemap"
+    assert '"data/*.yaml"' in (ROOT / "pyproject.toml").read_text()  # the wheel carries data/plant.yaml

@@ -7,10 +7,12 @@ as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOW
 registers as an object of their fields (single bits true/false, enumerated fields by name, wider
 fields as integers), arrays as lists of those.
 
-Commands are parsed and checked here, before they are queued: the register must exist and be
-writable, the payload must have the register's type, and the codec's checks (range, enum
-membership, representability) must pass. Everything that fails raises a typed
-:class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
+Commands are parsed and checked here, before they are queued: the register must exist, be
+writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
+and bounded (:mod:`drivemap.gateway.payload`), must have the register's type, and must pass the
+codec's checks (range, enum membership, representability) and the gateway's own exactness check (a
+value the register cannot hold exactly is refused, never rounded). Everything that fails raises a
+typed :class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
 """
 
 from __future__ import annotations

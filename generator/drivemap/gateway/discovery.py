@@ -1,14 +1,19 @@
 """Home Assistant MQTT discovery, generated from the map.
 
-One Home Assistant device per drive (manufacturer, model, manual revision from the map) and, per
-register: a ``sensor`` for readable values (unit, ``device_class`` where the unit names one,
-``state_class`` for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single
-bit of a bit-field register (wider fields are sensors), a ``select`` per writable enumerated
-register, a ``number`` per writable register with a range in the map (min/max, step = the map's
-scale), a ``button`` per command register, a ``switch`` per writable coil (payloads true/false)
-and a ``binary_sensor`` per read-only coil or discrete input. Strings are text sensors (no unit or
-state class); a register with not-available values publishes null for them, which the sensor shows
-as unknown (its value template turns null into HA's "None" payload).
+One Home Assistant device per drive (manufacturer, model, manual document and revision from the
+map; what the map does not state is left out) and, per register: a ``sensor`` for readable values
+(unit, ``device_class`` where the unit names one, ``state_class`` and ``suggested_display_precision``
+for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single bit of a
+bit-field register (wider fields are sensors) and per read-only coil or discrete input. Controls
+only for registers in the device's ``writable`` list: a ``select`` per enumerated register, a
+``number`` per register with a range in the map (min/max, step = the map's scale), a ``button`` per
+command register, a ``switch`` per coil or bool register (payloads true/false). Strings are text
+sensors (no unit or state class); a register with not-available values publishes null for them,
+which the sensor shows as unknown (its value template turns null into HA's "None" payload).
+
+Home Assistant refuses a state it was not announced: enum templates turn a value outside the options
+(``UNKNOWN_<n>``) into "None" (unknown); number templates turn a reading outside min..max into "None",
+and a ``<name> reading`` sensor shows the reading whole.
 
 Every entity is available only while both the gateway and its device are online
 (``availability_mode: all``). Topics: ``<discovery_prefix>/<component>/<node_id>/<object_id>/config``,

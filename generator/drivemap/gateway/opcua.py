@@ -1,14 +1,15 @@
 """The OPC UA side of the gateway (asyncua, the optional extra ``drivemap[opcua]``).
 
 Address space, in the configured namespace: ``Objects/<gateway>/<device>`` (one object per device)
-with an ``Online`` boolean and one variable per register, named as in the map. Each variable has
-the map's access level (read, write or both; arrays are read-only here), the ``EngineeringUnits``
-property (``EUInformation`` with the map's unit), ``EURange`` where the map gives min and max, and,
-for enumerated registers, ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values
-run 0..n-1. Numbers are ``Double`` where the scale is fractional (or a scale register applies), else
-``Int64``; ``UInt64`` for u64 counters, ``Float`` for unscaled f32, ``String`` for strings, ``Boolean``
-for coils, discrete inputs and bools; enumerated and bit-field registers carry their raw integer. A
+with an ``Online`` boolean and one variable per register, named as in the map. AccessLevel:
+CurrentRead for published registers, CurrentWrite for those in the device's ``writable`` list
+(arrays are read-only here); a write-only register's value reads ``BadNotReadable``.
+UserAccessLevel (answered per session by a PostRead callback) drops CurrentWrite for sessions that
+may not write. ``EngineeringUnits`` carry the UNECE unit id, data types follow the register type
+(:mod:`drivemap.gateway.opcua_types`); ``EURange`` where the map gives min and max; for enumerated
+registers ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values run 0..n-1. A
 not-available value (the client reads None) is a null value with the status ``BadNoData``.
+Connections are admitted by :mod:`drivemap.gateway.opcua_limits`.
 
 Writes go through the same checks as MQTT commands (:meth:`drivemap.gateway.device.Device.command`)
 before anything is queued, then wait for the device's reply; the status says what happened:
