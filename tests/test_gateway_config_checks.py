@@ -67,6 +67,7 @@ def test_user_names_are_unique(tmp_path: Path, capsys: pytest.CaptureFixture[str
     ("opc.tcp://127.0.0.1/drivemap/", "names no port"),
     ("opc.tcp://:4840/", "names no host"),
     ("opc.tcp://no-such-host.invalid:4840/", "does not resolve"),
+    ("opc.tcp://192.0.2.1:4840/drivemap/", "cannot listen on 192.0.2.1:4840"),  # bind only: not this host's
 ])
 def test_invalid_endpoints_are_located(tmp_path: Path, capsys: pytest.CaptureFixture[str], good: str, endpoint: str,
                                        message: str) -> None:

@@ -115,3 +115,43 @@ async def test_hostile_corpus_on_every_command_topic(tmp_path: Path, broker: Bro
                     node = await opc_client.nodes.objects.get_child([f"{idx}:plant", f"{idx}:pump1",
                                                                      f"{idx}:communication_setting"])
                     assert await node.read_value() == 55.55
+
+
+async def test_a_failure_nothing_foresaw_stops_nothing(tmp_path: Path, broker: Broker) -> None:
+    """A poll or a write that fails with an exception no drivemap code expects (injected here: the
+    client raises RuntimeError) is logged; the command is answered ``InternalError``, the line and the
+    other devices go on."""
+    with tcp_server("vfd1000", (1, 2)) as (vsim, _, vport), tcp_server("ev", (1,)) as (_, _, eport):
+        cfg = write_config(tmp_path, config(broker.port, vport, eport, free_port()).replace("opcua:", "# opcua:"))
+        async with Subscriber(broker.port, ("drivemap/#",)) as sub, running(cfg) as gw:
+            await until(lambda: sub.text("drivemap/pump1/availability") == "online", 20, "online")
+            pump = gw.devices["pump1"]
+            real_read, failures = pump.client.read, {"left": 3}
+
+            async def flaky_read(*accessors: object) -> object:
+                if failures["left"]:
+                    failures["left"] -= 1
+                    raise RuntimeError("a reply nothing foresaw")
+                return await real_read(*accessors)
+
+            pump.client.read = flaky_read
+            acc = pump.client.accessor("communication_setting")
+            real_write = type(acc).write_raw
+
+            async def broken_write(self: object, raw: int) -> None:
+                raise RuntimeError("a write nothing foresaw")
+
+            type(acc).write_raw = broken_write
+            try:
+                await until(lambda: failures["left"] == 0, 10, "three failed polls")
+                async with aiomqtt.Client("127.0.0.1", broker.port, identifier="odd") as client:
+                    await client.publish("drivemap/pump1/communication_setting/set", "1.5", qos=1)
+                outcome = json.loads(await until(lambda: (sub.messages("drivemap/pump1/error") or [None])[-1], 10,
+                                                 "the outcome"))
+                assert outcome["ok"] is False and outcome["error"] == "InternalError", outcome
+            finally:
+                type(acc).write_raw = real_write
+            vsim.set("communication_setting", 7.25)
+            await until(lambda: sub.text("drivemap/pump1/communication_setting") == "7.25", 10, "polling again")
+            vsim.unit(2).set("communication_setting", 3.5)
+            await until(lambda: sub.text("drivemap/fan2/communication_setting") == "3.5", 10, "the other device")

@@ -151,9 +151,10 @@ class Line:
         except TransportError as exc:
             self._failed(device, exc)
             return
-        except DriveError as exc:
+        except Exception as exc:  # noqa: BLE001 - an exception reply, or a reply nothing foresaw: the line goes on
             device.last_error = f"{type(exc).__name__}: {exc}"
-            log.warning("%s: poll of %s failed: %s", device.name, ", ".join(poll.group.registers), device.last_error)
+            log.warning("%s: poll of %s failed: %s", device.name, ", ".join(poll.group.registers), device.last_error,
+                        exc_info=not isinstance(exc, DriveError))
             poll.due = time.monotonic() + poll.group.interval
             return
         now = time.monotonic()

@@ -195,7 +195,10 @@ class MqttBridge:
         async for message in client.messages:
             raw = message.payload
             payload = raw if isinstance(raw, (bytes, bytearray)) else str(raw if raw is not None else "").encode()
-            self.on_command(message.topic.value, bytes(payload), bool(message.retain))
+            try:
+                self.on_command(message.topic.value, bytes(payload), bool(message.retain))
+            except Exception:  # noqa: BLE001 - no message may stop the bridge (on_command answers what it can)
+                log.exception("MQTT message on %s could not be handled", message.topic.value)
 
     # ------------------------------------------------------------------ commands
     def on_command(self, topic: str, payload: bytes, retained: bool) -> None:

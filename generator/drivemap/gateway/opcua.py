@@ -252,6 +252,8 @@ class OpcuaBridge:
     async def _after_read(self, event: Any, _dispatcher: Any) -> None:
         """Reads of UserAccessLevel answer what the session's user may do (PostRead callback)."""
         results = event.response_params
+        if not isinstance(results, list):
+            return
         for i, item in enumerate(event.request_params.NodesToRead):
             level = self.levels.get(item.NodeId)
             if level is not None and item.AttributeId == ua.AttributeIds.UserAccessLevel and i < len(results):
