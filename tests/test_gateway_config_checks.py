@@ -134,3 +134,16 @@ def test_example_without_opcua_is_mqtt_only_and_valid(tmp_path: Path) -> None:
 def test_example_ships_in_the_wheel() -> None:
     assert EXAMPLE.parent.name == "data" and EXAMPLE.parent.parent.name == "drivemap"
     assert '"data/*.yaml"' in (ROOT / "pyproject.toml").read_text()  # the wheel carries data/plant.yaml
+
+
+def test_limits_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str], good: str) -> None:
+    limits = "  limits: {max_connections: 5, reserve: 5}\n"
+    code, _, err = check(tmp_path, capsys, good.replace("  users:\n", limits + "  users:\n"))
+    assert code == 1 and "error: reserve 5 leaves no connection for anyone else (max_connections 5)" in err, err
+    code, _, err = check(tmp_path, capsys, good.replace("  users:\n", "  limits: {per_source: 0}\n  users:\n"))
+    assert code == 1 and "per_source" in err, err
+    path = tmp_path / "ok.yaml"
+    path.write_text(good.replace("  users:\n", "  limits: {max_connections: 40, handshake_timeout: 2.5}\n  users:\n"))
+    cfg = load_config(path)
+    assert cfg.opcua is not None and (cfg.opcua.limits.max_connections, cfg.opcua.limits.handshake_timeout,
+                                      cfg.opcua.limits.per_source) == (40, 2.5, 10)

@@ -15,6 +15,8 @@ import stat
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from drivemap.project import display
+
 #: Unix98 pseudo-terminal slaves (/dev/pts/N): majors 136-143 on Linux.
 _PTY_MAJORS = range(136, 144)
 
@@ -96,4 +98,63 @@ def serial_port_problem(path: Path) -> str | None:
         if name != "tty":
             return (f"serial port {path} is a character device of the kernel's {name!r} subsystem "
                     f"(device {major}:{minor}), not a serial device (a tty)")
+    return None
+
+
+def _read(path: Path) -> tuple[bytes, bool] | str:
+    """The bytes of a certificate or key file and whether asyncua reads it as PEM (by the ``.pem``
+    suffix, else DER), or why it cannot be read."""
+    try:
+        return path.read_bytes(), path.suffix.lower() == ".pem"
+    except OSError as exc:
+        return f"cannot read {display(path)}: {exc.strerror}"
+
+
+def certificate_problem(path: Path) -> str | None:
+    """Why asyncua could not load the X.509 certificate at ``path`` (None: it can, or the opcua extra
+    that brings ``cryptography`` is missing, which the command reports on its own)."""
+    try:
+        from cryptography import x509
+    except ImportError:
+        return None
+    read = _read(path)
+    if isinstance(read, str):
+        return read
+    data, pem = read
+    try:
+        (x509.load_pem_x509_certificate if pem else x509.load_der_x509_certificate)(data)
+    except ValueError:
+        return (f"{display(path)} is not an X.509 certificate in {'PEM' if pem else 'DER'} "
+                "(asyncua reads PEM from a .pem file, DER from any other)")
+    return None
+
+
+def key_pair_problem(cert: Path, key: Path) -> tuple[str, str] | None:
+    """The key (``certificate`` or ``private_key``) and the reason why the server's certificate and
+    private key are unusable together, or None."""
+    problem = certificate_problem(cert)
+    if problem is not None:
+        return "certificate", problem
+    try:
+        from cryptography import x509
+        from cryptography.hazmat.primitives import serialization
+    except ImportError:
+        return None
+    read_key, read_cert = _read(key), _read(cert)
+    if isinstance(read_key, str):
+        return "private_key", read_key
+    assert not isinstance(read_cert, str)
+    data, pem = read_key
+    try:
+        private = (serialization.load_pem_private_key if pem else serialization.load_der_private_key)(data, None)
+    except TypeError:
+        return "private_key", f"{display(key)} is encrypted: the gateway needs an unencrypted private key"
+    except ValueError:
+        return "private_key", (f"{display(key)} is not a private key in {'PEM' if pem else 'DER'} "
+                               "(asyncua reads PEM from a .pem file, DER from any other)")
+    certificate = (x509.load_pem_x509_certificate if read_cert[1] else x509.load_der_x509_certificate)(read_cert[0])
+    public = serialization.PublicFormat.SubjectPublicKeyInfo
+    if private.public_key().public_bytes(serialization.Encoding.DER, public) != \
+            certificate.public_key().public_bytes(serialization.Encoding.DER, public):
+        return "private_key", f"{display(key)} is not the private key of {display(cert)}"
     return None

@@ -18,7 +18,7 @@ from drivemap import schema
 from drivemap.compiler import compile_map, resolve_map
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.gateway.access import group_writables
-from drivemap.gateway.checks import endpoint_problem, serial_port_problem
+from drivemap.gateway.checks import certificate_problem, endpoint_problem, key_pair_problem, serial_port_problem
 from drivemap.load import Document, PathT, load_file
 from drivemap.model import Model
 from drivemap.project import Project, display, load_project
@@ -386,7 +386,7 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         if p is not None and not p.is_file():
             check.error(where + (label,), f"no such file: {display(p)}")
     if cert is not None and key is not None and cert.is_file() and key.is_file():
-        problem = _key_pair_problem(cert, key)
+        problem = key_pair_problem(cert, key)
         if problem is not None:
             check.error(where + (problem[0],), problem[1])
     users = []
@@ -398,7 +398,7 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         users.append(OpcuaUser(u["name"], secret, None, u.get("write", True)))
     for i, c in enumerate(o.get("trusted_certificates", ())):
         path = check.path(c["certificate"])
-        unusable = f"no such file: {display(path)}" if not path.is_file() else _certificate_problem(path)
+        unusable = f"no such file: {display(path)}" if not path.is_file() else certificate_problem(path)
         if unusable is not None:
             check.error(where + ("trusted_certificates", i, "certificate"), unusable)
         users.append(OpcuaUser(c["name"], None, path, c.get("write", True)))
@@ -428,62 +428,3 @@ def _unique_users(check: _Checker, o: dict[str, Any]) -> None:
                             "each user has one password or certificate and one write right")
             else:
                 seen[u["name"]] = check.doc.positions.at(here)
-
-
-def _read(path: Path) -> tuple[bytes, bool] | str:
-    """The bytes of a certificate or key file and whether asyncua reads it as PEM (by the ``.pem``
-    suffix, else DER), or why it cannot be read."""
-    try:
-        return path.read_bytes(), path.suffix.lower() == ".pem"
-    except OSError as exc:
-        return f"cannot read {display(path)}: {exc.strerror}"
-
-
-def _certificate_problem(path: Path) -> str | None:
-    """Why asyncua could not load the X.509 certificate at ``path`` (None: it can, or the opcua extra
-    that brings ``cryptography`` is missing, which the command reports on its own)."""
-    try:
-        from cryptography import x509
-    except ImportError:
-        return None
-    read = _read(path)
-    if isinstance(read, str):
-        return read
-    data, pem = read
-    try:
-        (x509.load_pem_x509_certificate if pem else x509.load_der_x509_certificate)(data)
-    except ValueError:
-        return (f"{display(path)} is not an X.509 certificate in {'PEM' if pem else 'DER'} "
-                "(asyncua reads PEM from a .pem file, DER from any other)")
-    return None
-
-
-def _key_pair_problem(cert: Path, key: Path) -> tuple[str, str] | None:
-    """The key (``certificate`` or ``private_key``) and the reason why the server's certificate and
-    private key are unusable together, or None."""
-    problem = _certificate_problem(cert)
-    if problem is not None:
-        return "certificate", problem
-    try:
-        from cryptography import x509
-        from cryptography.hazmat.primitives import serialization
-    except ImportError:
-        return None
-    read_key, read_cert = _read(key), _read(cert)
-    if isinstance(read_key, str):
-        return "private_key", read_key
-    assert not isinstance(read_cert, str)
-    data, pem = read_key
-    try:
-        private = (serialization.load_pem_private_key if pem else serialization.load_der_private_key)(data, None)
-    except TypeError:
-        return "private_key", f"{display(key)} is encrypted: the gateway needs an unencrypted private key"
-    except ValueError:
-        return "private_key", (f"{display(key)} is not a private key in {'PEM' if pem else 'DER'} "
-                               "(asyncua reads PEM from a .pem file, DER from any other)")
-    certificate = (x509.load_pem_x509_certificate if read_cert[1] else x509.load_der_x509_certificate)(read_cert[0])
-    public = serialization.PublicFormat.SubjectPublicKeyInfo
-    if private.public_key().public_bytes(serialization.Encoding.DER, public) != \
-            certificate.public_key().public_bytes(serialization.Encoding.DER, public):
-        return "private_key", f"{display(key)} is not the private key of {display(cert)}"
-    return None
