@@ -1,7 +1,7 @@
-"""The README's two commands, for real: ``drivemap simulate ... &`` then ``drivemap gateway
-docs/examples/plant.yaml`` (the example as shipped, only its ports moved to free ones), each in its
-own process; the drives must show in an MQTT subscriber and in an OPC UA browse with asyncua's client.
-Only 127.0.0.1."""
+"""The README's walk-through, for real, in an empty folder: ``drivemap gateway --example > plant.yaml``,
+``drivemap simulate ... &`` and ``drivemap gateway plant.yaml`` (the example as printed, only its ports
+moved to free ones), each in its own process; the drives must show in an MQTT subscriber and in an OPC
+UA browse with asyncua's client, and the README's write must reach pump1. Only 127.0.0.1."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 from asyncua import Client  # noqa: E402
 
-from tests.helpers_gateway import Broker, Subscriber, free_port, until
+from tests.helpers_gateway import Broker, Subscriber, free_port, publish, until
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "docs/examples/plant.yaml"
@@ -24,13 +24,23 @@ README = ROOT / "README.md"
 
 
 def readme_commands() -> list[list[str]]:
-    """The README's ``drivemap simulate`` commands (one line, joined with ``&``) and its gateway command."""
+    """The README's ``drivemap simulate`` commands (one line, joined with ``&``) and its gateway command,
+    after its ``drivemap gateway --example > plant.yaml``."""
     lines = [line.strip() for line in README.read_text().splitlines()]
-    at = lines.index("drivemap gateway docs/examples/plant.yaml")
-    simulate, gateway = lines[at - 1], lines[at]
+    at = lines.index("drivemap gateway plant.yaml")
+    example, simulate, gateway = lines[at - 2], lines[at - 1], lines[at]
+    assert example == "drivemap gateway --example > plant.yaml", example
     assert simulate.startswith("drivemap simulate"), simulate
     commands = [part.split() for part in simulate.split("&") if part.strip()]
     return [*commands, gateway.split()]
+
+
+def readme_write() -> tuple[str, str]:
+    """The topic and payload of the README's ``mosquitto_pub`` write."""
+    text = " ".join(README.read_text().split())
+    found = re.search(r"mosquitto_pub -h 127\.0\.0\.1 -t (\S+) -m (\S+?)`", text)
+    assert found, "the README shows no write"
+    return found.group(1), found.group(2)
 
 
 @contextlib.contextmanager
@@ -56,17 +66,17 @@ def processes(commands: list[list[str]], cwd: Path) -> Iterator[list[subprocess.
 async def test_readme_two_commands_show_the_drives_in_mqtt_and_opcua(tmp_path: Path) -> None:
     commands = readme_commands()
     assert [c[:2] for c in commands] == [["drivemap", "simulate"]] * 2 + [["drivemap", "gateway"]]
-    assert commands[-1][2:] == ["docs/examples/plant.yaml"]
+    assert commands[-1][2:] == ["plant.yaml"]
     broker = Broker(tmp_path).start()
-    ports = {"5020": str(free_port()), "5021": str(free_port()), "4840": str(free_port()), "1883": str(broker.port)}
-    text = EXAMPLE.read_text()
-    for old in ("1883", "4840", "5020", "5021"):
-        assert old in text, f"the example no longer uses port {old}"
-    moved = re.sub(r"\b(1883|4840|5020|5021)\b", lambda m: ports[m.group(1)], text)
-    config = tmp_path / "docs/examples/plant.yaml"
-    config.parent.mkdir(parents=True)
-    config.write_text(moved)
-    argv = [[re.sub(r"\b(5020|5021)\b", lambda m: ports[m.group(1)], a) for a in c] for c in commands]
+    ports = {"5030": str(free_port()), "5031": str(free_port()), "4840": str(free_port()), "1883": str(broker.port)}
+    printed = subprocess.run([sys.executable, "-m", "drivemap", "gateway", "--example"], cwd=tmp_path, text=True,
+                             capture_output=True, check=True).stdout
+    assert printed == EXAMPLE.read_text()  # with the opcua extra (the test extra has it): the whole example
+    for old in ("1883", "4840", "5030", "5031"):
+        assert old in printed, f"the example no longer uses port {old}"
+    moved = re.sub(r"\b(1883|4840|5030|5031)\b", lambda m: ports[m.group(1)], printed)
+    (tmp_path / "plant.yaml").write_text(moved)
+    argv = [[re.sub(r"\b(5030|5031)\b", lambda m: ports[m.group(1)], a) for a in c] for c in commands]
     try:
         async with Subscriber(broker.port, ("drivemap/#", "homeassistant/#")) as sub:
             with processes(argv, tmp_path) as procs:
@@ -91,6 +101,11 @@ async def test_readme_two_commands_show_the_drives_in_mqtt_and_opcua(tmp_path: P
                             break
                         await asyncio.sleep(0.1)
                     assert await online.read_value() is True
+                topic, payload = readme_write()
+                await publish(broker.port, topic, payload)
+                await until(lambda: sub.text(topic.removesuffix("/set")) == payload, 15, "the README's write read back")
+                device = topic.split("/")[1]
+                assert json.loads(sub.messages(f"drivemap/{device}/error")[-1])["ok"] is True
                 assert all(p.poll() is None for p in procs), "a process of the README's commands exited"
             gateway_out = (tmp_path / f"command{len(argv) - 1}.log").read_text()
             assert "gateway plant: 2 buses, 3 devices" in gateway_out

@@ -36,12 +36,13 @@ buses:
     timeout: 0.3
     retries: 1
     devices:
-      - {{name: pump1, title: Pump 1, model: vfd1000, unit: 1, interval: 0.2}}
+      - {{name: pump1, title: Pump 1, model: vfd1000, unit: 1, interval: 0.2,
+         writable: [communication_setting, control_command, pid_setting, upper_limit_frequency_setting]}}
   - name: line2
     tcp: 127.0.0.1:{ev}
     timeout: 0.3
     devices:
-      - {{name: drive2, model: ev, unit: 2, interval: 0.2}}
+      - {{name: drive2, model: ev, unit: 2, interval: 0.2, writable: [alarm_reset, net_in, rs485_timeout]}}
 {extra}"""
 
 
@@ -76,8 +77,8 @@ async def test_discovery_payloads(tmp_path: Path, broker: Broker) -> None:
             assert (n["min"], n["max"], n["step"], n["unit_of_measurement"]) == (-100.0, 100.0, 0.01, "%")
             assert n["command_topic"] == "drivemap/pump1/communication_setting/set"
             assert n["state_topic"] == "drivemap/pump1/communication_setting"
-            assert n["device"]["manufacturer"] and n["device"]["model_id"] == "vfd1000"
-            assert n["device"]["name"] == "Pump 1" and "manual" in n["device"]["hw_version"]
+            assert n["device"]["model_id"] == "vfd1000"  # the map names no vendor or manual document: left out
+            assert n["device"]["name"] == "Pump 1" and "manufacturer" not in n["device"] and "hw_version" not in n["device"]
             assert n["availability_mode"] == "all"
             assert [a["topic"] for a in n["availability"]] == ["drivemap/gateway/plant/availability",
                                                                "drivemap/pump1/availability"]
@@ -206,7 +207,7 @@ buses:
     serial: {{port: {line.master_port}, mode: rtu, baudrate: 38400, parity: none, stop_bits: 1}}
     timeout: 0.3
     devices:
-      - {{name: vfd3, model: vfd1000, unit: 3, interval: 0.3}}
+      - {{name: vfd3, model: vfd1000, unit: 3, interval: 0.3, writable: [torque_setting_value]}}
 """)
         async with Subscriber(broker.port, ("drivemap/#",)) as sub, running(cfg):
             sim.set("pid_feedback", 33.3)

@@ -50,7 +50,8 @@ name: plant
     timeout: 0.5
     devices:
       - {{name: inv, model: fronius_symo_hybrid, unit: 1, interval: 0.2,
-         publish: [manufacturer, ac_current, ac_current_a, site_energy_total, max_power_setting]}}
+         publish: [manufacturer, ac_current, ac_current_a, site_energy_total, max_power_setting],
+         writable: [max_power_setting]}}
   - name: meter
     tcp: 127.0.0.1:{sdm}
     timeout: 0.5
@@ -60,7 +61,8 @@ name: plant
     tcp: 127.0.0.1:{kinds}
     timeout: 0.5
     devices:
-      - {{name: io, map: {ALLKINDS}, unit: 1, interval: 0.2, publish: [run, door_open, device_name, temperature]}}
+      - {{name: io, map: {ALLKINDS}, unit: 1, interval: 0.2, publish: [run, door_open, device_name, temperature],
+         writable: [run, device_name]}}
 """
 
 
@@ -104,6 +106,10 @@ async def test_mqtt_values_discovery_and_commands(tmp_path: Path, broker: Broker
             await until(lambda: ksim.get("run") is True, what="coil written")
             await publish(broker.port, "drivemap/io/device_name/set", "MIXER")
             await until(lambda: ksim.get("device_name") == "MIXER", what="string written")
+            await publish(broker.port, "drivemap/inv/max_power_setting/set", "5005")  # between steps of 10
+            await until(lambda: sub.messages("drivemap/inv/error"), what="refused")
+            refused = json.loads(sub.messages("drivemap/inv/error")[-1])
+            assert refused["ok"] is False and "nearest are 5000.0 and 5010.0" in refused["message"], refused
             await publish(broker.port, "drivemap/inv/max_power_setting/set", "5000")
             await until(lambda: fsim.get_raw("max_power_setting") == 500, what="scaled write (x 10^1)")
             await until(lambda: sub.text("drivemap/io/run") == "true", what="coil read back")

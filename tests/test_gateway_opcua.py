@@ -31,7 +31,7 @@ opcua:
     tcp: 127.0.0.1:{sim_port}
     timeout: 0.3
     devices:
-      - {{name: pump1, model: vfd1000, unit: 1, interval: 0.2}}
+      - {{name: pump1, model: vfd1000, unit: 1, interval: 0.2, writable: [communication_setting, control_command]}}
 """
 
 

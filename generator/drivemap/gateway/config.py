@@ -14,12 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drivemap.compiler import compile_map, resolve_map
-from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.frontend import schema
+from drivemap.compiler import compile_map, resolve_map
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.gateway.access import group_writables
+from drivemap.gateway.checks import certificate_problem, endpoint_problem, key_pair_problem, serial_port_problem
 from drivemap.frontend.load import Document, PathT, load_file
-from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.nodes import Model
+from drivemap.frontend.project import Project, display, load_project
 
 #: The configuration schema shipped with the package (a link to ``schemas/gateway.schema.json``).
 SCHEMA_PATH = Path(__file__).resolve().parent.parent / "data" / "gateway.schema.json"
@@ -45,7 +47,8 @@ class DeviceConfig:
     page_policy: str
     publish: tuple[str, ...]
     polls: tuple[PollGroup, ...]
-    writable: bool
+    writable: tuple[str, ...] = ()
+    """The registers that take commands (published, or write-only, and listed in ``writable``)."""
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,17 @@ class OpcuaUser:
 
 
 @dataclass(frozen=True)
+class OpcuaLimits:
+    """How many connections the OPC UA server holds, and for how long before a session is activated."""
+
+    max_connections: int = 100
+    per_source: int = 10
+    anonymous_sessions: int = 50
+    reserve: int = 10
+    handshake_timeout: float = 10.0
+
+
+@dataclass(frozen=True)
 class OpcuaConfig:
     endpoint: str
     namespace: str
@@ -100,6 +114,8 @@ class OpcuaConfig:
     users: tuple[OpcuaUser, ...] = ()
     anonymous: bool = True
     anonymous_writes: bool = False
+    limits: OpcuaLimits = OpcuaLimits()
+    endpoint_at: Location | None = None
 
 
 @dataclass(frozen=True)
@@ -148,8 +164,12 @@ class _Checker:
         return value if isinstance(value, str) else None
 
 
-def load_config(path: str | os.PathLike[str], project: Project | None = None) -> GatewayConfig:
-    """Load, validate and check a gateway configuration; raise :class:`CompileError` with every error."""
+def load_config(path: str | os.PathLike[str], project: Project | None = None, *,
+                broker: tuple[str, int | None] | None = None) -> GatewayConfig:
+    """Load, validate and check a gateway configuration; raise :class:`CompileError` with every error.
+
+    ``broker`` (host, port or None) replaces the configuration's ``mqtt.host`` / ``mqtt.port``
+    (``drivemap gateway --broker HOST[:PORT]``)."""
     doc = load_file(display(path))
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a gateway configuration is a YAML mapping")])
@@ -158,6 +178,8 @@ def load_config(path: str | os.PathLike[str], project: Project | None = None) ->
         raise CompileError(errors)
     check = _Checker(doc, project or load_project())
     data = doc.data
+    if broker is not None and "mqtt" in data:
+        data["mqtt"] = {**data["mqtt"], "host": broker[0], **({"port": broker[1]} if broker[1] else {})}
     buses = tuple(_bus(check, b, ("buses", i)) for i, b in enumerate(data["buses"]))
     _unique_names(check, data)
     mqtt = _mqtt(check, data["name"], data["mqtt"]) if "mqtt" in data else None
@@ -209,6 +231,9 @@ def _bus(check: _Checker, bus: dict[str, Any], where: PathT) -> BusConfig:
                     if (d := _device(check, raw, where + ("devices", j))) is not None)
     serial = dict(bus["serial"]) if kind == "serial" and "serial" in bus else None
     if serial is not None:
+        problem = serial_port_problem(Path(serial["port"]))
+        if problem is not None:
+            check.error(where + ("serial", "port"), problem)
         for dev in devices:
             mode = serial.get("mode") or (dev.model.protocol.modes[0] if dev.model.protocol.modes else "rtu")
             if mode not in dev.model.protocol.modes:
@@ -251,8 +276,39 @@ def _device(check: _Checker, dev: dict[str, Any], where: PathT) -> DeviceConfig 
     publish = _publish(check, model, dev, where, policy)
     polls = _polls(check, model, dev, where, publish, policy)
     published = tuple(dict.fromkeys([*publish, *(r for g in polls for r in g.registers)]))
-    return DeviceConfig(dev["name"], dev.get("title", dev["name"]), model, unit, policy, published, polls,
-                        dev.get("writable", True))
+    writable = _writable(check, model, dev, where, published)
+    return DeviceConfig(dev["name"], dev.get("title", dev["name"]), model, unit, policy, published, polls, writable)
+
+
+def _writable(check: _Checker, model: Model, dev: dict[str, Any], where: PathT,
+              published: tuple[str, ...]) -> tuple[str, ...]:
+    """The registers named (one by one, or by their map group) in the device's ``writable`` list."""
+    entries = dev.get("writable", [])
+    if entries is True:
+        check.error(where + ("writable",), "writable: true is no longer accepted: list the registers (or map groups) "
+                    "that take commands, e.g. writable: [run_command, frequency_command]")
+        return ()
+    out: list[str] = []
+    groups = {g.name for g in model.groups}
+    shown = set(published)
+    for i, name in enumerate(entries or ()):
+        here = where + ("writable", i)
+        if name in groups and name not in {r.name for r in model.registers}:
+            out.extend(n for n in group_writables(model, name) if n in shown or not model.register(n).readable)
+            continue
+        try:
+            reg = model.register(name)
+        except KeyError:
+            check.error(here, f"{model.name} has no register or group {name!r}")
+            continue
+        if not reg.writable:
+            check.error(here, f"{model.name}.{name} is read-only in the map")
+        elif reg.readable and name not in shown:
+            check.error(here, f"{model.name}.{name} is not published: a command reaches only a register the gateway "
+                        "publishes (add it to publish)")
+        else:
+            out.append(name)
+    return tuple(dict.fromkeys(out))
 
 
 def _register_ok(check: _Checker, model: Model, name: str, where: PathT) -> bool:
@@ -330,10 +386,11 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         if p is not None and not p.is_file():
             check.error(where + (label,), f"no such file: {display(p)}")
     if cert is not None and key is not None and cert.is_file() and key.is_file():
-        problem = _key_pair_problem(cert, key)
+        problem = key_pair_problem(cert, key)
         if problem is not None:
             check.error(where + (problem[0],), problem[1])
     users = []
+    _unique_users(check, o)
     for i, u in enumerate(o.get("users", ())):
         secret = check.secret(u, where + ("users", i))
         if secret is None and "password_env" not in u:
@@ -341,68 +398,33 @@ def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:
         users.append(OpcuaUser(u["name"], secret, None, u.get("write", True)))
     for i, c in enumerate(o.get("trusted_certificates", ())):
         path = check.path(c["certificate"])
-        unusable = f"no such file: {display(path)}" if not path.is_file() else _certificate_problem(path)
+        unusable = f"no such file: {display(path)}" if not path.is_file() else certificate_problem(path)
         if unusable is not None:
             check.error(where + ("trusted_certificates", i, "certificate"), unusable)
         users.append(OpcuaUser(c["name"], None, path, c.get("write", True)))
+    bad_endpoint = endpoint_problem(o["endpoint"])
+    if bad_endpoint is not None:
+        check.error(where + ("endpoint",), bad_endpoint)
+    lim = o.get("limits", {})
+    limits = OpcuaLimits(**{k: lim[k] for k in ("max_connections", "per_source", "anonymous_sessions", "reserve",
+                                                 "handshake_timeout") if k in lim})
+    if limits.reserve >= limits.max_connections:
+        check.error(where + ("limits", "reserve"), f"reserve {limits.reserve} leaves no connection for anyone else "
+                    f"(max_connections {limits.max_connections})")
     return OpcuaConfig(o["endpoint"], o.get("namespace", f"urn:drivemap:{name}"), security, cert, key, tuple(users),
-                       o.get("anonymous", True), o.get("anonymous_writes", False))
+                       o.get("anonymous", True), o.get("anonymous_writes", False), limits,
+                       check.doc.positions.at(where + ("endpoint",)))
 
 
-def _read(path: Path) -> tuple[bytes, bool] | str:
-    """The bytes of a certificate or key file and whether asyncua reads it as PEM (by the ``.pem``
-    suffix, else DER), or why it cannot be read."""
-    try:
-        return path.read_bytes(), path.suffix.lower() == ".pem"
-    except OSError as exc:
-        return f"cannot read {display(path)}: {exc.strerror}"
-
-
-def _certificate_problem(path: Path) -> str | None:
-    """Why asyncua could not load the X.509 certificate at ``path`` (None: it can, or the opcua extra
-    that brings ``cryptography`` is missing, which the command reports on its own)."""
-    try:
-        from cryptography import x509
-    except ImportError:
-        return None
-    read = _read(path)
-    if isinstance(read, str):
-        return read
-    data, pem = read
-    try:
-        (x509.load_pem_x509_certificate if pem else x509.load_der_x509_certificate)(data)
-    except ValueError:
-        return (f"{display(path)} is not an X.509 certificate in {'PEM' if pem else 'DER'} "
-                "(asyncua reads PEM from a .pem file, DER from any other)")
-    return None
-
-
-def _key_pair_problem(cert: Path, key: Path) -> tuple[str, str] | None:
-    """The key (``certificate`` or ``private_key``) and the reason why the server's certificate and
-    private key are unusable together, or None."""
-    problem = _certificate_problem(cert)
-    if problem is not None:
-        return "certificate", problem
-    try:
-        from cryptography import x509
-        from cryptography.hazmat.primitives import serialization
-    except ImportError:
-        return None
-    read_key, read_cert = _read(key), _read(cert)
-    if isinstance(read_key, str):
-        return "private_key", read_key
-    assert not isinstance(read_cert, str)
-    data, pem = read_key
-    try:
-        private = (serialization.load_pem_private_key if pem else serialization.load_der_private_key)(data, None)
-    except TypeError:
-        return "private_key", f"{display(key)} is encrypted: the gateway needs an unencrypted private key"
-    except ValueError:
-        return "private_key", (f"{display(key)} is not a private key in {'PEM' if pem else 'DER'} "
-                               "(asyncua reads PEM from a .pem file, DER from any other)")
-    certificate = (x509.load_pem_x509_certificate if read_cert[1] else x509.load_der_x509_certificate)(read_cert[0])
-    public = serialization.PublicFormat.SubjectPublicKeyInfo
-    if private.public_key().public_bytes(serialization.Encoding.DER, public) != \
-            certificate.public_key().public_bytes(serialization.Encoding.DER, public):
-        return "private_key", f"{display(key)} is not the private key of {display(cert)}"
-    return None
+def _unique_users(check: _Checker, o: dict[str, Any]) -> None:
+    """User names are unique across ``users`` and ``trusted_certificates`` (a name is one set of rights)."""
+    seen: dict[str, Location] = {}
+    for key in ("users", "trusted_certificates"):
+        for i, u in enumerate(o.get(key, ())):
+            here: PathT = ("opcua", key, i, "name")
+            if u["name"] in seen:
+                first = seen[u["name"]]
+                check.error(here, f"user name {u['name']!r} is used twice (first at line {first.line}): "
+                            "each user has one password or certificate and one write right")
+            else:
+                seen[u["name"]] = check.doc.positions.at(here)

@@ -7,10 +7,12 @@ as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOW
 registers as an object of their fields (single bits true/false, enumerated fields by name, wider
 fields as integers), arrays as lists of those.
 
-Commands are parsed and checked here, before they are queued: the register must exist and be
-writable, the payload must have the register's type, and the codec's checks (range, enum
-membership, representability) must pass. Everything that fails raises a typed
-:class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
+Commands are parsed and checked here, before they are queued: the register must exist, be
+writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
+and bounded (:mod:`drivemap.gateway.payload`), must have the register's type, and must pass the
+codec's checks (range, enum membership, representability) and the gateway's own exactness check (a
+value the register cannot hold exactly is refused, never rounded). Everything that fails raises a
+typed :class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
 """
 
 from __future__ import annotations
@@ -25,16 +27,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivemap.gateway.config import DeviceConfig, PollGroup
-from drivemap.model.nodes import Model, Register
-from drivemap.runtime.client.codec import (
-    BoolCodec,
-    EnumCodec,
-    FieldsCodec,
-    FlagCodec,
-    StringCodec,
-    check_raw,
-    unwrap,
+from drivemap.gateway.payload import (
+    bool_word,
+    check_exact,
+    index_word,
+    integer_word,
+    number,
+    parse_json,
+    payload_text,
+    shortest_f32,
+    show,
 )
+from drivemap.model.nodes import Model, Register
+from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
@@ -105,6 +110,8 @@ class Device:
             return self.bits_json(reg, value)
         if isinstance(value, enum.Enum):
             return value.name
+        if reg.type == "f32" and isinstance(value, float) and reg.scale == 1 and not reg.offset:
+            return shortest_f32(value)
         return value
 
     def bits_json(self, reg: Register, value: Any) -> dict[str, Any]:
@@ -122,33 +129,46 @@ class Device:
     # ------------------------------------------------------------------ commands
     def element(self, target: str) -> tuple[Register, Any]:
         """The register and accessor of ``register`` or ``register[i]`` / ``register/i``."""
-        name = target.replace("/", "[", 1) + "]" if "/" in target else target
-        base = name.partition("[")[0]
+        base, _, index = target.replace("/", "[", 1).partition("[")
         try:
             reg = self.register(base)
         except KeyError:
-            raise UnknownRegister(f"{self.model.name} has no register {base!r}") from None
-        acc = self.client.accessor(name)
-        if reg.is_array and "[" not in name:
+            raise UnknownRegister(f"{self.model.name} has no register {show(base)}") from None
+        if index:
+            acc = self.client.accessor(f"{base}[{index_word(base, index.rstrip(']'))}]")
+        else:
+            acc = self.client.accessor(base)
+        if reg.is_array and not index:
             raise InvalidValue(f"{base} is an array: address one element, {base}/INDEX/set")
         return reg, acc
 
+    def may_write(self, name: str) -> bool:
+        """Whether the gateway's configuration lets commands reach register ``name``."""
+        return name in self.cfg.writable
+
     def command(self, target: str, payload: bytes | str, source: str = "mqtt") -> Command:
         """Parse and check a command; raise a typed DriveError before anything is queued."""
-        text = payload.decode("utf-8", "replace") if isinstance(payload, bytes) else payload
+        text = payload_text(payload)
         reg, acc = self.element(target)
         if not reg.writable:
             raise ReadOnlyRegister(f"{reg.name} is read-only")
-        if not self.cfg.writable:
-            raise ReadOnlyRegister(f"{self.name}: the gateway configuration does not accept commands for this device")
-        if reg.command_value is not None and text.strip().upper() in (PRESS, ""):
+        if not self.may_write(reg.name):
+            raise ReadOnlyRegister(f"{self.name}.{reg.name}: the gateway configuration does not accept commands for "
+                                   "it (list it in the device's writable)")
+        if reg.command_value is not None:  # a command register takes PRESS (or its command value) only
+            if text.strip().upper() != PRESS and integer_word(text.strip()) != reg.command_value:
+                raise InvalidValue(f"{reg.name} is a command: send {PRESS} (it writes {reg.command_value}), "
+                                   f"got {show(text)}")
             raw = check_raw(acc.spec, reg.command_value)
             return Command(self, acc.name, acc, raw, text, source)
         value = self.parse_value(reg, acc, text)
         if acc.codec.scale_key is not None:
             acc.codec.check(value)
             return Command(self, acc.name, acc, None, text, source, value=value)
-        return Command(self, acc.name, acc, acc.codec.encode(value), text, source)
+        raw = acc.codec.encode(value)
+        if not (reg.enum or reg.bits or isinstance(value, (bool, enum.Enum))):
+            check_exact(acc.codec, value, raw)
+        return Command(self, acc.name, acc, raw, text, source)
 
     def parse_value(self, reg: Register, acc: Any, text: str) -> Any:
         """The Python value for ``acc`` from a payload text (JSON or plain)."""
@@ -162,11 +182,11 @@ class Device:
         if isinstance(codec, EnumCodec):
             return _parse_enum(reg, codec, self.model, text)
         if isinstance(codec, (FlagCodec, FieldsCodec)):
-            return _parse_bits(reg, codec, self.model, _json(reg, text))
-        value = _json(reg, text)
+            return _parse_bits(reg, codec, self.model, parse_json(reg.name, text))
+        value = parse_json(reg.name, text)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise InvalidValue(f"{reg.name}: expected a number, got {text!r}")
-        return value
+            raise InvalidValue(f"{reg.name}: expected a number, got {show(text)}")
+        return number(reg.name, value, integer=reg.is_integer and reg.type not in ("f32", "f64"))
 
     def command_value(self, reg: Register, value: Any) -> Any:
         """The Python value for a typed OPC UA write (numbers; enum registers take the raw value)."""
@@ -187,23 +207,14 @@ def _text_value(text: str) -> str:
 
 
 def _bool_value(reg: Register, text: str) -> bool:
-    word = text.strip().strip('"').lower()
-    if word in ("true", "on", "1"):
-        return True
-    if word in ("false", "off", "0"):
-        return False
-    raise InvalidValue(f"{reg.name}: expected true/false (ON/OFF, 1/0), got {text[:40]!r}")
-
-
-def _json(reg: Register, text: str) -> Any:
-    try:
-        return json.loads(text)
-    except ValueError:
-        raise InvalidValue(f"{reg.name}: payload {text[:40]!r} is not a value (JSON number, name or object)") from None
+    return bool_word(reg.name, text)
 
 
 def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -> Any:
-    word = text.strip().strip('"')
+    """A member by name (any case) or label, or by its value written as a bare ASCII integer (a
+    quoted ``"12"`` is a name, and no member is called that)."""
+    quoted = text.strip().startswith('"')
+    word = _text_value(text.strip()) if quoted else text.strip()
     assert reg.enum is not None
     values = model.enum(reg.enum).values
     for v in values:
@@ -212,14 +223,13 @@ def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -
     labels = [v for v in values if v.label == word]
     if len(labels) == 1:
         return codec.enum_type(labels[0].value)
-    try:
-        number = int(word, 0)
-    except ValueError:
+    given = None if quoted else integer_word(word)
+    if given is None:
         names = ", ".join(v.name for v in values)
-        raise InvalidValue(f"{reg.name}: {word!r} is not a value of {reg.enum} ({names})") from None
-    if number not in {v.value for v in values}:
-        raise ValueOutOfRange(f"{reg.name}: {number} is not a value of {reg.enum}")
-    return codec.enum_type(number)
+        raise InvalidValue(f"{reg.name}: {show(word)} is not a value of {reg.enum} ({names})")
+    if given not in {v.value for v in values}:
+        raise ValueOutOfRange(f"{reg.name}: {given} is not a value of {reg.enum}")
+    return codec.enum_type(given)
 
 
 def _field_value(reg: Register, bit: Any, enum_type: Any, model: Model, value: Any) -> Any:
@@ -232,16 +242,22 @@ def _field_value(reg: Register, bit: Any, enum_type: Any, model: Model, value: A
         if isinstance(value, int) and not isinstance(value, bool):
             return enum_type(value)
         raise InvalidValue(f"{reg.name}.{bit.name}: expected a name of {bit.enum}")
-    if bit.width == 1 and isinstance(value, bool):
-        return value
+    if bit.width == 1:
+        if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
+            return bool(value)
+        raise InvalidValue(f"{reg.name}.{bit.name}: a single bit is true/false or 1/0, got {repr(value)[:40]}")
     if isinstance(value, int) and not isinstance(value, bool):
-        return bool(value) if bit.width == 1 and value in (0, 1) else value
-    raise InvalidValue(f"{reg.name}.{bit.name}: expected " + ("true/false" if bit.width == 1 else "an integer"))
+        if not 0 <= value < 1 << bit.width:
+            raise ValueOutOfRange(f"{reg.name}.{bit.name}: {repr(value)[:40]} does not fit {bit.width} bits")
+        return value
+    raise InvalidValue(f"{reg.name}.{bit.name}: expected an integer")
 
 
 def _parse_bits(reg: Register, codec: Any, model: Model, value: Any) -> Any:
     """Bit fields from a JSON object ``{field: value}`` (fields left out are 0/false) or a raw integer."""
     if isinstance(value, int) and not isinstance(value, bool) and isinstance(codec, FlagCodec):
+        if not 0 <= value < 1 << (16 * codec.spec.words):
+            raise ValueOutOfRange(f"{reg.name}: {repr(value)[:40]} does not fit the register")
         return codec.flag_type(value)
     if not isinstance(value, Mapping):
         raise InvalidValue(f"{reg.name}: expected an object of bit fields ({', '.join(b.name for b in reg.bits)})")
@@ -252,7 +268,7 @@ def _parse_bits(reg: Register, codec: Any, model: Model, value: Any) -> Any:
     if isinstance(codec, FlagCodec):
         raw = 0
         for name, v in value.items():
-            if _field_value(reg, bits[name], None, model, v):
+            if _field_value(reg, bits[name], None, model, v):  # a flag: true/false/1/0 only
                 raw |= 1 << bits[name].offset
         return codec.flag_type(raw)
     kwargs: dict[str, Any] = {}

@@ -1,14 +1,19 @@
 """Home Assistant MQTT discovery, generated from the map.
 
-One Home Assistant device per drive (manufacturer, model, manual revision from the map) and, per
-register: a ``sensor`` for readable values (unit, ``device_class`` where the unit names one,
-``state_class`` for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single
-bit of a bit-field register (wider fields are sensors), a ``select`` per writable enumerated
-register, a ``number`` per writable register with a range in the map (min/max, step = the map's
-scale), a ``button`` per command register, a ``switch`` per writable coil (payloads true/false)
-and a ``binary_sensor`` per read-only coil or discrete input. Strings are text sensors (no unit or
-state class); a register with not-available values publishes null for them, which the sensor shows
-as unknown (its value template turns null into HA's "None" payload).
+One Home Assistant device per drive (manufacturer, model, manual document and revision from the
+map; what the map does not state is left out) and, per register: a ``sensor`` for readable values
+(unit, ``device_class`` where the unit names one, ``state_class`` and ``suggested_display_precision``
+for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single bit of a
+bit-field register (wider fields are sensors) and per read-only coil or discrete input. Controls
+only for registers in the device's ``writable`` list: a ``select`` per enumerated register, a
+``number`` per register with a range in the map (min/max, step = the map's scale), a ``button`` per
+command register, a ``switch`` per coil or bool register (payloads true/false). Strings are text
+sensors (no unit or state class); a register with not-available values publishes null for them,
+which the sensor shows as unknown (its value template turns null into HA's "None" payload).
+
+Home Assistant refuses a state it was not announced: enum templates turn a value outside the options
+(``UNKNOWN_<n>``) into "None" (unknown); number templates turn a reading outside min..max into "None",
+and a ``<name> reading`` sensor shows the reading whole.
 
 Every entity is available only while both the gateway and its device are online
 (``availability_mode: all``). Topics: ``<discovery_prefix>/<component>/<node_id>/<object_id>/config``,
@@ -17,6 +22,8 @@ retained, with ``node_id = drivemap_<gateway>_<device>``.
 
 from __future__ import annotations
 
+import json
+from decimal import Decimal
 from typing import Any
 
 from drivemap import __version__
@@ -42,36 +49,67 @@ _UNITS: dict[str, tuple[str, str | None, str]] = {
     "min": ("min", "duration", "measurement"),
     "h": ("h", "duration", "measurement"),
     "%": ("%", None, "measurement"),
+    # Home Assistant's unit of rotational speed is "rpm" (homeassistant.const.REVOLUTIONS_PER_MINUTE);
+    # it has no device class for it.
     "r/min": ("rpm", None, "measurement"),
     "rpm": ("rpm", None, "measurement"),
+    "VA": ("VA", "apparent_power", "measurement"),
+    "kVA": ("kVA", "apparent_power", "measurement"),
+    "var": ("var", "reactive_power", "measurement"),
+    "VAr": ("var", "reactive_power", "measurement"),
+    "kvar": ("kvar", "reactive_power", "measurement"),
+    "kVAr": ("kvar", "reactive_power", "measurement"),
+    "varh": ("varh", "reactive_energy", "total_increasing"),
+    "VArh": ("varh", "reactive_energy", "total_increasing"),
+    "kvarh": ("kvarh", "reactive_energy", "total_increasing"),
+    "kVArh": ("kvarh", "reactive_energy", "total_increasing"),
+    # Home Assistant has no device class for apparent energy: a total without one.
+    "VAh": ("VAh", None, "total_increasing"),
+    "kVAh": ("kVAh", None, "total_increasing"),
 }
 
 
+def precision(reg: Register) -> int | None:
+    """Decimals a value of ``reg`` has (its scale's and offset's), None for unscaled floats."""
+    if reg.type in ("f32", "f64") and reg.scale == 1 and not reg.offset:
+        return None
+    if reg.scale_register is not None:
+        return None
+    digits = [-int(Decimal(repr(float(x))).normalize().as_tuple().exponent) for x in (reg.scale, reg.offset or 0)]
+    return max(0, *digits)
+
+
 def unit_info(reg: Register) -> dict[str, Any]:
-    """unit_of_measurement / device_class / state_class of a numeric register."""
-    if reg.unit is None:
-        return {"state_class": "measurement"}
-    unit, device_class, state_class = _UNITS.get(reg.unit, (reg.unit, None, "measurement"))
-    out: dict[str, Any] = {"unit_of_measurement": unit, "state_class": state_class}
-    if device_class:
-        out["device_class"] = device_class
+    """unit_of_measurement / device_class / state_class / suggested_display_precision of a number."""
+    out: dict[str, Any] = {"state_class": "measurement"}
+    if reg.unit is not None:
+        unit, device_class, state_class = _UNITS.get(reg.unit, (reg.unit, None, "measurement"))
+        out = {"unit_of_measurement": unit, "state_class": state_class}
+        if device_class:
+            out["device_class"] = device_class
+    digits = precision(reg)
+    if digits is not None:
+        out["suggested_display_precision"] = digits
     return out
 
 
 def ha_device(gateway: str, device: Device) -> dict[str, Any]:
+    """The Home Assistant device: what the map states (vendor, title, manual), nothing guessed."""
     m: Model = device.model
     manual = m.device.manual
-    revision = " ".join(x for x in (manual.document or manual.file, f"rev {manual.revision}" if manual.revision else "")
-                        if x)
-    return {
+    out: dict[str, Any] = {
         "identifiers": [f"drivemap_{gateway}_{device.name}"],
         "name": device.cfg.title,
-        "manufacturer": m.device.vendor or "unknown (the manual does not name it)",
         "model": m.device.title,
         "model_id": m.name,
-        "hw_version": f"manual {revision}",
         "sw_version": f"drivemap {__version__}",
     }
+    if m.device.vendor:
+        out["manufacturer"] = m.device.vendor
+    if manual.document:
+        out["hw_version"] = " ".join(x for x in (f"manual {manual.document}",
+                                                 f"rev {manual.revision}" if manual.revision else "") if x)
+    return out
 
 
 class _Builder:
@@ -98,18 +136,45 @@ def _title(name: str) -> str:
     return name.replace("_", " ").capitalize()
 
 
+def entity_name(reg: Register, index: int | None) -> str:
+    """The display name of a register's entity, or of one element of an array register.
+
+    The one place that names entities: an element is named by its index as the gateway's topics
+    number it (from 0). Maps will be able to say how the manual numbers elements; that rule goes
+    here."""
+    return _title(reg.name) if index is None else f"{_title(reg.name)} {index}"
+
+
 def _enum_names(model: Model, enum: str) -> list[str]:
     return [v.name for v in model.enum(enum).values]
+
+
+def _announced(field: str, options: list[str]) -> str:
+    """A value template that passes an announced option and turns anything else (an undocumented
+    ``UNKNOWN_<n>``, null) into Home Assistant's "None" (unknown)."""
+    listed = json.dumps(options, ensure_ascii=True)
+    return f"{{{{ {field} if {field} in {listed} else 'None' }}}}"
+
+
+def _in_range(field: str, low: float, high: float) -> str:
+    """A value template that passes a number inside [low, high] and turns anything else into "None"."""
+    return (f"{{% set v = {field} | float(none) %}}{{{{ {field} if v is not none and {low!r} <= v <= {high!r} "
+            "else 'None' }}")
 
 
 def _element(reg: Register, index: int | None) -> tuple[str, str, str | None]:
     """(object id, name, value template) of a register or one array element."""
     if index is None:
-        return reg.name, _title(reg.name), None
-    return f"{reg.name}_{index}", f"{_title(reg.name)} {index}", f"{{{{ value_json[{index}] }}}}"
+        return reg.name, entity_name(reg, None), None
+    return f"{reg.name}_{index}", entity_name(reg, index), f"{{{{ value_json[{index}] }}}}"
 
 
-def _register(b: _Builder, reg: Register, published: bool) -> None:
+def _field(index: int | None) -> str:
+    return "value" if index is None else f"value_json[{index}]"
+
+
+def _register(b: _Builder, reg: Register, published: bool, control: bool) -> None:
+    """The entities of one register: controls only when the gateway takes commands for it."""
     indices: list[int | None] = list(range(reg.count)) if reg.is_array else [None]
     for index in indices:
         object_id, name, template = _element(reg, index)
@@ -118,39 +183,59 @@ def _register(b: _Builder, reg: Register, published: bool) -> None:
         st: dict[str, Any] = {"state_topic": state} if published else {}
         if template and published:
             st["value_template"] = template
+        options = _enum_names(b.device.model, reg.enum) if reg.enum else []
         if reg.bit_table or reg.type == "bool":
-            _bool(b, reg, object_id, name, st, command, published)
+            _bool(b, reg, object_id, name, st, command, published, control)
         elif reg.bits:
             if published:
                 _bits(b, reg, object_id, name, state, index)
-        elif reg.command_value is not None and reg.writable:
+        elif reg.command_value is not None and control:
             b.add("button", object_id, name, {"command_topic": command, "payload_press": PRESS})
-        elif reg.enum and reg.writable:
-            b.add("select", object_id, name, {**st, "command_topic": command,
-                                              "options": _enum_names(b.device.model, reg.enum)})
-        elif reg.writable and reg.min is not None and reg.max is not None:
-            step = reg.scale if not float(reg.scale).is_integer() else int(reg.scale)
-            info = {k: v for k, v in unit_info(reg).items() if k != "state_class"}
-            b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": reg.min,
-                                              "max": reg.max, "step": step, "mode": "box"})
+        elif reg.enum and control:
+            if published:
+                st["value_template"] = _announced(_field(index), options)
+            b.add("select", object_id, name, {**st, "command_topic": command, "options": options})
+        elif control and reg.min is not None and reg.max is not None and reg.type != "string":
+            _number(b, reg, object_id, name, st, command, index)
         elif published and reg.enum:
-            b.add("sensor", object_id, name, {**st, "device_class": "enum",
-                                              "options": _enum_names(b.device.model, reg.enum)})
+            b.add("sensor", object_id, name, {**st, "value_template": _announced(_field(index), options),
+                                              "device_class": "enum", "options": options})
         elif published and reg.type == "string":
             b.add("sensor", object_id, name, st)
         elif published:
-            if reg.optional and not template:
-                st["value_template"] = "{{ 'None' if value == 'null' else value }}"
-            b.add("sensor", object_id, name, {**st, **unit_info(reg)})
+            _sensor(b, reg, object_id, name, st, template)
+
+
+def _sensor(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], template: str | None) -> None:
+    if reg.optional and not template:
+        st = {**st, "value_template": "{{ 'None' if value == 'null' else value }}"}
+    b.add("sensor", object_id, name, {**st, **unit_info(reg)})
+
+
+def _number(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
+            index: int | None) -> None:
+    """A number entity over the map's writable range; Home Assistant refuses a state outside it, so a
+    reading outside the range shows as unknown there and in full in a ``<name> reading`` sensor."""
+    assert reg.min is not None and reg.max is not None
+    step = reg.scale if not float(reg.scale).is_integer() else int(reg.scale)
+    info = {k: v for k, v in unit_info(reg).items() if k != "state_class"}
+    if st:
+        st = {**st, "value_template": _in_range(_field(index), reg.min, reg.max)}
+    b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": reg.min,
+                                      "max": reg.max, "step": step, "mode": "box"})
+    if st:
+        reading = {"state_topic": st["state_topic"], **({"value_template": f"{{{{ {_field(index)} }}}}"}
+                                                        if index is not None else {})}
+        _sensor(b, reg, f"{object_id}_reading", f"{name} reading", reading, reading.get("value_template"))
 
 
 def _bool(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
-          published: bool) -> None:
+          published: bool, control: bool) -> None:
     """A coil (writable: a switch) or a discrete input / bool register: payloads true/false."""
     states = {"payload_on": "true", "payload_off": "false"}
     if "value_template" in st:  # an array element: Jinja writes True/False
         st = {**st, "value_template": st["value_template"].replace(" }}", " | string | lower }}")}
-    if reg.writable:
+    if control:
         b.add("switch", object_id, name, {**st, **states, "state_on": "true", "state_off": "false",
                                           "command_topic": command, **({} if published else {"optimistic": True})})
     elif published:
@@ -166,8 +251,9 @@ def _bits(b: _Builder, reg: Register, object_id: str, name: str, state: str, ind
         if bit.width == 1 and bit.enum is None:
             b.add("binary_sensor", oid, label, {**fields, "value_template": f"{{{{ 'ON' if {field} else 'OFF' }}}}"})
         elif bit.enum is not None:
-            b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}", "device_class": "enum",
-                                         "options": _enum_names(b.device.model, bit.enum)})
+            options = _enum_names(b.device.model, bit.enum)
+            b.add("sensor", oid, label, {**fields, "value_template": _announced(field, options), "device_class": "enum",
+                                         "options": options})
         else:
             b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}"})
 
@@ -178,6 +264,7 @@ def discovery_messages(gateway: str, device: Device, discovery_prefix: str,
     b = _Builder(gateway, device, discovery_prefix, availability)
     published = set(device.cfg.publish)
     for reg in device.model.registers:
-        if reg.name in published or (reg.writable and device.cfg.writable):
-            _register(b, reg, reg.name in published)
+        control = reg.writable and device.may_write(reg.name)
+        if reg.name in published or control:
+            _register(b, reg, reg.name in published, control)
     return b.out

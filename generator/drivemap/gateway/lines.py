@@ -23,6 +23,8 @@ from typing import Any, Protocol
 
 from drivemap.gateway.config import BusConfig
 from drivemap.gateway.device import Command, Device, PollState
+from drivemap.gateway.payload import check_exact
+from drivemap.runtime.client.codec import OptionalCodec
 from drivemap.runtime.errors import DriveError, TransportError
 
 log = logging.getLogger("drivemap.gateway")
@@ -61,10 +63,11 @@ class Fanout:
 
 def outcome(cmd: Command, error: BaseException | None) -> dict[str, Any]:
     """The published result of a command: ok, or the typed error's class name and message."""
+    typed = error is None or isinstance(error, DriveError)
     return {
         "register": cmd.target, "value": cmd.given, "ok": error is None, "source": cmd.source,
-        "error": None if error is None else type(error).__name__,
-        "message": "written" if error is None else str(error),
+        "error": None if error is None else type(error).__name__ if typed else "InternalError",
+        "message": "written" if error is None else str(error) if typed else f"{type(error).__name__}: {error}",
     }
 
 
@@ -85,6 +88,7 @@ class Line:
         self.polls_done = 0
         self.commands_accepted = 0
         self.commands_done = 0
+        self.faults = 0
         self.started = time.monotonic()
 
     def submit(self, cmd: Command) -> None:
@@ -104,7 +108,12 @@ class Line:
                 poll.due = now
         try:
             while not self.stopping:  # a cancellation swallowed below the bus still ends the loop
-                await self._step()
+                try:
+                    await self._step()
+                except Exception:  # noqa: BLE001 - no device or command may stop the line: logged, next step
+                    self.faults += 1
+                    log.exception("%s: unexpected failure; the line goes on", self.name)
+                    await asyncio.sleep(min(1.0, self.backoff_min))
         finally:
             self.bus.close()
 
@@ -142,9 +151,10 @@ class Line:
         except TransportError as exc:
             self._failed(device, exc)
             return
-        except DriveError as exc:
+        except Exception as exc:  # noqa: BLE001 - an exception reply, or a reply nothing foresaw: the line goes on
             device.last_error = f"{type(exc).__name__}: {exc}"
-            log.warning("%s: poll of %s failed: %s", device.name, ", ".join(poll.group.registers), device.last_error)
+            log.warning("%s: poll of %s failed: %s", device.name, ", ".join(poll.group.registers), device.last_error,
+                        exc_info=not isinstance(exc, DriveError))
             poll.due = time.monotonic() + poll.group.interval
             return
         now = time.monotonic()
@@ -185,13 +195,16 @@ class Line:
     async def execute(self, cmd: Command) -> None:
         """Write a checked command, publish its outcome and read the register back."""
         device = cmd.device
-        error: DriveError | None = None
+        error: Exception | None = None
         try:
-            if cmd.raw is None:  # scaled by a scale register: the client reads the factor first
-                await cmd.accessor.write(cmd.value)
+            if cmd.raw is None:  # scaled by a scale register: the factor is read just before the write
+                await cmd.accessor.write_raw(await self._scaled_raw(cmd))
             else:
                 await cmd.accessor.write_raw(cmd.raw)
         except DriveError as exc:
+            error = exc
+        except Exception as exc:  # noqa: BLE001 - answered like any failed command, and logged
+            log.exception("%s: %s <- %r failed", device.name, cmd.target, cmd.given)
             error = exc
         self.commands_done += 1
         log.info("%s: %s <- %r: %s", device.name, cmd.target, cmd.given, "ok" if error is None else error)
@@ -203,6 +216,19 @@ class Line:
                 cmd.done.set_exception(error)
         if error is None:
             await self._read_back(device, cmd.target.partition("[")[0])
+
+    async def _scaled_raw(self, cmd: Command) -> int:
+        """The raw value of a command for a register scaled by a scale-factor register: the factor read
+        now, the value encoded with it and refused unless it reads back exactly."""
+        codec = cmd.accessor.codec
+        inner = codec.inner if isinstance(codec, OptionalCodec) else codec
+        assert inner.scale_key is not None
+        factor = await cmd.device.client.accessor(inner.scale_key[0]).read_raw()
+        if cmd.value is None:
+            return int(codec.encode(None))
+        raw = int(codec.encode_scaled(cmd.value, factor))
+        check_exact(inner, cmd.value, raw, factor, scaled=True)
+        return raw
 
     async def _read_back(self, device: Device, name: str) -> None:
         if name not in device.cfg.publish:

@@ -43,6 +43,8 @@ log = logging.getLogger("drivemap.gateway.mqtt")
 BATCH = 256
 #: Outcomes kept while the broker is away (the oldest go first beyond this).
 OUTBOX_LIMIT = 100_000
+#: Characters of a refused payload echoed in its outcome.
+MAX_SHOWN = 64
 
 
 class _QuietPending(logging.Filter):
@@ -191,8 +193,12 @@ class MqttBridge:
 
     async def _receive(self, client: aiomqtt.Client) -> None:
         async for message in client.messages:
-            payload = message.payload if isinstance(message.payload, bytes) else str(message.payload or "").encode()
-            self.on_command(message.topic.value, payload, bool(message.retain))
+            raw = message.payload
+            payload = raw if isinstance(raw, (bytes, bytearray)) else str(raw if raw is not None else "").encode()
+            try:
+                self.on_command(message.topic.value, bytes(payload), bool(message.retain))
+            except Exception:  # noqa: BLE001 - no message may stop the bridge (on_command answers what it can)
+                log.exception("MQTT message on %s could not be handled", message.topic.value)
 
     # ------------------------------------------------------------------ commands
     def on_command(self, topic: str, payload: bytes, retained: bool) -> None:
@@ -207,11 +213,15 @@ class MqttBridge:
             log.warning("command for unknown device on %s", topic)
             return
         target = parts[1] if len(parts) == 3 else f"{parts[1]}[{parts[2]}]"
-        text = payload.decode("utf-8", "replace")
+        shown = payload[:MAX_SHOWN].decode("utf-8", "replace") + ("..." if len(payload) > MAX_SHOWN else "")
         try:
-            cmd = device.command(target, text, "mqtt")
+            cmd = device.command(target, payload, "mqtt")
+            self.submit(cmd)
         except DriveError as exc:
-            self.publish_outcome(device, {"register": target, "value": text, "ok": False, "source": "mqtt",
+            self.publish_outcome(device, {"register": target, "value": shown, "ok": False, "source": "mqtt",
                                           "error": type(exc).__name__, "message": str(exc)})
-            return
-        self.submit(cmd)
+        except Exception as exc:  # noqa: BLE001 - no message may stop the gateway: logged and answered
+            log.exception("command on %s failed", topic)
+            self.publish_outcome(device, {"register": target, "value": shown, "ok": False, "source": "mqtt",
+                                          "error": "InternalError", "message": f"{type(exc).__name__}: the gateway "
+                                          "could not handle this command (logged)"})

@@ -1,14 +1,15 @@
 """The OPC UA side of the gateway (asyncua, the optional extra ``drivemap[opcua]``).
 
 Address space, in the configured namespace: ``Objects/<gateway>/<device>`` (one object per device)
-with an ``Online`` boolean and one variable per register, named as in the map. Each variable has
-the map's access level (read, write or both; arrays are read-only here), the ``EngineeringUnits``
-property (``EUInformation`` with the map's unit), ``EURange`` where the map gives min and max, and,
-for enumerated registers, ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values
-run 0..n-1. Numbers are ``Double`` where the scale is fractional (or a scale register applies), else
-``Int64``; ``UInt64`` for u64 counters, ``Float`` for unscaled f32, ``String`` for strings, ``Boolean``
-for coils, discrete inputs and bools; enumerated and bit-field registers carry their raw integer. A
+with an ``Online`` boolean and one variable per register, named as in the map. AccessLevel:
+CurrentRead for published registers, CurrentWrite for those in the device's ``writable`` list
+(arrays are read-only here); a write-only register's value reads ``BadNotReadable``.
+UserAccessLevel (answered per session by a PostRead callback) drops CurrentWrite for sessions that
+may not write. ``EngineeringUnits`` carry the UNECE unit id, data types follow the register type
+(:mod:`drivemap.gateway.opcua_types`); ``EURange`` where the map gives min and max; for enumerated
+registers ``EnumValues`` (value, name, label) plus ``EnumStrings`` when the values run 0..n-1. A
 not-available value (the client reads None) is a null value with the status ``BadNoData``.
+Connections are admitted by :mod:`drivemap.gateway.opcua_limits`.
 
 Writes go through the same checks as MQTT commands (:meth:`drivemap.gateway.device.Device.command`)
 before anything is queued, then wait for the device's reply; the status says what happened:
@@ -30,13 +31,16 @@ import logging
 from typing import Any
 
 from asyncua import ua as _ua
+from asyncua.common.callback import CallbackType
 from asyncua.crypto.permission_rules import SimpleRoleRuleset, User, UserRole
 from asyncua.server.address_space import AttributeService
 from asyncua.server.internal_server import InternalServer
-from asyncua.server.server import Server
 
+from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.gateway.config import OpcuaConfig, OpcuaUser
 from drivemap.gateway.device import Device
+from drivemap.gateway.opcua_limits import LimitedServer, anonymous_sessions
+from drivemap.gateway.opcua_types import CEFACT, unit_id, variant_name
 from drivemap.model.nodes import Register
 from drivemap.runtime.errors import (
     AccessError,
@@ -105,9 +109,11 @@ class _Users:
     application, not a user: a session over a signed channel with an anonymous token is anonymous.
     """
 
-    def __init__(self, cfg: OpcuaConfig, certificates: dict[bytes, OpcuaUser]) -> None:
+    def __init__(self, cfg: OpcuaConfig, certificates: dict[bytes, OpcuaUser], clients: Any = None) -> None:
         self.cfg = cfg
         self.certificates = certificates
+        self.clients = clients
+        """A callable returning the server's connections (to count anonymous sessions), once it runs."""
 
     def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
                  certificate: Any = None) -> User | None:
@@ -120,7 +126,12 @@ class _Users:
         if isinstance(certificate, _IdentityCertificate):
             found = self.certificates.get(bytes(certificate))
             return User(role=UserRole.User, name=found.name) if found is not None else None
-        return User(role=UserRole.Anonymous) if self.cfg.anonymous else None
+        if not self.cfg.anonymous:
+            return None
+        if self.clients is not None and anonymous_sessions(self.clients()) >= self.cfg.limits.anonymous_sessions:
+            log.warning("OPC UA: refusing an anonymous session (%d at once)", self.cfg.limits.anonymous_sessions)
+            return None
+        return User(role=UserRole.Anonymous)
 
 
 class _Ruleset(SimpleRoleRuleset):
@@ -153,19 +164,8 @@ class _CheckedWrites(AttributeService):
 
 
 def _variant_type(reg: Register) -> ua.VariantType:
-    """Boolean (coils, discrete inputs, bool), String, Float (f32 unscaled), UInt64 (u64 counters),
-    Int64 (other integers, enum and bit-field raw values), else Double."""
-    if reg.type == "bool":
-        return ua.VariantType.Boolean
-    if reg.type == "string":
-        return ua.VariantType.String
-    if reg.type == "f32" and reg.scale == 1 and not reg.offset and reg.scale_register is None:
-        return ua.VariantType.Float
-    if reg.type == "u64" and reg.is_integer and not reg.enum and not reg.bits:
-        return ua.VariantType.UInt64
-    if reg.enum or reg.bits or reg.is_integer:
-        return ua.VariantType.Int64
-    return ua.VariantType.Double
+    """The variant type of a register's value (:func:`drivemap.gateway.opcua_types.variant_name`)."""
+    return getattr(ua.VariantType, variant_name(reg))
 
 
 _INITIAL: dict[ua.VariantType, Any] = {ua.VariantType.Boolean: False, ua.VariantType.String: "",
@@ -198,6 +198,16 @@ def _raw_of(device: Device, reg: Register, value: Any) -> Any:
 
 
 def _bits_json(device: Device, reg: Register, raw: int) -> dict[str, Any]:
+    """The bit fields of a raw value written over OPC UA; a value that does not fit the register or
+    sets a bit the map does not define is refused, never truncated."""
+    width = 16 * {"u16": 1, "s16": 1, "u32": 2, "s32": 2}.get(reg.type, 4)
+    if not 0 <= raw < 1 << width:
+        raise ValueOutOfRange(f"{reg.name}: {raw} does not fit the register's {width} bits")
+    defined = 0
+    for bit in reg.bits:
+        defined |= ((1 << bit.width) - 1) << bit.offset
+    if raw & ~defined:
+        raise ValueOutOfRange(f"{reg.name}: bit(s) {raw & ~defined:#x} are not defined by the map")
     out: dict[str, Any] = {}
     for bit in reg.bits:
         v = (raw >> bit.offset) & ((1 << bit.width) - 1)
@@ -217,7 +227,7 @@ class OpcuaBridge:
         self.gateway = gateway
         self.devices = devices
         self.submit = submit
-        self.server: Server | None = None
+        self.server: LimitedServer | None = None
         self.nodes: dict[tuple[str, str], ua.NodeId] = {}
         self.online_nodes: dict[str, ua.NodeId] = {}
         self.targets: dict[ua.NodeId, tuple[Device, Register]] = {}
@@ -225,6 +235,29 @@ class OpcuaBridge:
         self._updates: asyncio.Queue[tuple[ua.NodeId, ua.DataValue]] = asyncio.Queue()
         self._task: asyncio.Task[None] | None = None
         self.writers = {u.name for u in cfg.users if u.write}
+        self.levels: dict[Any, int] = {}
+        """AccessLevel of every register node; a session's UserAccessLevel is this less what its user may not do."""
+
+    def _clients(self) -> list[Any]:
+        bserver = getattr(self.server, "bserver", None) if self.server is not None else None
+        return list(bserver.clients) if bserver is not None else []
+
+    def user_level(self, level: int, user: User | None) -> int:
+        """The access a session has to a register of AccessLevel ``level``."""
+        role = getattr(user, "role", UserRole.Anonymous)
+        may_write = role == UserRole.Admin or (role == UserRole.Anonymous and self.cfg.anonymous_writes) or (
+            role == UserRole.User and getattr(user, "name", None) in self.writers)
+        return level if may_write else level & ~ua.AccessLevel.CurrentWrite.mask
+
+    async def _after_read(self, event: Any, _dispatcher: Any) -> None:
+        """Reads of UserAccessLevel answer what the session's user may do (PostRead callback)."""
+        results = event.response_params
+        if not isinstance(results, list):
+            return
+        for i, item in enumerate(event.request_params.NodesToRead):
+            level = self.levels.get(item.NodeId)
+            if level is not None and item.AttributeId == ua.AttributeIds.UserAccessLevel and i < len(results):
+                results[i] = ua.DataValue(ua.Variant(self.user_level(level, event.user), ua.VariantType.Byte))
 
     # ------------------------------------------------------------------ server
     async def _certificates(self) -> dict[bytes, OpcuaUser]:
@@ -239,8 +272,9 @@ class OpcuaBridge:
 
     async def start(self) -> None:
         cfg = self.cfg
-        users = _Users(cfg, await self._certificates())
-        server = Server(iserver=_InternalServer(user_manager=users))  # type: ignore[arg-type]
+        users = _Users(cfg, await self._certificates(), self._clients)
+        server = LimitedServer(iserver=_InternalServer(user_manager=users))  # type: ignore[arg-type]
+        server.admission = cfg.limits
         await server.init()
         server.set_endpoint(cfg.endpoint)
         server.set_server_name(f"drivemap gateway {self.gateway}")
@@ -260,7 +294,13 @@ class OpcuaBridge:
         for device in self.devices.values():
             await self._add_device(folder, device)
         server.iserver.attribute_service = _CheckedWrites(server.iserver.aspace, self)
-        await server.start()
+        server.subscribe_server_callback(CallbackType.PostRead, self._after_read)
+        try:
+            await server.start()
+        except OSError as exc:  # the port is taken since --check, or the address is not this host's
+            where = cfg.endpoint_at or Location("<config>", 1, 1)
+            raise CompileError([Diagnostic(where, f"endpoint {cfg.endpoint!r}: cannot listen: "
+                                                  f"{exc.strerror or exc}")]) from None
         self.server = server
         self._task = asyncio.create_task(self._apply_updates(), name="opcua updates")
         log.info("OPC UA server on %s (namespace %s)", cfg.endpoint, cfg.namespace)
@@ -280,7 +320,7 @@ class OpcuaBridge:
         self.online_nodes[device.name] = online.nodeid
         published = set(device.cfg.publish)
         for reg in device.model.registers:
-            if reg.name in published or (reg.writable and device.cfg.writable and not reg.is_array):
+            if reg.name in published or (device.may_write(reg.name) and not reg.is_array):
                 await self._add_register(obj, device, reg, reg.name in published)
 
     async def _add_register(self, obj: Any, device: Device, reg: Register, readable: bool) -> None:
@@ -288,10 +328,14 @@ class OpcuaBridge:
         first = _INITIAL.get(vtype, 0)
         initial: Any = [first] * reg.count if reg.is_array else first
         node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), f"{self.idx}:{reg.name}", initial, vtype)
-        level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (
-            ua.AccessLevel.CurrentWrite.mask if reg.writable and device.cfg.writable and not reg.is_array else 0)
+        writable = reg.writable and device.may_write(reg.name) and not reg.is_array
+        level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (ua.AccessLevel.CurrentWrite.mask if writable else 0)
         for attr in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel):
             await node.write_attribute(attr, ua.DataValue(ua.Variant(level, ua.VariantType.Byte)))
+        if not readable:  # a write-only register has no value to read: never a Good 0
+            await node.write_attribute(ua.AttributeIds.Value, ua.DataValue(
+                ua.Variant(), StatusCode=ua.StatusCode(ua.StatusCodes.BadNotReadable)))
+        self.levels[node.nodeid] = level
         description = reg.description or reg.label or reg.name
         await node.write_attribute(ua.AttributeIds.Description,
                                    ua.DataValue(ua.Variant(ua.LocalizedText(description), ua.VariantType.LocalizedText)))
@@ -301,7 +345,7 @@ class OpcuaBridge:
 
     async def _properties(self, node: Any, device: Device, reg: Register) -> None:
         name = device.name + "." + reg.name
-        eu = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=-1,
+        eu = ua.EUInformation(NamespaceUri=CEFACT, UnitId=unit_id(reg.unit),
                               DisplayName=ua.LocalizedText(reg.unit or ""), Description=ua.LocalizedText(reg.unit or ""))
         await node.add_property(ua.NodeId(f"{name}.EngineeringUnits", self.idx), "0:EngineeringUnits", eu,
                                 datatype=ua.ObjectIds.EUInformation)
@@ -350,12 +394,17 @@ class OpcuaBridge:
         if user.role == UserRole.User and user.name not in self.writers:
             return _status(ua.StatusCodes.BadUserAccessDenied)
         given = value.Value.Value if value.Value is not None else None
-        if reg.bits and isinstance(given, int) and not isinstance(given, bool):
-            given = _bits_json(device, reg, given)
         try:
+            if reg.bits and isinstance(given, int) and not isinstance(given, bool):
+                given = _bits_json(device, reg, given)
             cmd = device.command(reg.name, json.dumps(given), "opcua")
-        except (DriveError, TypeError, ValueError) as exc:
-            return _status(status_for(exc) if isinstance(exc, DriveError) else ua.StatusCodes.BadTypeMismatch)
+        except DriveError as exc:
+            return _status(status_for(exc))
+        except (TypeError, ValueError, OverflowError):
+            return _status(ua.StatusCodes.BadTypeMismatch)
+        except Exception:  # noqa: BLE001 - no write may stop the server: logged, answered
+            log.exception("OPC UA write of %s.%s failed", device.name, reg.name)
+            return _status(ua.StatusCodes.BadInternalError)
         cmd.done = asyncio.get_running_loop().create_future()
         self.submit(cmd)
         try:

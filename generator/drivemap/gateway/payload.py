@@ -1,0 +1,177 @@
+"""Command payloads, parsed strictly: bounded in size and depth before any parser runs, nothing coerced.
+
+A payload (MQTT ``/set``, an OPC UA write turned into JSON) is at most :data:`MAX_PAYLOAD_BYTES`
+bytes of UTF-8 and nests at most :data:`MAX_DEPTH` levels of JSON arrays/objects; both are checked
+on the raw text before ``json.loads`` (which recurses) sees it. NaN and Infinity are refused. Bools
+are ``true``/``false``/``on``/``off``/``1``/``0`` (any case; JSON ``true``/``false``); a single bit
+is 0, 1, true or false; integers are integers (a float only when it is a whole number); indexes
+and numbers in names are ASCII digits. What is accepted is written exactly: :func:`check_exact`
+refuses a value the register cannot hold exactly (``12.345`` at a resolution of 0.01) and names the
+nearest values it can hold; the gateway never rounds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import struct
+from typing import Any
+
+from drivemap.runtime.client.codec import IeeeCodec, OptionalCodec
+from drivemap.runtime.errors import InvalidValue, ValueOutOfRange
+
+#: The longest command payload (bytes); a bit-field object of every field of a 64-bit register fits.
+MAX_PAYLOAD_BYTES = 4096
+#: The deepest nesting of JSON arrays and objects in a payload (a bit-field object is 1).
+MAX_DEPTH = 2
+
+_BOOL_WORDS = {"true": True, "on": True, "1": True, "false": False, "off": False, "0": False}
+_INTEGER = re.compile(r"[+-]?(?:[0-9]+|0[xX][0-9a-fA-F]+)\Z", re.ASCII)
+_INDEX = re.compile(r"[0-9]{1,6}\Z", re.ASCII)
+
+
+def show(text: str, limit: int = 40) -> str:
+    """A payload for a message: at most ``limit`` characters, repr-quoted."""
+    return repr(text[:limit] + ("..." if len(text) > limit else ""))
+
+
+def payload_text(payload: bytes | str) -> str:
+    """The text of a payload: bounded in size, strict UTF-8 without NUL."""
+    size = len(payload.encode("utf-8", "surrogatepass")) if isinstance(payload, str) else len(payload)
+    if size > MAX_PAYLOAD_BYTES:
+        raise InvalidValue(f"a payload of {size} bytes is longer than the {MAX_PAYLOAD_BYTES} a command may have")
+    if isinstance(payload, bytes):
+        try:
+            payload = payload.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise InvalidValue(f"the payload is not UTF-8 text (byte {exc.start})") from None
+    if "\x00" in payload or any(0xD800 <= ord(c) <= 0xDFFF for c in payload):
+        raise InvalidValue("the payload holds a NUL or a lone surrogate")
+    return payload
+
+
+def nesting(text: str) -> int:
+    """How deep JSON arrays/objects nest in ``text`` (brackets inside strings do not count)."""
+    depth = deepest = 0
+    in_string = escaped = False
+    for c in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif c == "\\":
+                escaped = True
+            elif c == '"':
+                in_string = False
+        elif c == '"':
+            in_string = True
+        elif c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth -= 1
+    return deepest
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a value")
+
+
+def parse_json(register: str, text: str) -> Any:
+    """A JSON value, after the depth check; NaN/Infinity and malformed text are InvalidValue."""
+    if nesting(text) > MAX_DEPTH:
+        raise InvalidValue(f"{register}: the payload nests deeper than {MAX_DEPTH} levels")
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except (ValueError, RecursionError):
+        raise InvalidValue(f"{register}: payload {show(text)} is not a value (JSON number, name or object)") from None
+
+
+def bool_word(register: str, value: Any) -> bool:
+    """A bool from ``true/false/on/off/1/0`` (text, JSON bool or the integers 0 and 1)."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int) and value in (0, 1):
+        return bool(value)
+    if isinstance(value, str):
+        word = value.strip().strip('"').lower()
+        if word in _BOOL_WORDS:
+            return _BOOL_WORDS[word]
+    shown = show(value) if isinstance(value, str) else repr(value)[:40]
+    raise InvalidValue(f"{register}: expected true/false (ON/OFF, 1/0), got {shown}")
+
+
+def integer_word(word: str) -> int | None:
+    """An integer written in ASCII (decimal or 0x hex), else None."""
+    if not _INTEGER.match(word):
+        return None
+    sign = -1 if word.startswith("-") else 1
+    body = word.lstrip("+-")
+    return sign * (int(body[2:], 16) if body[:2].lower() == "0x" else int(body, 10))
+
+
+def index_word(register: str, text: str) -> int:
+    """An array index: ASCII digits only."""
+    if not _INDEX.match(text):
+        raise InvalidValue(f"{register}: index {show(text, 12)} is not a number (ASCII digits)")
+    return int(text)
+
+
+def number(register: str, value: Any, *, integer: bool) -> int | float:
+    """A finite number; for an integer register an int (or a float that is a whole number)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidValue(f"{register}: expected a number, got {type(value).__name__}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueOutOfRange(f"{register}: {value} is not finite")
+    if integer and isinstance(value, float):
+        if not value.is_integer():
+            raise ValueOutOfRange(f"{register}: {value} is not a whole number (the register holds integers)")
+        return int(value)
+    return value
+
+
+def shortest_f32(value: float) -> float:
+    """The shortest decimal that reads back as the same IEEE-754 single (230.2, not 230.1999969482422)."""
+    if not math.isfinite(value):
+        return value
+    try:
+        target = struct.pack(">f", value)
+    except OverflowError:
+        return value
+    for digits in range(1, 10):
+        candidate = float(f"{value:.{digits}g}")
+        if struct.pack(">f", candidate) == target:
+            return candidate
+    return value
+
+
+def _close(a: float, b: float) -> bool:
+    return a == b or math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-12)
+
+
+def check_exact(codec: Any, value: Any, raw: int, factor: int | None = None, *, scaled: bool = False) -> None:
+    """Refuse ``value`` when ``raw`` does not read back as exactly ``value`` (the codec rounded it);
+    ``scaled``: the register is scaled by a scale-factor register whose raw value is ``factor``."""
+    inner = codec.inner if isinstance(codec, OptionalCodec) else codec
+    if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return
+    name = inner.spec.name
+
+    def decode(r: int) -> Any:
+        return inner.decode_scaled(r, factor) if scaled else inner.decode(r)
+
+    back = decode(raw)
+    if isinstance(inner, IeeeCodec):
+        if inner.spec.type == "f32" and shortest_f32(back) == value or back == value:
+            return
+        raise ValueOutOfRange(f"{name}: {value} is not representable as {inner.spec.type} "
+                              f"(the nearest is {shortest_f32(back) if inner.spec.type == 'f32' else back})")
+    if not isinstance(back, (int, float)) or _close(float(back), float(value)):
+        return
+    near = sorted({decode(r) for r in (raw - 1, raw, raw + 1)})
+    below = [v for v in near if v < value]
+    above = [v for v in near if v > value]
+    nearest = " and ".join(str(v) for v in (below[-1:] + above[:1]))
+    step = f"{inner.spec.scale} x 10^{factor}" if scaled else f"{inner.spec.scale}"
+    raise ValueOutOfRange(f"{name}: {value} is not a value the register holds exactly (resolution "
+                          f"{step}); the nearest are {nearest}")
