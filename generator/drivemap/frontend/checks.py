@@ -13,6 +13,7 @@ from drivemap.backends.python.names import FIXED_NAMES
 from drivemap.diagnostics import Diagnostic
 from drivemap.frontend import examplevalues, frames
 from drivemap.frontend.checks_registers import RegisterChecks, table_name
+from drivemap.frontend.checks_rules import check_rules
 from drivemap.frontend.load import Document, PathT
 from drivemap.model.nodes import camel, is_keyword
 
@@ -43,6 +44,7 @@ class Checker(RegisterChecks):
         self.check_device()
         self.check_enums()
         self.check_registers()
+        check_rules(self)
         self.check_protocol()
         self.check_reserved()
         self.check_known_issues()
