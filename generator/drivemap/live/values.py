@@ -24,7 +24,17 @@ from typing import Any
 from drivemap.diagnostics import CompileError
 from drivemap.live.target import Target, command_line_error, register_note
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, FloatCodec, IntCodec
+from drivemap.runtime.client.codec import (
+    EnumCodec,
+    FieldsCodec,
+    FlagCodec,
+    FloatCodec,
+    IeeeCodec,
+    IntCodec,
+    OptionalCodec,
+    ScaledCodec,
+    StringCodec,
+)
 from drivemap.runtime.client.sansio import Deferred
 from drivemap.runtime.errors import DriveError
 
@@ -135,8 +145,12 @@ def from_text(codec: Any, text: str) -> Any:
         if not float(number).is_integer():
             raise ValueError(f"{text!r} is not a whole number")
         return int(number)
-    if isinstance(codec, FloatCodec):
-        return float(_number(text))
+    if isinstance(codec, (FloatCodec, IeeeCodec, ScaledCodec)):
+        return float(_number(text))  # never truncated: the codec refuses what the register cannot hold
+    if isinstance(codec, StringCodec):
+        return text
+    if isinstance(codec, OptionalCodec):
+        return from_text(codec.inner, text)
     return int(_number(text))
 
 
