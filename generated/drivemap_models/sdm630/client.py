@@ -1176,7 +1176,7 @@ class Client(ClientBase[Snapshot]):
         self.reset: Command[int] = Command(self, _codec_reset)
         """Reset
 
-        Address 0xF010 (Modicon 461457); parameter 30729; u16, access w.
+        Address 0xF010 (Modicon 461457); parameter 30729; u32 (bytes on the wire: AB CD), access w.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Command: writing 0 executes it.
