@@ -119,3 +119,22 @@ def test_csv_and_docs_list_the_values() -> None:
     with open(docs, encoding="utf-8") as handle:
         text = handle.read()
     assert "values: 60, 100, 200 (a write of any other value is refused)" in text
+
+
+def test_codecs_of_every_kind_keep_to_the_set() -> None:
+    from drivemap.runtime.client.codec import FloatCodec, IntCodec, OptionalCodec, StringCodec
+    from drivemap.runtime.spec import RegisterSpec
+
+    scaled = FloatCodec(RegisterSpec("ramp", 1, scale=0.1, unit="s", values=((0.5, None), (1.0, "slow"))))
+    assert scaled.encode(0.5) == 5 and scaled.encode(1.0) == 10
+    with pytest.raises(NotAllowedValue, match=r"ramp: 0.7 s is not one of the allowed values 0.5, 1 \(slow\)"):
+        scaled.encode(0.7)
+    whole = OptionalCodec(IntCodec(RegisterSpec("mode", 2, type="s16", values=((-1, "off"), (3, None)),
+                                                not_available=(-32768,))))
+    assert whole.encode(-1) == -1 and whole.encode(None) == -32768
+    with pytest.raises(NotAllowedValue):
+        whole.encode(2)
+    text = StringCodec(RegisterSpec("profile", 3, type="string", length=2, values=(("AUTO", None), ("MAN", None))))
+    assert text.encode("MAN") == int.from_bytes(b"MAN\x00", "big")
+    with pytest.raises(NotAllowedValue, match="'auto' is not one of the allowed values AUTO, MAN"):
+        text.encode("auto")
