@@ -138,3 +138,17 @@ def test_codecs_of_every_kind_keep_to_the_set() -> None:
     assert text.encode("MAN") == int.from_bytes(b"MAN\x00", "big")
     with pytest.raises(NotAllowedValue, match="'auto' is not one of the allowed values AUTO, MAN"):
         text.encode("auto")
+
+
+def test_verify_write_safe_tries_only_values_of_the_set() -> None:
+    from types import SimpleNamespace
+
+    from drivemap.live.verify_write import test_raws
+
+    model = load_model("maps/sdm630.yaml")
+    codecs = {name: codec for name, codec in vars(package("sdm630").client).get("CODECS", {}).items()}
+    session = SimpleNamespace(target=SimpleNamespace(model=model, codecs=codecs))
+    reg = model.register("pulse1_divisor1")  # before: its min and max (0, 5); now one other value of the set
+    original = struct.unpack(">I", struct.pack(">f", 0.0))[0]
+    tries = test_raws(session, reg, original)  # type: ignore[arg-type]
+    assert tries == [("the value 1 (0.01 kWh(kVArh)/imp)", struct.unpack(">I", struct.pack(">f", 1.0))[0])]
