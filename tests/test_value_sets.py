@@ -152,3 +152,10 @@ def test_verify_write_safe_tries_only_values_of_the_set() -> None:
     original = struct.unpack(">I", struct.pack(">f", 0.0))[0]
     tries = test_raws(session, reg, original)  # type: ignore[arg-type]
     assert tries == [("the value 1 (0.01 kWh(kVArh)/imp)", struct.unpack(">I", struct.pack(">f", 1.0))[0])]
+
+
+def test_cli_write_takes_a_label_of_the_set() -> None:
+    with tcp_server("sdm630") as (sim, host, port):
+        proc = cli("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=3P4W", "network_baud_rate=19200 baud")
+        assert proc.returncode == 0, proc.stderr
+        assert sim.get("system_type") == 3.0 and sim.get("network_baud_rate") == 3.0

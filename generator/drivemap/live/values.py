@@ -140,6 +140,9 @@ def from_text(codec: Any, text: str) -> Any:
         return _flags(codec.flag_type, text)
     if isinstance(codec, FieldsCodec):
         return _fields(codec, text)
+    labelled = _labelled(codec, text)
+    if labelled is not None:
+        return labelled
     if isinstance(codec, IntCodec):
         number = _number(text)
         if not float(number).is_integer():
@@ -152,6 +155,13 @@ def from_text(codec: Any, text: str) -> Any:
     if isinstance(codec, OptionalCodec):
         return from_text(codec.inner, text)
     return int(_number(text))
+
+
+def _labelled(codec: Any, text: str) -> float | str | None:
+    """The value of the register's value set whose label is ``text`` (any case), else None."""
+    values = getattr(getattr(codec, "spec", None), "values", ())
+    wanted = text.strip().casefold()
+    return next((value for value, label in values if label is not None and label.casefold() == wanted), None)
 
 
 def _number(text: str) -> float:
