@@ -41,6 +41,8 @@ def test_f32_default_is_the_shortest_text_of_the_same_f32() -> None:
     assert repr(f32(230.2)) == "230.1999969482422"  # what was printed before
     assert display_text(f32(0.1), single=True) == "0.1"
     assert display_text(f32(1e-7), single=True) == "1e-07"
+    assert display_text(f32(12000.0), single=True) == "12000.0"  # not 1.2e+04
+    assert display_text(f32(-3.0e20), single=True) == "-3e+20"
     assert display_text(float("nan"), single=True) == "nan" and display_text(None) == "None"
     rng = random.Random(7)
     for _ in range(2000):

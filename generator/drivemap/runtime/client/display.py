@@ -76,7 +76,7 @@ def _shortest_f32(value: float) -> str:
     for digits in range(1, 10):
         text = f"{value:.{digits}g}"
         if struct.pack(">f", float(text)) == target:
-            return repr(float(text)) if "e" not in text else text
+            return repr(float(text))  # 12000.0, not 1.2e+04 (repr keeps the same shortest digits)
     return repr(value)
 
 
