@@ -119,6 +119,12 @@ class RegisterSpec:
     def element_name(self, index: int) -> str:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
+    def display_name(self, index: int, base: str | None = None) -> str:
+        """The element's name for people: ``base`` (default the name) and the manual's number of the
+        element (``index + first_index``); the model's ``Register.display_name`` says the same."""
+        text = self.name if base is None else base
+        return f"{text} {index + self.first_index}" if self.count > 1 else text
+
     def default_at(self, index: int) -> float | str | None:
         return self.defaults[0] if len(self.defaults) == 1 else self.defaults[index]
 
