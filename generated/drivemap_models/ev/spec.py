@@ -359,6 +359,7 @@ SPEC = DeviceSpec(
             min=0,
             max=22,
             source='001 §4.4',
+            first_index=1,
         ),
         RegisterSpec(
             name='comm_error_history',
@@ -369,6 +370,7 @@ SPEC = DeviceSpec(
             enum='CommErrorCode',
             enum_values=(132, 133, 136, 140, 141),
             source='001 §4.5',
+            first_index=1,
         ),
         RegisterSpec(
             name='digital_speed',

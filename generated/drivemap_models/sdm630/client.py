@@ -1098,6 +1098,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0002 (Modicon 40003); parameter 2; f32 (bytes on the wire: AB CD), access rw.
         Unit: min; scale 1; range 0 .. 60 min.
+        Allowed values: 0 (demand shows the current value), 5, 8, 10, 15, 20, 30, 60 (a write of any other raises NotAllowedValue before anything is sent).
         Default: 60; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.5 (40003, hex 00 02).
         """
@@ -1106,6 +1107,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x000A (Modicon 40011); parameter 6; f32 (bytes on the wire: AB CD), access rw.
         Unit: none; scale 1; range 1 .. 3.
+        Allowed values: 1 (1p2w), 2 (3p3w), 3 (3p4w) (a write of any other raises NotAllowedValue before anything is sent).
         Default: —; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.5 (40011, hex 00 0A).
         """
@@ -1114,6 +1116,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x000C (Modicon 40013); parameter 7; f32 (bytes on the wire: AB CD), access rw.
         Unit: ms; scale 1; range 60 .. 200 ms.
+        Allowed values: 60, 100, 200 (a write of any other raises NotAllowedValue before anything is sent).
         Default: 100; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40013, hex printed 00 OC).
         """
@@ -1130,6 +1133,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0012 (Modicon 40019); parameter 10; f32 (bytes on the wire: AB CD), access rw.
         Unit: none; scale 1; range 0 .. 3.
+        Allowed values: 0 (one stop bit, no parity), 1 (one stop bit, even parity), 2 (one stop bit, odd parity), 3 (two stop bits, no parity) (a write of any other raises NotAllowedValue before anything is sent).
         Default: 0; reflect: power_cycle; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40019, hex 00 12).
         """
@@ -1146,6 +1150,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0016 (Modicon 40023); parameter 12; f32 (bytes on the wire: AB CD), access rw.
         Unit: none; scale 1; range 0 .. 5.
+        Allowed values: 0 (0.0025 kWh(kVArh)/imp), 1 (0.01 kWh(kVArh)/imp), 2 (0.1 kWh(kVArh)/imp), 3 (1 kWh(kVArh)/imp), 4 (10 kWh(kVArh)/imp), 5 (100 kWh(kVArh)/imp) (a write of any other raises NotAllowedValue before anything is sent).
         Default: —; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40023, hex 00 16).
         """
@@ -1162,6 +1167,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x001C (Modicon 40029); parameter 15; f32 (bytes on the wire: AB CD), access rw.
         Unit: none; scale 1; range 0 .. 4.
+        Allowed values: 0 (2400 baud), 1 (4800 baud), 2 (9600 baud), 3 (19200 baud), 4 (38400 baud) (a write of any other raises NotAllowedValue before anything is sent).
         Default: 2; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.7 (40029, hex 00 1C).
         """
@@ -1170,13 +1176,14 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0056 (Modicon 40087); parameter 44; f32 (bytes on the wire: AB CD), access rw.
         Unit: none; scale 1; range 1 .. 8.
+        Allowed values: 1 (import active energy), 2 (total active energy), 4 (export active energy), 5 (import reactive energy), 6 (total reactive energy), 8 (export reactive energy) (a write of any other raises NotAllowedValue before anything is sent).
         Default: 4; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.7 (40087, hex 00 56).
         """
         self.reset: Command[int] = Command(self, _codec_reset)
         """Reset
 
-        Address 0xF010 (Modicon 461457); parameter 30729; u16, access w.
+        Address 0xF010 (Modicon 461457); parameter 30729; u32 (bytes on the wire: AB CD), access w.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Command: writing 0 executes it.

@@ -4,6 +4,7 @@ Manual: github.com/plebann/eastron_SDM_HA_integration @ 8cf0cc445725fb4fe3511cae
 """
 
 from drivemap.runtime.spec import (
+    AlignmentSpec,
     DeviceSpec,
     ExceptionSpec,
     FunctionSpec,
@@ -996,6 +997,7 @@ SPEC = DeviceSpec(
             defaults=(60,),
             param='2',
             source='V1.8 §1.3.1 p.5 (40003, hex 00 02)',
+            values=((0.0, 'demand shows the current value'), (5.0, None), (8.0, None), (10.0, None), (15.0, None), (20.0, None), (30.0, None), (60.0, None)),
         ),
         RegisterSpec(
             name='system_type',
@@ -1006,6 +1008,7 @@ SPEC = DeviceSpec(
             max=3,
             param='6',
             source='V1.8 §1.3.1 p.5 (40011, hex 00 0A)',
+            values=((1.0, '1p2w'), (2.0, '3p3w'), (3.0, '3p4w')),
         ),
         RegisterSpec(
             name='pulse1_width',
@@ -1018,6 +1021,7 @@ SPEC = DeviceSpec(
             defaults=(100,),
             param='7',
             source='V1.8 §1.3.1 p.6 (40013, hex printed 00 OC)',
+            values=((60.0, None), (100.0, None), (200.0, None)),
         ),
         RegisterSpec(
             name='password_lock',
@@ -1038,6 +1042,7 @@ SPEC = DeviceSpec(
             reflect='power_cycle',
             param='10',
             source='V1.8 §1.3.1 p.6 (40019, hex 00 12)',
+            values=((0.0, 'one stop bit, no parity'), (1.0, 'one stop bit, even parity'), (2.0, 'one stop bit, odd parity'), (3.0, 'two stop bits, no parity')),
         ),
         RegisterSpec(
             name='network_node',
@@ -1060,6 +1065,7 @@ SPEC = DeviceSpec(
             max=5,
             param='12',
             source='V1.8 §1.3.1 p.6 (40023, hex 00 16)',
+            values=((0.0, '0.0025 kWh(kVArh)/imp'), (1.0, '0.01 kWh(kVArh)/imp'), (2.0, '0.1 kWh(kVArh)/imp'), (3.0, '1 kWh(kVArh)/imp'), (4.0, '10 kWh(kVArh)/imp'), (5.0, '100 kWh(kVArh)/imp')),
         ),
         RegisterSpec(
             name='password',
@@ -1080,6 +1086,7 @@ SPEC = DeviceSpec(
             defaults=(2,),
             param='15',
             source='V1.8 §1.3.1 p.7 (40029, hex 00 1C)',
+            values=((0.0, '2400 baud'), (1.0, '4800 baud'), (2.0, '9600 baud'), (3.0, '19200 baud'), (4.0, '38400 baud')),
         ),
         RegisterSpec(
             name='pulse1_energy_type',
@@ -1091,11 +1098,14 @@ SPEC = DeviceSpec(
             defaults=(4,),
             param='44',
             source='V1.8 §1.3.1 p.7 (40087, hex 00 56)',
+            values=((1.0, 'import active energy'), (2.0, 'total active energy'), (4.0, 'export active energy'), (5.0, 'import reactive energy'), (6.0, 'total reactive energy'), (8.0, 'export reactive energy')),
         ),
         RegisterSpec(
             name='reset',
             address=0xF010,
+            type='u32',
             access='w',
+            word_order='high_first',
             command_value=0,
             param='30729',
             source='V1.8 §1.3.1 p.7 (461457, hex F0 10)',
@@ -1128,7 +1138,7 @@ SPEC = DeviceSpec(
         ReservedSpec(start=0x001A, end=0x001B, readable=None),
         ReservedSpec(start=0x001E, end=0x0055, readable=None),
         ReservedSpec(start=0x0058, end=0xF00F, readable=None),
-        ReservedSpec(start=0xF011, end=0xFBFF, readable=None),
+        ReservedSpec(start=0xF012, end=0xFBFF, readable=None),
     ),
     comm_errors=(
     ),
@@ -1146,4 +1156,8 @@ SPEC = DeviceSpec(
     configuration=None,
     max_frame_bytes=None,
     fixed_units=(),
+    alignment=(
+        AlignmentSpec('input', start=0x0000, end=0xFFFF, start_multiple=2, quantity_multiple=2, min_quantity=1, whole_values=True, operations=('read',), exception=0x02, source='V1.8 §1.1 p.1; §3.8.1 p.18; §3.11.1 p.21'),
+        AlignmentSpec('holding', start=0x0000, end=0xFFFF, start_multiple=2, quantity_multiple=2, min_quantity=1, whole_values=True, operations=('read', 'write'), exception=0x02, source='V1.8 §1.1 p.1; §3.9.1 p.19; §3.9.2 p.20; §3.11.1 p.21'),
+    ),
 )

@@ -12,6 +12,7 @@ from typing import Any
 from drivemap.diagnostics import Diagnostic
 from drivemap.frontend import examplevalues, frames
 from drivemap.frontend.checks_registers import RegisterChecks, table_name
+from drivemap.frontend.checks_rules import check_rules
 from drivemap.frontend.load import Document, PathT
 from drivemap.model.nodes import camel, is_keyword
 
@@ -32,6 +33,7 @@ class Checker(RegisterChecks):
         self.check_device()
         self.check_enums()
         self.check_registers()
+        check_rules(self)
         self.check_protocol()
         self.check_reserved()
         self.check_known_issues()

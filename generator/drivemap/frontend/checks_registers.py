@@ -134,7 +134,9 @@ class RegisterChecks(CheckerBase):
         if rtype in FLOAT_TYPES:
             for key in ("enum", "bits"):
                 if reg.get(key):
-                    self.error(where + (key,), f"an {rtype} register cannot have {key}", key=True)
+                    self.error(where + (key,), f"an {rtype} register cannot have {key}"
+                               + (" (list its allowed values with 'values:' instead)" if key == "enum" else ""),
+                               key=True)
         if reg.get("scale_register") and rtype not in INTEGER_TYPES | {"bool", "string"}:
             self.error(where + ("scale_register",), f"scale_register needs an integer type, not {rtype}")
         elif reg.get("scale_register") and (reg.get("enum") or reg.get("bits")):

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 
 if TYPE_CHECKING:
+    from drivemap.frontend.project import Project
     from drivemap.gateway.config import GatewayConfig
     from drivemap.gateway.service import Gateway
-    from drivemap.frontend.project import Project
 
 #: The example configuration shipped in the package (the same file as docs/examples/plant.yaml).
 EXAMPLE = Path(__file__).resolve().parent.parent / "data" / "plant.yaml"

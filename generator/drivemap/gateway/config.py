@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drivemap.frontend import schema
 from drivemap.compiler import compile_map, resolve_map
 from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend import schema
+from drivemap.frontend.load import Document, PathT, load_file
+from drivemap.frontend.project import Project, display, load_project
 from drivemap.gateway.access import group_writables
 from drivemap.gateway.checks import certificate_problem, endpoint_problem, key_pair_problem, serial_port_problem
-from drivemap.frontend.load import Document, PathT, load_file
 from drivemap.model.nodes import Model
-from drivemap.frontend.project import Project, display, load_project
 
 #: The configuration schema shipped with the package (a link to ``schemas/gateway.schema.json``).
 SCHEMA_PATH = Path(__file__).resolve().parent.parent / "data" / "gateway.schema.json"

@@ -17,6 +17,7 @@ from rich.table import Table
 from drivemap.live.target import Target
 from drivemap.live.values import to_text
 from drivemap.model.nodes import Register
+from drivemap.runtime.client.display import display_text
 from drivemap.runtime.errors import ScaleUnavailable
 
 COLUMNS = ("name", "value", "unit", "meaning", "raw", "address", "param")
@@ -39,9 +40,15 @@ class Row:
         return self.register.element_address(self.index)
 
     def value_text(self) -> str:
+        """The value as people read it: the map's precision, else the shortest exact text
+        (:func:`drivemap.runtime.client.display.display_text`)."""
         if self.raw is None:
             return ""
-        return "n/a" if self.value is None else to_text(self.value)
+        if self.value is None:
+            return "n/a"
+        if isinstance(self.value, (int, float)) and not isinstance(self.value, (bool, enum.Enum)):
+            return display_text(self.value, self.register.precision, single=_single(self.register))
+        return to_text(self.value)
 
     def meaning(self, target: Target) -> str:
         if self.raw is None:
@@ -71,15 +78,25 @@ class Row:
 
     def json(self, target: Target) -> dict[str, Any]:
         return {
-            "name": self.name, "value": json_value(self.value) if self.raw is not None else None,
+            "name": self.name,
+            "value": json_value(self.value, _single(self.register)) if self.raw is not None else None,
             "unit": self.register.unit, "meaning": self.meaning(target) or None, "raw": self.raw,
             "address": self.address, "table": self.register.table,
             "param": self.register.element_param(self.index),
         }
 
 
+def _single(reg: Register) -> bool:
+    """Whether the register's value is an f32 as read (shown as the shortest text of that f32)."""
+    return reg.type == "f32" and reg.scale == 1 and reg.offset == 0
+
+
 def meaning(target: Target, reg: Register, value: Any) -> str:
-    """The enum label or the labels of the bits that are set."""
+    """The label of the value in the value set or enum, or the labels of the bits that are set."""
+    if reg.values and value is not None:
+        label = next((v.label for v in reg.values if v.value == value), None)
+        return label if label is not None else ("" if any(v.value == value for v in reg.values)
+                                                else "not a value of the map")
     if reg.enum is not None and isinstance(value, enum.Enum):
         labels = {v.value: v.label for v in target.model.enum(reg.enum).values}
         return labels.get(value.value, "not a value of the map")
@@ -98,7 +115,11 @@ def _field_label(target: Target, reg: Register, attribute: str, value: Any) -> s
     return f"{attribute} {to_text(value)}"
 
 
-def json_value(value: Any) -> Any:
+def json_value(value: Any, single: bool = False) -> Any:
+    """``value`` for JSON; an f32 as the shortest decimal that reads back as the same f32."""
+    if single and isinstance(value, float) and not isinstance(value, bool):
+        text = display_text(value, single=True)
+        return float(text) if text not in ("nan", "inf", "-inf") else value
     if isinstance(value, enum.IntFlag):
         return [m.name for m in type(value) if m.name and m in value]
     if isinstance(value, enum.Enum):

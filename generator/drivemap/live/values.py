@@ -24,7 +24,17 @@ from typing import Any
 from drivemap.diagnostics import CompileError
 from drivemap.live.target import Target, command_line_error, register_note
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, FloatCodec, IntCodec
+from drivemap.runtime.client.codec import (
+    EnumCodec,
+    FieldsCodec,
+    FlagCodec,
+    FloatCodec,
+    IeeeCodec,
+    IntCodec,
+    OptionalCodec,
+    ScaledCodec,
+    StringCodec,
+)
 from drivemap.runtime.client.sansio import Deferred
 from drivemap.runtime.errors import DriveError
 
@@ -130,14 +140,28 @@ def from_text(codec: Any, text: str) -> Any:
         return _flags(codec.flag_type, text)
     if isinstance(codec, FieldsCodec):
         return _fields(codec, text)
+    labelled = _labelled(codec, text)
+    if labelled is not None:
+        return labelled
     if isinstance(codec, IntCodec):
         number = _number(text)
         if not float(number).is_integer():
             raise ValueError(f"{text!r} is not a whole number")
         return int(number)
-    if isinstance(codec, FloatCodec):
-        return float(_number(text))
+    if isinstance(codec, (FloatCodec, IeeeCodec, ScaledCodec)):
+        return float(_number(text))  # never truncated: the codec refuses what the register cannot hold
+    if isinstance(codec, StringCodec):
+        return text
+    if isinstance(codec, OptionalCodec):
+        return from_text(codec.inner, text)
     return int(_number(text))
+
+
+def _labelled(codec: Any, text: str) -> float | str | None:
+    """The value of the register's value set whose label is ``text`` (any case), else None."""
+    values = getattr(getattr(codec, "spec", None), "values", ())
+    wanted = text.strip().casefold()
+    return next((value for value, label in values if label is not None and label.casefold() == wanted), None)
 
 
 def _number(text: str) -> float:

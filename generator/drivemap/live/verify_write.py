@@ -3,7 +3,8 @@
 Only registers the map says are read-write and stored in RAM (plus EEPROM ones with
 ``--eeprom``); never command registers, page selectors, bit fields or volatile (operation)
 registers. Test values are the map's min and max (or another enum member, or the next raw
-step), encoded with the client's codec, so the client's own checks apply. The original raw
+step; for a register with a value set, another value of the set), encoded with the client's codec, so
+the client's own checks apply. The original raw
 value is written back and read again; a register that cannot be restored is reported loudly.
 """
 
@@ -35,6 +36,15 @@ def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str,
         others = [v for v in session.target.model.enum(reg.enum).values if v.value != original]
         if others:
             out.append((f"{others[0].name}", others[0].value))
+        return out
+    if reg.values:  # only values of the set: never a raw step the map does not allow
+        for item in reg.values:
+            try:
+                raw = codec.encode(int(item.value) if reg.is_integer and not isinstance(item.value, str) else item.value)
+            except DriveError:
+                continue
+            if raw != original:
+                return [(f"the value {item.text()}", raw)]
         return out
     for what, value in (("min", reg.min), ("max", reg.max)):
         if value is not None:

@@ -10,6 +10,8 @@ from typing import Any
 
 from drivemap.model import modicon
 from drivemap.model.nodes import (
+    Alignment,
+    AllowedValue,
     Bit,
     Checksum,
     CommandRef,
@@ -186,6 +188,7 @@ def _protocol(p: dict[str, Any]) -> Protocol:
         source=p["source"],
         notes=p.get("notes"),
         max_gap=p.get("max_gap", 0),
+        alignment=_alignment(p),
         running_state=_running_state(p.get("running_state")),
         reply_quirks=tuple(ReplyQuirk(q["quirk"], q["source"], q["reason"]) for q in p.get("reply_quirks", ())),
     )
@@ -249,6 +252,32 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
         line=lines.get(r["name"], 0),
         running_advice=_running_advice(r.get("running_advice")),
         element_param_format=r.get("element_param_format"),
+        values=tuple(AllowedValue(_value(rtype, v["value"]), v.get("label"), v.get("notes")) for v in r.get("values", ())),
+        precision=r.get("precision"), first_index=r.get("first_index", 0),
+    )
+
+
+def _value(rtype: str, value: float | str) -> float | str:
+    """A value of a value set as the register's values are: float for floats, int for whole numbers."""
+    if isinstance(value, str):
+        return value
+    if rtype in ("f32", "f64"):
+        return float(value)
+    return int(value) if float(value).is_integer() else float(value)
+
+
+def _alignment(p: dict[str, Any]) -> tuple[Alignment, ...]:
+    policy = p.get("exception_policy", {}).get("illegal_address", {})
+    fallback = policy.get("code") if policy.get("code") is not None else 0x02
+    return tuple(
+        Alignment(
+            table=a["table"], start=a.get("start", 0), end=a.get("end", 0xFFFF),
+            start_multiple=a.get("start_multiple", 1), quantity_multiple=a.get("quantity_multiple", 1),
+            min_quantity=a.get("min_quantity", 1), whole_values=a.get("whole_values", False),
+            operations=tuple(a.get("operations", ("read", "write"))), exception=a.get("exception", fallback),
+            source=a["source"], notes=a.get("notes"),
+        )
+        for a in p.get("alignment", ())
     )
 
 

@@ -13,6 +13,7 @@ from typing import Literal
 
 from drivemap.model import modicon
 from drivemap.model.modicon import Table
+from drivemap.model.rules import Alignment, AllowedValue
 from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
 
 Access = Literal["r", "w", "rw"]
@@ -266,6 +267,8 @@ class Protocol:
     reply_quirks: tuple[ReplyQuirk, ...] = ()
     max_gap: int = 0
     """Undocumented words the read planner may read across (0: none)."""
+    alignment: tuple[Alignment, ...] = ()
+    """Rules on request start addresses and quantities (``protocol.alignment``)."""
 
     def function(self, code: int) -> FunctionCode | None:
         for fc in self.function_codes:
@@ -380,6 +383,12 @@ class Register:
     running_advice: RunningAdvice | None = None
     #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
     element_param_format: str | None = None
+    #: the value set (``values:``): the only values a write may send
+    values: tuple[AllowedValue, ...] = ()
+    #: decimals shown to people (None: the default of runtime.client.display)
+    precision: int | None = None
+    #: the manual's number of element 0 of an array (names shown to people)
+    first_index: int = 0
 
     @property
     def words(self) -> int:
@@ -445,6 +454,13 @@ class Register:
 
     def element_name(self, index: int) -> str:
         return f"{self.name}[{index}]" if self.is_array else self.name
+
+    def display_name(self, index: int, base: str | None = None) -> str:
+        """The name people see for element ``index`` (0-based, as in Python): ``base`` (default the
+        register's name) followed by the manual's number of the element (``pv_voltage 1`` for index 0
+        when ``first_index`` is 1); a register that is not an array is ``base`` alone."""
+        text = self.name if base is None else base
+        return f"{text} {index + self.first_index}" if self.is_array else text
 
     def element_param(self, index: int) -> str | None:
         if self.element_params:
@@ -603,6 +619,8 @@ class Model:
 
 __all__ = [
     "Access",
+    "Alignment",
+    "AllowedValue",
     "BIT_TABLES",
     "Bit",
     "Cell",

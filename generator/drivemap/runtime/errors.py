@@ -3,7 +3,7 @@
 Errors about the caller's input (:class:`InvalidValue`, :class:`ValueOutOfRange`,
 :class:`InvalidArgument`, :class:`IndexOutOfRange`, :class:`ReadOnlyRegister`,
 :class:`WriteOnlyRegister`, :class:`NotBroadcastable`, :class:`BroadcastRead`, :class:`WrongPage`,
-:class:`UnknownRegister`) are raised *before* any byte is sent. :class:`DeviceException` carries an exception reply of the device; generated
+:class:`UnknownRegister`, :class:`NotAllowedValue`, :class:`MisalignedRequest`) are raised *before* any byte is sent. :class:`DeviceException` carries an exception reply of the device; generated
 packages subclass it once per exception code of their map.
 """
 
@@ -22,6 +22,19 @@ class InvalidValue(DriveError, TypeError):
 
 class ValueOutOfRange(DriveError, ValueError):
     """The value lies outside the register's documented range or its raw type."""
+
+
+class NotAllowedValue(ValueOutOfRange):
+    """A value outside the register's value set (``values:`` in the map); ``allowed`` lists the set."""
+
+    def __init__(self, message: str, allowed: tuple[object, ...] = ()) -> None:
+        super().__init__(message)
+        self.allowed = allowed
+
+
+class MisalignedRequest(DriveError, ValueError):
+    """A request that breaks an alignment rule of the map (``protocol.alignment``): a start address or
+    quantity the device refuses, or part of a multi-word value."""
 
 
 class InvalidArgument(DriveError, ValueError):
@@ -145,6 +158,8 @@ __all__ = [
     "IndexOutOfRange",
     "InvalidArgument",
     "InvalidValue",
+    "MisalignedRequest",
+    "NotAllowedValue",
     "NotBroadcastable",
     "PartialWrite",
     "ReadOnlyRegister",

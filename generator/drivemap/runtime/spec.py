@@ -84,6 +84,12 @@ class RegisterSpec:
     not_available: tuple[int, ...] = ()
     """Raw values that read as None."""
     min_read: int | None = None
+    #: the value set: (engineering value, label or None) of every value a write may send (empty: any)
+    values: tuple[tuple[float | str, str | None], ...] = ()
+    #: decimals shown to people (None: the shortest text that reads back the same value)
+    precision: int | None = None
+    #: the manual's number of element 0 of an array (names shown to people; Python indexes from 0)
+    first_index: int = 0
     words: int = field(init=False, compare=False, repr=False)
     signed: bool = field(init=False, compare=False, repr=False)
 
@@ -113,8 +119,43 @@ class RegisterSpec:
     def element_name(self, index: int) -> str:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
+    def display_name(self, index: int, base: str | None = None) -> str:
+        """The element's name for people: ``base`` (default the name) and the manual's number of the
+        element (``index + first_index``); the model's ``Register.display_name`` says the same."""
+        text = self.name if base is None else base
+        return f"{text} {index + self.first_index}" if self.count > 1 else text
+
     def default_at(self, index: int) -> float | str | None:
         return self.defaults[0] if len(self.defaults) == 1 else self.defaults[index]
+
+    def value_label(self, value: object) -> str | None:
+        """The label the map gives ``value`` in the register's value set (None: none or not in it)."""
+        for allowed, label in self.values:
+            if allowed == value:
+                return label
+        return None
+
+
+@dataclass(frozen=True)
+class AlignmentSpec:
+    """A rule on the requests to ``table`` words ``start``..``end`` (``protocol.alignment``).
+
+    A request that overlaps the block must start at a multiple of ``start_multiple``, carry a multiple
+    of ``quantity_multiple`` and at least ``min_quantity`` words and, with ``whole_values``, cover
+    every multi-word register element it touches whole. ``operations``: "read", "write" or both. The
+    device answers ``exception`` to a request that breaks it.
+    """
+
+    table: str
+    start: int = 0
+    end: int = 0xFFFF
+    start_multiple: int = 1
+    quantity_multiple: int = 1
+    min_quantity: int = 1
+    whole_values: bool = False
+    operations: tuple[str, ...] = ("read", "write")
+    exception: int = 0x02
+    source: str = ""
 
 
 @dataclass(frozen=True)
@@ -208,6 +249,8 @@ class DeviceSpec:
     reply_quirks: tuple[str, ...] = ()
     #: undocumented words the read planner may read across (0: none)
     max_gap: int = 0
+    #: rules on request start addresses and quantities (runtime.alignment)
+    alignment: tuple[AlignmentSpec, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

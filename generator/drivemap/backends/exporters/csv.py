@@ -3,7 +3,9 @@
 Written by Python's ``csv`` module (quoting is its business, so map text never adds a row or a
 column). ``table`` is holding/input/coil/discrete, ``modicon`` the six-digit reference with the table's
 digit first (coil 0, discrete 1, input 3, holding 4), ``not_available`` the raw values meaning "no
-value" (hex, as the register's words), ``scale_register`` the register whose value v scales by 10^v.
+value" (hex, as the register's words), ``scale_register`` the register whose value v scales by 10^v,
+``values`` the value set (``value (label) | ...``: the only values a write may send), ``precision`` the
+decimals shown, ``display_name`` the element as the manual numbers it (``first_index``; else the name).
 Text cells are flattened to one line, and a text cell that a spreadsheet would run as a
 formula (it starts with ``=``, ``+``, ``-``, ``@``) gets a leading apostrophe.
 """
@@ -24,7 +26,7 @@ __all__ = ["COLUMNS", "MODICON", "CsvExporter"]
 COLUMNS = (
     "table", "address_hex", "address", "modicon", "name", "param", "group", "label", "type", "words", "word_order",
     "byte_order", "length", "encoding", "scale", "scale_register", "offset", "not_available", "unit", "access", "min", "max", "default", "reflect", "storage", "page", "enum", "enum_labels",
-    "bits", "command", "description", "source",
+    "bits", "command", "description", "source", "values", "precision", "display_name",
 )
 
 #: table -> (Modicon prefix, function code that reads it).
@@ -102,6 +104,9 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "command": "" if reg.command_value is None else str(reg.command_value),
         "description": _text(reg.description),
         "source": _text(reg.source),
+        "values": _text(" | ".join(v.text() for v in reg.values)),
+        "precision": "" if reg.precision is None else str(reg.precision),
+        "display_name": _text(reg.display_name(cell.index) if reg.first_index else cell.name),
     }
 
 

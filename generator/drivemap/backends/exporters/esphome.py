@@ -2,7 +2,8 @@
 
 Entities per register element (``platform: modbus_controller``): ``sensor`` for values (scale and
 offset as filters), ``number`` for writable values with a range (min/max/step in engineering
-units, ``multiply`` for the scale), ``select`` for writable enums, ``text_sensor`` with the enum's
+units, ``multiply`` for the scale), ``select`` for writable enums and writable registers with a value
+set (``values:``; the option texts are its labels), ``text_sensor`` with the enum's
 labels (HEXBYTES + ``map``) for read-only enums, ``binary_sensor`` with ``bitmask`` per one-bit
 field of a one-word register (a multi-bit field, or any field of a multi-word register: a sensor with
 ``bitmask`` and the register's value_type, 0/1 for one bit: ESPHome's binary_sensor reads one word and
@@ -224,6 +225,9 @@ class _Build:
         if not reg.readable:
             self.notes.append(f"not exported: {point.cell.name} is write-only")
             return
+        if reg.values and point.writable and not reg.scale_register and reg.type != "string":
+            self._value_select(point, name, value_type)
+            return
         if reg.enum and point.writable:
             options = _options(self.sel.enum_labels(point))
             config = {k: v for k, v in self._base(point, name).items() if k != "register_type"}  # holding only
@@ -245,9 +249,26 @@ class _Build:
         if point.selector:
             self.notes.append(f"{point.key} is a page selector: exported read-only")
 
+    def _value_select(self, point: iv.Point, name: str, value_type: str) -> None:
+        """A writable register with a value set: a select whose options map to the raw values (a float
+        by its bit pattern, read and written as the unsigned integer of the same words, since ESPHome's
+        select has no float type), so a value outside the set is never written."""
+        reg = point.reg
+        if reg.is_float:
+            value_type = value_type.replace("FP32", "U_DWORD") if reg.type == "f32" else \
+                ("U_QWORD_R" if reg.word_order == "low_first" else "U_QWORD")
+        options = {text: iv.wire_raw(reg, item.value)[1] for item, text in iv.options(reg)}
+        config = {k: v for k, v in self._base(point, name).items() if k != "register_type"}  # holding only
+        config.update({"value_type": value_type, "optionsmap": LiteralMap(options) if any("$" in k for k in options)
+                       else options})
+        if reg.words == 1 and self.model.protocol.function(0x06) is None:
+            config["use_write_multiple"] = True
+        self._add("select", point, config)
+
     def _sensor(self, point: iv.Point, name: str, value_type: str) -> dict[str, Any]:
         reg = point.reg
         places = iv.decimals(reg.scale, reg.offset) + (2 if reg.is_float or reg.scale_register else 0)
+        places = reg.precision if reg.precision is not None else places
         config = {**self._base(point, name), "value_type": value_type, "accuracy_decimals": places}
         if reg.name in self.factors:
             config["id"] = self.factors[reg.name]

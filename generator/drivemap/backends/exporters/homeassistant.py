@@ -69,8 +69,9 @@ def swap_of(reg: Register) -> str | None:
 #: ``device_address`` and ``virtual_count`` (home-assistant/core #100399, #100398); the current
 #: release still reads ``slave``/``slave_count`` but documents the new names.
 KEYS: tuple[tuple[tuple[int, int], dict[str, str]], ...] = (
-    ((2023, 10), {"device_address": "device_address", "virtual_count": "virtual_count"}),
-    (OLDEST, {"device_address": "slave", "virtual_count": "slave_count"}),
+    ((2024, 8), {"device_address": "device_address", "virtual_count": "virtual_count", "action": "action"}),
+    ((2023, 10), {"device_address": "device_address", "virtual_count": "virtual_count", "action": "service"}),
+    (OLDEST, {"device_address": "slave", "virtual_count": "slave_count", "action": "service"}),
 )
 
 _PARITY = {"none": "N", "even": "E", "odd": "O"}
@@ -141,8 +142,10 @@ class HomeAssistantExporter(Exporter):
         build = _Build(model, sel, keys_for(version), values)
         hub = build.hub()
         doc: dict[str, Any] = {"modbus": [hub]}
-        if build.templates_sensor or build.templates_binary:
+        if build.templates_sensor or build.templates_binary or build.templates_select:
             block: dict[str, Any] = {}
+            if build.templates_select:
+                block["select"] = build.templates_select
             if build.templates_sensor:
                 block["sensor"] = build.templates_sensor
             if build.templates_binary:
@@ -168,6 +171,7 @@ class _Build:
         self.binary_sensors: list[dict[str, Any]] = []
         self.templates_sensor: list[dict[str, Any]] = []
         self.templates_binary: list[dict[str, Any]] = []
+        self.templates_select: list[dict[str, Any]] = []
         self.notes: list[str] = []
         self._entities()
 
@@ -224,7 +228,7 @@ class _Build:
                 continue
             group = [p for p in self.sel.points if p.reg.name == reg.name]
             if (reg.is_array and len(group) == reg.count and reg.stride == 1 and reg.type != "string"
-                    and reg.count * reg.words <= self._max_read(reg.table)):
+                    and reg.first_index == 0 and reg.count * reg.words <= self._max_read(reg.table)):
                 self.sensors.append(self._sensor(point, virtual=reg.count - 1))
                 done.add(reg.name)
                 targets = group
@@ -264,8 +268,11 @@ class _Build:
             self.binary_sensors.append(entry)
 
     def entity_name(self, point: iv.Point) -> str:
-        """The name Home Assistant shows (element 0 of an array keeps the plain name, as virtual_count does)."""
+        """The name Home Assistant shows (element 0 of an array keeps the plain name, as virtual_count
+        does; an array with the manual's own numbering (first_index) numbers every element so)."""
         base = f"{self.sel.prefix} {point.reg.name}"
+        if point.reg.is_array and point.reg.first_index:
+            return point.reg.display_name(point.index, base)
         return f"{base} {point.index}" if point.reg.is_array and point.index else base
 
     def entity_id(self, point: iv.Point) -> str:
@@ -302,8 +309,9 @@ class _Build:
             entry["scale"] = _number(reg.scale)
         if reg.offset:
             entry["offset"] = _number(reg.offset)
-        places = iv.decimals(reg.scale, reg.offset)
-        if places:
+        shown = iv.display_decimals(reg)
+        places = shown or 0
+        if shown is not None and (places or reg.precision is not None):
             entry["precision"] = places
         if reg.scale_register:
             self._scaled(point, name, places)
@@ -338,10 +346,35 @@ class _Build:
             "command_off": value,
         }
 
+    def _select(self, point: iv.Point, source: str) -> None:
+        """A template select over a writable register's sensor with a value set: its state is the
+        option of the value read, choosing an option writes that value's words with the function code
+        the map allows (a list of words is 10h, one word 06h)."""
+        reg = point.reg
+        pairs = iv.options(reg)
+        states = [[item.value, text] for item, text in pairs]
+        single = reg.words == 1 and self.model.protocol.function(0x06) is not None
+        writes = {text: (iv.wire_words(reg, item.value)[0] if single else iv.wire_words(reg, item.value))
+                  for item, text in pairs}
+        name = self.entity_name(point) + " select"
+        value = "states('" + source + "')" + (" | float(none)" if reg.type != "string" else "")
+        self.templates_select.append({
+            "name": name, "unique_id": slug(name),
+            "state": (f"{{% set opts = {jinja_literal(states)} %}}{{% set v = {value} %}}"
+                      "{% for o in opts if o[0] == v %}{{ o[1] }}{% endfor %}"),
+            "options": f"{{{{ {jinja_literal([text for _, text in pairs])} }}}}",
+            "availability": f"{{{{ has_value('{source}') }}}}",
+            "select_option": [{self.keys["action"]: "modbus.write_register", "data": {
+                "hub": str(self.values.get("hub_name") or self.model.name), "slave": self.sel.unit,
+                "address": point.address, "value": f"{{{{ {jinja_literal(writes)}[option] }}}}"}}],
+        })
+
     def _derived(self, point: iv.Point) -> None:
-        """Template entities over a register's sensor: the enum label, each bit field."""
+        """Template entities over a register's sensor: the enum label, each bit field, a select."""
         source = self.entity_id(point)
         available = f"{{{{ has_value('{source}') }}}}"
+        if point.reg.values and point.writable and not point.reg.scale_register:
+            self._select(point, source)
         if point.reg.enum:
             self.templates_sensor.append({
                 "name": f"{self.entity_name(point)} label",

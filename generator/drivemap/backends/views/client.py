@@ -122,6 +122,9 @@ def _doc(model: Model, reg: Register) -> list[str]:
     if reg.scale_register:
         scale += f" x 10^{reg.scale_register} (read with it)"
     lines.append(f"Unit:{unit or ' none'}; {scale}; range {_num(reg.min)} .. {_num(reg.max)}{unit}.")
+    if reg.values:
+        lines.append("Allowed values: " + ", ".join(v.text() for v in reg.values)
+                     + " (a write of any other raises NotAllowedValue before anything is sent).")
     if reg.not_available:
         shown = ", ".join(f"0x{v:X}" if v >= 0 else str(v) for v in reg.not_available)
         lines.append(f"Not available: raw {shown} reads as None.")

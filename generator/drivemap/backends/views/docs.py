@@ -424,6 +424,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         ],
         "comm_error_history": p.comm_error_history,
         "policies": _policies(model),
+        "alignment": p.alignment,
         "timing": _timing(model),
         "timing_source": p.timing.source,
         "timing_notes": p.timing.notes,

@@ -17,7 +17,9 @@ from decimal import Decimal
 from typing import Any
 
 from drivemap.backends.exporters.base import OptionError
-from drivemap.model.nodes import Cell, Model, Port, Register
+from drivemap.model.nodes import AllowedValue, Cell, Model, Port, Register
+from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
+from drivemap.runtime.spec import RegisterSpec
 
 __all__ = [
     "DEVICE_CLASSES",
@@ -71,12 +73,58 @@ def decimals(*numbers: float) -> int:
     return places
 
 
+def display_decimals(reg: Register) -> int | None:
+    """Decimals to show of ``reg``'s values: the map's ``precision``, else the decimals of its scale
+    and offset for integer registers, else None (a float: the tool's own default)."""
+    if reg.precision is not None:
+        return reg.precision
+    if reg.is_float:
+        return None
+    return decimals(reg.scale, reg.offset)
+
+
+def options(reg: Register) -> list[tuple[AllowedValue, str]]:
+    """Each value of ``reg``'s value set with the option text a select shows: the label, else the
+    value and unit (``5 min``); the value and label when two texts would be the same."""
+    def plain(item: AllowedValue) -> str:
+        value = item.value
+        text = str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
+        return f"{text} {reg.unit}" if reg.unit and not isinstance(value, str) else text
+
+    texts = [item.label or plain(item) for item in reg.values]
+    if len(set(texts)) != len(texts):
+        texts = [item.text() for item in reg.values]
+    return list(zip(reg.values, texts, strict=True))
+
+
+def wire_words(reg: Register, value: float | str) -> list[int]:
+    """The words a write of ``value`` to ``reg`` puts on the wire (word and byte order applied), by
+    the runtime's own codecs; for exports that write fixed values (a select's options)."""
+    spec, raw = wire_raw(reg, value)
+    return raw_to_words(spec, raw)
+
+
+def wire_raw(reg: Register, value: float | str) -> tuple[RegisterSpec, int]:
+    """The raw value of ``value`` in ``reg`` (an f32's bit pattern, a string's bytes), by the
+    runtime's codecs, with the runtime description of the register."""
+    spec = RegisterSpec(reg.name, reg.address, type=reg.type, table=reg.table, word_order=reg.word_order,
+                        byte_order=reg.byte_order, length=reg.length, scale=reg.scale, offset=reg.offset,
+                        encoding=reg.encoding)
+    if isinstance(value, str):
+        return spec, StringCodec(spec).encode(value)
+    if reg.is_float:
+        return spec, IeeeCodec(spec).encode(value)
+    if reg.is_integer:
+        return spec, IntCodec(spec).encode(int(value))
+    return spec, FloatCodec(spec).encode(value)
+
+
 @dataclass(frozen=True)
 class Point:
     """One exported register element."""
 
     cell: Cell
-    key: str                     # identifier: register name, ``name_<i>`` for array elements
+    key: str                     # identifier: register name, ``name_<n>`` for array elements (n: the manual's number)
     interval: int                # polling interval, seconds
     selector: bool               # a page selector (exported read-only)
 
@@ -250,7 +298,7 @@ def select(model: Model, values: Mapping[str, Any]) -> Selection:
                 omitted.append((cell.name, f"page {reg.page.value} of {reg.page.selector} "
                                            f"(export it with --page {reg.page.selector}={reg.page.value})"))
                 continue
-            key = f"{reg.name}_{cell.index}" if reg.is_array else reg.name
+            key = f"{reg.name}_{cell.index + reg.first_index}" if reg.is_array else reg.name  # the manual's number
             points.append(Point(cell, key, intervals.get(reg.group, DEFAULT_SCAN_S), reg.name in selectors))
     points.sort(key=lambda p: (p.address, p.key))
     return Selection(model, tuple(points), tuple(omitted), tuple(sorted(pages.items())), _unit(model, values),

@@ -123,14 +123,29 @@ def _elements(reg: Register) -> str | None:
         if fmt:
             ids = f"; No.i is parameter {fmt.replace('{index}', 'i').replace('{address}', 'n')}"
             ids += ", n = its address in decimal" if "{address}" in fmt else ""
-        return (f"No.0-No.{reg.count - 1}: No.i at {hex4(reg.address)} + {reg.stride}·i "
+        first = reg.first_index
+        at = f"{hex4(reg.address)} + {reg.stride}·i" if not first else f"{hex4(reg.address)} + {reg.stride}·(i - {first})"
+        return (f"No.{first}-No.{reg.count - 1 + first}: No.i at {at} "
                 f"({hex4(reg.address)} … {hex4(last)}){ids}")
     parts = []
     for i in range(reg.count):
         param = reg.element_param(i)
-        parts.append(f"No.{i} {hex4(reg.element_address(i))}"
+        parts.append(f"No.{i + reg.first_index} {hex4(reg.element_address(i))}"
                      + (f" ({param})" if param and (reg.element_params or reg.element_param_format) else ""))
     return ", ".join(parts)
+
+
+def _display_notes(reg: Register) -> list[str]:
+    """The value set, the display precision and the manual's numbering of an array."""
+    notes = []
+    if reg.values:
+        notes.append("values: " + ", ".join(v.text() for v in reg.values) + " (a write of any other value is refused)")
+    if reg.precision is not None:
+        notes.append(f"shown with {reg.precision} decimal{'s' if reg.precision != 1 else ''}")
+    if reg.first_index:
+        notes.append(f"the manual numbers the elements from {reg.first_index}: No.{reg.first_index} is "
+                     f"{reg.name}[0] in Python and on the command line")
+    return notes
 
 
 def _param_text(reg: Register) -> str | None:
@@ -162,6 +177,7 @@ def _register_row(model: Model, reg: Register) -> dict[str, Any]:
         extras.extend(_type_notes(reg))
     if reg.modicon_given is not None:
         extras.append(f"the manual gives Modicon {reg.modicon_given}")
+    extras.extend(_display_notes(reg))
     storage = reg.storage
     if reg.write_delay_ms is not None:
         storage += f" (write takes {num(reg.write_delay_ms)} ms)"

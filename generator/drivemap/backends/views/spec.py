@@ -69,7 +69,22 @@ def register_args(model: Model, reg: Register) -> list[tuple[str, str]]:
     if reg.not_available:
         args.append(("not_available", "(" + ", ".join(_raw_literal(reg, v) for v in reg.not_available) + ",)"))
     add("min_read", reg.min_read, None)
+    if reg.values:
+        args.append(("values", repr(tuple((v.value, v.label) for v in reg.values))))
+    add("precision", reg.precision, None)
+    add("first_index", reg.first_index, 0)
     return args
+
+
+def alignment_literals(model: Model) -> list[str]:
+    """``AlignmentSpec(...)`` literals of the map's alignment rules."""
+    out = []
+    for a in model.protocol.alignment:
+        out.append(f"AlignmentSpec({a.table!r}, start=0x{a.start:04X}, end=0x{a.end:04X}, "
+                   f"start_multiple={a.start_multiple}, quantity_multiple={a.quantity_multiple}, "
+                   f"min_quantity={a.min_quantity}, whole_values={a.whole_values!r}, operations={a.operations!r}, "
+                   f"exception=0x{a.exception:02X}, source={a.source!r})")
+    return out
 
 
 def _raw_literal(reg: Register, value: int) -> str:
@@ -110,6 +125,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "imports": _imports(model),
         "running_state": ((p.running_state.register, p.running_state.values) if p.running_state else None),
         "reply_quirks": tuple(q.quirk for q in p.reply_quirks),
+        "alignment": alignment_literals(model),
     }
 
 
@@ -126,4 +142,6 @@ def _imports(model: Model) -> list[str]:
         names.add("PolicySpec")
     if model.reserved:
         names.add("ReservedSpec")
+    if model.protocol.alignment:
+        names.add("AlignmentSpec")
     return sorted(names)

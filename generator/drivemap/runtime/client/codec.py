@@ -24,6 +24,7 @@ from typing import Any, Generic, TypeVar
 
 from pymodbus.client.mixin import ModbusClientMixin
 
+from drivemap.runtime.client.display import allowed_text, check_values, display_text, register_text
 from drivemap.runtime.client.words import (
     TYPE_BOUNDS,
     check_raw,
@@ -120,6 +121,7 @@ class Codec(Generic[T]):
             raise ValueOutOfRange(f"{spec.name}: {value} is below the minimum {spec.min}{_unit(spec)}")
         if spec.max is not None and value > spec.max + tol:
             raise ValueOutOfRange(f"{spec.name}: {value} is above the maximum {spec.max}{_unit(spec)}")
+        check_values(spec, value)
 
 
 def _short(value: object) -> str:
@@ -227,6 +229,7 @@ class IeeeCodec(Codec[float]):
         if math.isnan(number):
             if self.spec.min is not None or self.spec.max is not None:
                 raise ValueOutOfRange(f"{self.spec.name}: nan is outside the range {self.spec.min}..{self.spec.max}")
+            check_values(self.spec, number)
             return
         self._check_range(number)
 
@@ -264,6 +267,7 @@ class StringCodec(Codec[str]):
         if len(data) > self._size:
             raise ValueOutOfRange(f"{self.spec.name}: {value!r} is {len(data)} bytes; the field holds {self._size} "
                                   f"({self.spec.words} registers)")
+        check_values(self.spec, value)
         words = ModbusClientMixin.convert_to_registers(value, DATATYPE.STRING, string_encoding=self._encoding)
         return join_words(words + [0] * (self.spec.words - len(words)))
 
@@ -494,10 +498,14 @@ __all__ = [
     "ScaledCodec",
     "StringCodec",
     "TYPE_BOUNDS",
+    "allowed_text",
     "check_raw",
+    "check_values",
+    "display_text",
     "join_words",
     "raw_bounds",
     "raw_to_words",
+    "register_text",
     "split_words",
     "unwrap",
     "words_to_raw",

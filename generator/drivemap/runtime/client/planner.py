@@ -37,6 +37,12 @@ target unit (starting earlier at a filler never covers more). Components are sma
 selector's window), so the state space stays tiny.
 
 The tests check both against an independently computed lower bound for every map.
+
+Alignment rules (``protocol.alignment``, :mod:`drivemap.runtime.alignment`): units are whole
+register elements, so a request never cuts a multi-word value; the read limit is rounded down to a
+multiple of every rule's ``quantity_multiple``. The map's checks make every readable element of an
+aligned block start and end on the rule's multiples, so the requests planned from them keep the rules;
+the client checks each request again before it is sent.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
 
+from drivemap.runtime.alignment import aligned_limit
 from drivemap.runtime.spec import READ_CODES, DeviceSpec, PageSpec
 
 #: Modbus limit for 03h/04h (125 registers) when the map gives no max_quantity (Modbus
@@ -351,7 +358,8 @@ def plan_reads(spec: DeviceSpec, targets: Iterable[Key], holes: Collection[Hole]
         table_holes = frozenset(a for t, a in holes if t == table)
         if spec.max_gap or table_holes:
             layout = _Layout(spec.max_gap, _documented(spec, table) if spec.max_gap else frozenset(), table_holes)
-        plans.extend((table, page, taken) for page, taken in _plan_table(line, wanted, max_read_words(spec, table), layout))
+        limit = aligned_limit(spec, table, max_read_words(spec, table))
+        plans.extend((table, page, taken) for page, taken in _plan_table(line, wanted, limit, layout))
     requests: list[ReadRequest] = []
     seen: set[Key] = set()
     for table, page, taken in plans:

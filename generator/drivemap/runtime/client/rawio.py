@@ -8,11 +8,13 @@ of the rest of the client: the table and the read function the map lists for it
 (:class:`UnsupportedFunction`), whole numbers in range (:class:`InvalidValue`,
 :class:`ValueOutOfRange`), the request size the map allows, no word of a write-only register or of
 a range the map marks unreadable (:class:`WriteOnlyRegister`), no broadcast client
-(:class:`BroadcastRead`). Paged addresses read whatever page the device shows: no page is switched.
+(:class:`BroadcastRead`), no start address or quantity that breaks the map's alignment rules
+(:class:`MisalignedRequest`). Paged addresses read whatever page the device shows: no page is switched.
 """
 
 from __future__ import annotations
 
+from drivemap.runtime.alignment import refuse_misaligned
 from drivemap.runtime.client.planner import MODBUS_MAX_READ, MODBUS_MAX_READ_BITS
 from drivemap.runtime.client.sansio import Core, Op
 from drivemap.runtime.errors import (
@@ -70,6 +72,7 @@ def check_read(spec: DeviceSpec, table: object, address: object, count: object, 
     why = _unreadable(spec, table, address, address + count)
     if why is not None:
         raise WriteOnlyRegister(f"read {table} 0x{address:04X} x{count}: {why}")
+    refuse_misaligned(spec, table, address, count, "read")
     return code
 
 

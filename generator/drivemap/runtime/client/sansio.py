@@ -37,6 +37,7 @@ from pymodbus.pdu.register_message import (
     WriteSingleRegisterRequest,
 )
 
+from drivemap.runtime.alignment import refuse_misaligned
 from drivemap.runtime.client.advice import warn_if_running
 from drivemap.runtime.client.codec import Codec, raw_to_words, words_to_raw
 from drivemap.runtime.client.exchange import Exchange, Stats
@@ -175,6 +176,7 @@ class Core:
                         "read_all(), which visits each page and puts the selector back)")
 
     def _read_words(self, table: str, address: int, count: int) -> Op[list[int]]:
+        refuse_misaligned(self.spec, table, address, count, "read")
         code = READ_CODES[table]
         if code not in self.tables.read_codes:
             raise UnsupportedFunction(f"the map does not list {code:02X}h (read {table})")
@@ -187,6 +189,7 @@ class Core:
     def _write_request(self, table: str, address: int, words: list[int]) -> tuple[ModbusPDU, int]:
         """The write request for ``words`` at ``address`` (the single-write function for one word or
         coil where possible, else the multiple write)."""
+        refuse_misaligned(self.spec, table, address, len(words), "write")
         t = self.tables
         coil = table == "coil"
         single, multiple = (t.fc05, t.fc0f) if coil else (t.fc06, t.fc10)
@@ -233,6 +236,7 @@ class Core:
             code = req.code
             if code not in read_codes:
                 raise UnsupportedFunction(f"the map does not list {code:02X}h (read {req.table})")
+            refuse_misaligned(self.spec, req.table, req.address, req.count, "read")
             reply = yield Exchange(unit, READ_REQUESTS[code](address=req.address, count=req.count), timing,
                                    expect_reply)
             if reply is None or reply.isError():
@@ -342,6 +346,7 @@ class Core:
             raise ReadOnlyRegister(f"{reg.element_name(key[1])} is read-only")
         if self.broadcast and not reg.broadcast:
             raise NotBroadcastable(f"{reg.element_name(key[1])} may not be written by broadcast")
+        refuse_misaligned(self.spec, reg.table, reg.element_address(key[1]), reg.words, "write")
         return reg
 
     def _resolve(self, items: Sequence[RawItem]) -> Op[list[tuple[Key, int]]]:

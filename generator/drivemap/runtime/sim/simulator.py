@@ -46,7 +46,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from drivemap.runtime.alignment import violation
 from drivemap.runtime.client.codec import raw_bounds
+from drivemap.runtime.client.display import is_allowed
 from drivemap.runtime.client.quirks import encode_read_reply
 from drivemap.runtime.sim import state as simstate
 from drivemap.runtime.sim.persist import Persistence, StateFileError
@@ -107,9 +109,10 @@ def _packer(count: int) -> Callable[..., bytes]:
 class _Refused(Exception):
     """Internal: the request hits an error case; the dialect decides the answer."""
 
-    def __init__(self, case: str) -> None:
+    def __init__(self, case: str, code: int | None = None) -> None:
         super().__init__(case)
         self.case = case
+        self.code = code  # the code the map names for this refusal (an alignment rule's), else by case
 
 
 @dataclass(frozen=True)
@@ -376,7 +379,7 @@ class Simulator(Persistence):
                     return self._serve(unit, pdu[0], pdu[1:], broadcast=False)
                 except _Refused as refused:
                     self._record(unit, refused.case)
-                    answer = self.exception_code(refused.case)
+                    answer = refused.code if refused.code is not None else self.exception_code(refused.case)
                     if answer is None and always_answer:
                         answer = STANDARD_CODES[refused.case]
                     return None if answer is None else bytes([pdu[0] | 0x80, answer])
@@ -448,8 +451,15 @@ class Simulator(Persistence):
             raise _Refused(plan)
         return plan
 
+    def _aligned(self, table: str, address: int, quantity: int, operation: str) -> None:
+        """Refuse a request that breaks an alignment rule of the map with the rule's exception code."""
+        broken = violation(self.spec, table, address, quantity, operation) if self.spec.alignment else None
+        if broken is not None:
+            raise _Refused("illegal_address", broken[0].exception)
+
     def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
+        self._aligned(_READ_TABLES[code], address, quantity, "read")
         cells, words, swapping = self._plan(unit, _READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
@@ -504,6 +514,7 @@ class Simulator(Persistence):
             raise _Refused("bad_length")
         address = int.from_bytes(data[0:2], "big")
         word = int.from_bytes(data[2:4], "big")
+        self._aligned("holding", address, 1, "write")
         self._write(unit, address, [word], broadcast)
         return bytes([0x06]) + data
 
@@ -520,6 +531,7 @@ class Simulator(Persistence):
         words = [int.from_bytes(data[5 + 2 * i : 7 + 2 * i], "big") for i in range(quantity)]
         if address + quantity > 0x10000:
             raise _Refused("illegal_address")
+        self._aligned("holding", address, quantity, "write")
         self._write(unit, address, words, broadcast)
         return bytes([0x10]) + data[0:4]
 
@@ -599,6 +611,8 @@ class Simulator(Persistence):
         low, high = raw_bounds(reg)
         if not low <= raw <= high:
             return False
+        if reg.values and raw not in reg.not_available and not is_allowed(reg, to_value(reg, raw, unit._factor(reg))):
+            return False  # outside the map's value set
         if raw in reg.not_available or reg.type in ("string", "bool"):
             return True
         if reg.enum_values and raw not in reg.enum_values:
