@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,8 @@ class Score:
 
     found: int = 0
     field_edits: int = 0
+    not_found: list[str] = field(default_factory=list)
+    not_exact: list[str] = field(default_factory=list)
 
 
 def _cells(model: Any) -> dict[tuple[str, int], Any]:
@@ -74,6 +76,23 @@ def _cells(model: Any) -> dict[tuple[str, int], Any]:
 def _value(reg: Any, key: str) -> Any:
     value = getattr(reg, key, None)
     return float(value) if key == "scale" and value is not None else value
+
+
+def _comparable(registers: Any, cells: dict[tuple[str, int], Any]) -> list[Any]:
+    """The proven registers to compare: where several pages share an address, the draft (which holds one
+    register per address) is compared with the page whose register it matches best; the others count
+    as not found."""
+    by_key: dict[tuple[str, int], list[Any]] = {}
+    for reg in registers:
+        by_key.setdefault((reg.table, reg.address), []).append(reg)
+    out = []
+    for key, regs in by_key.items():
+        mine = cells.get(key)
+        if len(regs) == 1 or mine is None:
+            out += regs
+            continue
+        out.append(max(regs, key=lambda r: sum(_value(mine, f) == _value(r, f) for f in FIELDS)))
+    return out
 
 
 def score(model_id: str, document: Path) -> Score:
@@ -102,9 +121,10 @@ def score(model_id: str, document: Path) -> Score:
     proven = compile_map(ROOT / "maps" / f"{model_id}.yaml")
     cells = _cells(drafted)
     s = Score(model_id, len(proven.registers), 0, 0, [], 0, 0, seconds, len(drafted.registers))
-    for reg in proven.registers:
+    for reg in _comparable(proven.registers, cells):
         keys = [(reg.table, reg.address + i * (reg.stride or 1)) for i in range(reg.count)]
         if not all(k in cells for k in keys):
+            s.not_found.append(reg.name)
             continue
         s.found += 1
         mine = cells[keys[0]]
@@ -124,6 +144,8 @@ def score(model_id: str, document: Path) -> Score:
                     exact = False
         if exact and all(cells[k].type == reg.type and float(cells[k].scale) == float(reg.scale) for k in keys):
             s.exact += 1
+        else:
+            s.not_exact.append(f"{reg.name} ({mine.type} x{mine.scale} vs {reg.type} x{reg.scale})")
     proven_cells = _cells(proven)
     s.extra = sum(1 for r in drafted.registers if (r.table, r.address) not in proven_cells)
     return s
@@ -149,6 +171,10 @@ def run(quick: bool = False) -> Section:
                       f"{s.defaulted} | {s.drafted} | {s.extra} | {s.edits} | {s.seconds:.2f} s |")
         for w in s.wrong_stated:
             detail.append(f"|  | wrong: {w} | | | | | | | | | |")
+        if s.not_found:
+            detail.append(f"|  | not found: {', '.join(s.not_found)} | | | | | | | | | |")
+        if s.not_exact:
+            detail.append(f"|  | type/scale left at the default: {', '.join(s.not_exact)} | | | | | | | | | |")
         for attr in ("proven", "exact", "fields_right", "defaulted", "extra", "drafted", "found", "field_edits"):
             setattr(total, attr, getattr(total, attr) + getattr(s, attr))
         total.wrong_stated += s.wrong_stated

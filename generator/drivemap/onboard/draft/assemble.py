@@ -89,6 +89,8 @@ def draft(source: Source, model: str) -> Draft:
         for d in drafts:
             d.entry["group"] = group
             d.table_label = table.label
+        if all(_series_param(d) for d in drafts):
+            drafts.sort(key=lambda d: int(str(d.entry["address"])))  # side-by-side columns of one numbered list
         drafts = arrays(drafts)
         found.append((f"{table.label}: {_heading(table)}", len(drafts)))
         title = _heading(table)
@@ -100,6 +102,10 @@ def draft(source: Source, model: str) -> Draft:
         registers += drafts
     data = _document(source, model, groups, registers)
     return Draft(data, registers, skipped, found, list(PLACEHOLDERS))
+
+
+def _series_param(d: Drafted) -> bool:
+    return bool(re.fullmatch(r".*?\D\d{1,3}", str(d.entry.get("param", "")))) and "label" not in d.entry
 
 
 def _finish(d: Drafted, document: str, names: set[str]) -> None:

@@ -114,7 +114,11 @@ def find_layouts(rows: list[list[str]]) -> list[Layout]:
 
 
 def content_layout(rows: list[list[str]]) -> Layout | None:
-    """No header: the column most of whose cells are hex-marked addresses, the next text column the name."""
+    """No header: the column most of whose cells are hex-marked addresses, the next text column the name.
+    A table whose first row is a header that names no address column is no register table."""
+    first = rows[0] if rows else []
+    if first and (parse_address(first[0]) is None or not parse_address(first[0]).marked):  # type: ignore[union-attr]
+        return None
     width = max((len(r) for r in rows), default=0)
     for col in range(min(width, 1)):
         cells = [r[col] for r in rows if col < len(r) and r[col].strip()]

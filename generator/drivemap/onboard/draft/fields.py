@@ -7,8 +7,16 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from .cells import (parse_access, parse_bits, parse_enum, parse_length, parse_number, parse_range, parse_type,
-                    signed_hint)
+from .cells import (
+    parse_access,
+    parse_bits,
+    parse_enum,
+    parse_length,
+    parse_number,
+    parse_range,
+    parse_type,
+    signed_hint,
+)
 from .tables import Drafted
 from .units import parse_scale, unit_after_range
 
@@ -80,7 +88,7 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     if found is None or found.scale is None:
         in_text = parse_scale(raw.text + " " + raw.cells.get("range", ""), footnote=ctx.footnote)
         if in_text is not None and (found is None or in_text.scale is not None):
-            raw_range = in_text.scale is not None and "=" in in_text.printed
+            raw_range = in_text.scale is not None and bool(re.search(r"=|means|對應|对应", in_text.printed))
             found = in_text
     if found is not None and found.note:
         notes.append(found.note)
@@ -115,6 +123,12 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
         missing.append("range")
         return
     factor = 1.0
+    after = parse_range(text or _range_text(raw.text))
+    printed_unit = after is not None and unit_after_range(after[2]) is not None
+    if scale is None and not printed_unit:
+        notes.append(f"range {lo}..{hi} printed without a unit or resolution (raw or engineering?): left out")
+        missing.append("range")
+        return
     if scale is not None and scale != 1:
         decimals = any("." in str(v) for v in (lo, hi))
         if raw_range:

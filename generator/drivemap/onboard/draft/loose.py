@@ -63,6 +63,7 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
     """Rows from ``start`` to the next heading, header or grid line; and the index where it stopped."""
     rows: list[Row] = []
     paragraph: list[str] = []
+    last: list[str] = []
     i, since_row = start, 0
     while i < len(lines) and i not in used and since_row < MAX_GAP:
         page, number, text = lines[i]
@@ -70,9 +71,11 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
         if m is None and (_HEADING.match(text) or _header_at(lines, i, used) is not None):
             break
         if m is not None:
-            rows.append(_row(m, page, number, paragraph, rows))
-            paragraph, since_row = [], 0
+            rows.append(_row(m, page, number, paragraph or last, rows))
+            paragraph, last, since_row = [], [], 0
         elif not text.strip():
+            if paragraph:
+                last = paragraph
             paragraph = []
             since_row += 1
         else:
@@ -84,6 +87,10 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
     return rows, i
 
 
+_ENUM_LINE = re.compile(r"^\s*-?[0-9A-Fa-fO]{1,8}[hH]?\s*[:：=]")
+_ACCESS_LINE = re.compile(r"^\s*(?:R|W|R/W|W/R|RW|RO)\s*$")
+
+
 def _row(m: re.Match[str], page: int, number: int, paragraph: list[str], rows: list[Row]) -> Row:
     groups = m.groupdict()
     rest = (groups.get("rest") or "").strip()
@@ -93,7 +100,7 @@ def _row(m: re.Match[str], page: int, number: int, paragraph: list[str], rows: l
         if paragraph and _PARAM_ID.match(paragraph[-1]):
             param = paragraph[-1].strip()
             _drop_tail(rows, paragraph[-1:])
-    elif not rest and paragraph:
+    elif not rest and paragraph and not any(_ENUM_LINE.match(p) or _ACCESS_LINE.match(p) for p in paragraph):
         rest = " ".join(paragraph)
         _drop_tail(rows, paragraph)
     if lead and not rest:

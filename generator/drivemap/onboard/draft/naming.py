@@ -75,10 +75,13 @@ def arrays(drafts: list[Drafted]) -> list[Drafted]:
         while j + 1 < len(drafts) and _joins(drafts[j], drafts[j + 1], stride):
             stride = int(str(drafts[j + 1].entry["address"])) - int(str(drafts[j].entry["address"]))
             j += 1
-        if j - i + 1 >= 3 and j - i + 1 <= 256:
-            out.append(_merge(drafts[i:j + 1], stride or 1))
-        else:
-            out.extend(drafts[i:j + 1])
+        run = drafts[i:j + 1]
+        for k in range(0, len(run), 256):
+            chunk = run[k:k + 256]
+            if len(chunk) >= 3:
+                out.append(_merge(chunk, stride or 1))
+            else:
+                out.extend(chunk)
         i = j + 1
     return out
 

@@ -108,12 +108,13 @@ class GridReader:
             return (a.hex_value, None, a.text) if a else (None, None, "")
         text = _cell(row, self.layout, "address")
         a = parse_address(text)
-        if a is None and not text:
-            for cell in row.cells[:3]:
-                b = parse_address(cell)
-                if b is not None and b.marked and re.fullmatch(r"(?:0x)?[0-9A-Fa-f]{4}\s?[hH]?", cell.strip()):
-                    self.found_at = row.cells.index(cell)
-                    return b.hex_value, None, cell
+        col = self.layout.roles["address"]
+        if a is None and not text and col + 1 < len(row.cells) and not any(c.strip() for c in row.cells[:col]):
+            cell = row.cells[col + 1]  # an address shifted one cell right ("\t00F0H\tFault Description")
+            b = parse_address(cell)
+            if b is not None and b.marked and re.fullmatch(r"(?:0x)?[0-9A-Fa-f]{4}\s?[hH]?", cell.strip()):
+                self.found_at = col + 1
+                return b.hex_value, None, cell
         if a is None:
             return None, None, text
         value, table = self.column.read(a)
@@ -284,15 +285,16 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
             m = re.match(r"(\d{1,3})\s+(.*)", rest)
             if m:
                 param, rest = m.group(1), m.group(2)
-        if not rest and row.extra:
-            rest = row.extra[0]
+        if not rest:
+            rest = next((x for x in row.extra if not re.match(r"^\s*-?[0-9A-Fa-fO]{1,8}[hH]?\s*[:：=]", x)
+                         and trailing_access(x)[1]), "")
         label = _loose_label(rest)
         if RESERVED.fullmatch(label.strip(" ()*")) or RESERVED.match(label):
             skipped.append(Skipped(row.where(), f"{address} {rest}", "reserved"))
             continue
         raw = Raw(a.hex_value, kind, row.where(), label=label, param=param,
                   access=line_access or extra_access or access)
-        raw.text = " ".join([rest, *row.extra])
+        raw.text = re.sub(r"(?<=[(\[-])\s+(?=\d)", "", " ".join([rest, *row.extra]))
         enum = parse_enum("\n".join([rest, *row.extra]))
         if enum:
             raw.enum = enum

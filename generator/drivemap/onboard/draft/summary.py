@@ -31,8 +31,8 @@ def print_summary(console: Console, source: Source, draft: Draft, target: str, m
         regs.add_column(col)
     for d in draft.registers[:MAX_ROWS]:
         e = d.entry
-        count = f"[{e['count']}]" if "count" in e else ""
-        regs.add_row(f"{e['name']}{count}", str(e.get("table", "-")), _hex(e["address"]), d.where,
+        size = f"[{e['count']}]" if "count" in e else ""
+        regs.add_row(f"{e['name']}{size}", str(e.get("table", "-")), _hex(e["address"]), d.where,
                      ", ".join(dict.fromkeys(d.missing)) or "-")
     if len(draft.registers) > MAX_ROWS:
         regs.add_row(f"… {len(draft.registers) - MAX_ROWS} more (see the map)", "", "", "", "")

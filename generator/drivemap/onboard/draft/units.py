@@ -22,6 +22,7 @@ UNIT = rf"(?:{_UNITS})"
 _NUM = r"\d+(?:\.\d+)?"
 _ONE_EQUALS = re.compile(rf"\b1\s*=\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
 _PER = re.compile(rf"(?<![\d.%])({_NUM})\s*/\s*({_NUM})\s*({UNIT})(?![A-Za-z/])")
+_MEANS = re.compile(rf"\b({_NUM})\s*(?:means|corresponds\s+to|對應|对应|表示)\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
 _TIMES = re.compile(rf"[×xX*]\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
 _PER_BIT = re.compile(rf"({_NUM})\s*({UNIT})\s*/\s*(?:bit|lsb|count|digit|step)\b", re.I)
 _LABELLED = re.compile(rf"(?:unit|resolution|单位|單位|分辨率|解析度)\s*[:：]?\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
@@ -60,7 +61,8 @@ def _found(scale: float, unit: str, m: re.Match[str], text: str,
 
 def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str], bool] | None = None) -> Scale | None:
     """The resolution stated in ``text`` (a unit cell when ``unit_cell``, else free text)."""
-    for regex, kind in ((_ONE_EQUALS, "one"), (_PER_BIT, "bit"), (_LABELLED, "bit"), (_TIMES, "bit"), (_PER, "per")):
+    for regex, kind in ((_ONE_EQUALS, "one"), (_MEANS, "per"), (_PER_BIT, "bit"), (_LABELLED, "bit"), (_TIMES, "bit"),
+                        (_PER, "per")):
         m = regex.search(text)
         if not m:
             continue
