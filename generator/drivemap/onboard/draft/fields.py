@@ -185,7 +185,8 @@ def draft_fields(raw: Raw, ctx: Context) -> Drafted:
         entry["label"] = raw.label
     rtype = _type_fields(raw, ctx, entry, missing, notes)
     bits = raw.bits or parse_bits(raw.text) or []
-    enum = [] if bits else (raw.enum or parse_enum(raw.text) or [])
+    cell_enum = next((e for e in (parse_enum(raw.cells.get(k, "")) for k in ("range", "description")) if e), None)
+    enum = [] if bits else (raw.enum or cell_enum or parse_enum(raw.text) or [])
     if bits:
         entry["bits"] = bits
         missing = [m for m in missing if m != "type"]

@@ -19,12 +19,16 @@ def _open(path: Path) -> Any:
     import pdfplumber
 
     try:
-        return pdfplumber.open(str(path))
+        pdf = pdfplumber.open(str(path))
+        len(pdf.pages)  # parses the page tree: a broken or encrypted file fails here
+        return pdf
     except Exception as exc:  # noqa: BLE001 - any failure of the parser on a bad file is the file's
-        name = type(exc).__name__
-        if "Password" in name or "Encrypt" in name:
+        text = repr(exc)
+        if "Password" in text or "Encrypt" in text:
             raise DraftError("the PDF is encrypted (password protected): decrypt it first") from None
-        raise DraftError(f"not a readable PDF ({name}{': ' + str(exc) if str(exc) else ''})") from None
+        inner = exc.args[0] if exc.args and isinstance(exc.args[0], Exception) else exc
+        detail = str(inner) or type(inner).__name__
+        raise DraftError(f"not a readable PDF ({detail})") from None
 
 
 def _page_tables(page: Any, number: int) -> list[Table]:
@@ -95,7 +99,9 @@ def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int,
             loose.append("" if found else text)
     finally:
         pdf.close()
-    if read and not any(t.strip() for t in texts):
+    if not read:
+        raise DraftError("no page could be read" + (f": {notes[-1]}" if notes else ""))
+    if not any(t.strip() for t in texts):
         raise DraftError("no text on any page read: a scanned PDF? Run OCR on it first (e.g. ocrmypdf)")
     offset = (pages[0] if pages else 1) - 1
     for table in read_text("\f".join(loose)):

@@ -1,0 +1,319 @@
+"""`drivemap draft`: documents of every format -> a map that validates as written.
+
+The fixtures are made here (openpyxl and python-docx write the Office files, fpdf2 the PDFs); the
+seed manuals of shared/manuals are drafted and compared with the proven maps.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from drivemap.cli import main
+from drivemap.compiler import compile_map
+from drivemap.onboard.draft.cells import parse_address, parse_bits, parse_enum, parse_type
+from drivemap.onboard.draft.cli import _time_limit
+from drivemap.onboard.draft.naming import snake
+from drivemap.onboard.draft.tables import DraftError
+from drivemap.onboard.draft.units import parse_scale
+
+ROOT = Path(__file__).resolve().parent.parent
+SEEDS = {"edx": ("004_698379178adcef99.txt", 0.95), "v2": ("003_81ad9a58587804cf.txt", 0.8),
+         "vfd1000": ("002_65caa110b92ac236.txt", 0.75), "ev": ("001_47d2095fcebbe4cf.txt", 0.5)}
+
+
+def _manuals() -> Path:
+    for candidate in (ROOT.parent / "shared" / "manuals", Path("/work/shared/manuals")):
+        if candidate.is_dir():
+            return candidate
+    pytest.skip("shared/manuals (the seed manuals) is not beside the repository")
+
+
+def draft(tmp_path: Path, document: Path, name: str = "dev", *extra: str) -> tuple[int, Path, str]:
+    out = tmp_path / "maps" / f"{name}.yaml"
+    code = main(["draft", str(document), "-o", str(out), *extra])
+    return code, out, out.read_text(encoding="utf-8") if out.exists() else ""
+
+
+def registers(path: Path) -> dict[str, dict[str, Any]]:
+    return {r["name"]: r for r in yaml.safe_load(path.read_text(encoding="utf-8"))["registers"]}
+
+
+# ---------------------------------------------------------------- cell parsers
+
+
+@pytest.mark.parametrize(("text", "unit_cell", "scale", "unit"), [
+    ("0.01Hz", True, 0.01, "Hz"), ("×0.1 V", False, 0.1, "V"), ("1=0.1A", False, 0.1, "A"),
+    ("0 ~ 65535  (1=0.01 VDC)", False, 0.01, "V"), ("Output current (10/1A)", False, 0.1, "A"),
+    ("0.1 V/bit", False, 0.1, "V"), ("Hz", True, None, "Hz"), ("1000 means 100.0%", False, 0.1, "%"),
+])
+def test_scale_and_unit(text: str, unit_cell: bool, scale: float | None, unit: str) -> None:
+    found = parse_scale(text, unit_cell=unit_cell)
+    assert found is not None and found.scale == scale and found.unit == unit
+
+
+def test_scale_with_a_footnote_the_document_does_not_print_is_left_out() -> None:
+    found = parse_scale("TM2 AIN input value (1024 / 10V) *1", footnote=lambda n: False)
+    assert found is not None and found.scale is None and "footnote *1" in found.note
+    printed = parse_scale("TM2 AIN input value (1024 / 10V) *1", footnote=lambda n: True)
+    assert printed is not None and printed.scale == pytest.approx(10 / 1024)
+
+
+def test_addresses_enums_bits_types_names() -> None:
+    assert parse_address("00E6H").hex_value == 0xE6  # type: ignore[union-attr]
+    assert parse_address("0x1A").hex_value == 0x1A  # type: ignore[union-attr]
+    plain = parse_address("40001")
+    assert plain is not None and not plain.marked and plain.dec_value == 40001
+    assert parse_address("Quantity") is None
+    assert parse_enum("Resistive=1, inductive=2") == [(1, "Resistive"), (2, "inductive")]
+    assert parse_enum("0: STOP\n2: RUN\n3: EBRAKE") == [(0, "STOP"), (2, "RUN"), (3, "EBRAKE")]
+    assert parse_enum("0 ~ 65535 (1=0.01 VDC)") is None
+    assert parse_bits("bit0: run, bit1: fault") == [(0, "run"), (1, "fault")]
+    assert parse_type("Float") == "f32" and parse_type("signed", 2) == "s32" and parse_type("UINT16") == "u16"
+    assert parse_type("") is None
+    assert snake("Phase 1 line to neutral volts", "x") == "phase_1_line_to_neutral_volts"
+    assert snake("馬達狀態", "reg_0000") == "reg_0000"
+
+
+def test_time_limit_stops_a_slow_step() -> None:
+    started = time.monotonic()
+    with pytest.raises(DraftError, match="time limit"), _time_limit(0.3):
+        time.sleep(5)
+    assert time.monotonic() - started < 2
+
+
+# ---------------------------------------------------------------- the seed manuals
+
+
+@pytest.mark.parametrize("model", sorted(SEEDS))
+def test_seed_manual_draft_validates_and_states_no_wrong_type_or_scale(tmp_path: Path, model: str) -> None:
+    name, floor = SEEDS[model]
+    code, out, text = draft(tmp_path, _manuals() / name, model)
+    assert code == 0 and out.exists()
+    drafted = compile_map(out)  # validates as written
+    proven = compile_map(ROOT / "maps" / f"{model}.yaml")
+    stated = {(r.get("table", "holding"), int(r["address"])): r for r in registers(out).values()}
+    cells = {(r.table, r.address + i * r.stride): r for r in drafted.registers for i in range(r.count)}
+    exact = 0
+    for reg in proven.registers:
+        keys = [(reg.table, reg.address + i * reg.stride) for i in range(reg.count)]
+        if not all(k in cells for k in keys):
+            continue
+        mine, entry = cells[keys[0]], stated.get(keys[0], {})
+        if "type" in entry and len({r.address for r in proven.registers if r.address == reg.address}) == 1:
+            assert mine.type == reg.type, f"{model} {reg.name}: type {mine.type} written, proven {reg.type}"
+        if "scale" in entry and len([r for r in proven.registers if r.address == reg.address]) == 1:
+            assert mine.scale == pytest.approx(reg.scale), f"{model} {reg.name}: scale {mine.scale}, proven {reg.scale}"
+        exact += all(cells[k].type == reg.type and cells[k].scale == pytest.approx(reg.scale) for k in keys)
+    assert exact / len(proven.registers) >= floor, f"{model}: {exact}/{len(proven.registers)} exact"
+    assert f"sha256: {__import__('hashlib').sha256((_manuals() / name).read_bytes()).hexdigest()}" in text
+    assert all(r["source"].startswith(name) for r in registers(out).values())
+
+
+def test_edx_draft_reads_bits_codes_scales_and_signs(tmp_path: Path) -> None:
+    code, out, _ = draft(tmp_path, _manuals() / SEEDS["edx"][0], "edx")
+    assert code == 0
+    regs = {int(r["address"]): r for r in registers(out).values()}
+    assert [b["offset"] for b in regs[0xE6]["bits"]] == [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 12]
+    assert regs[0xF6]["scale"] == 0.1 and regs[0xF6]["unit"] == "A"
+    assert regs[0xF8]["type"] == "s16"
+    assert "scale" not in regs[0xF9] and "footnote *1" in regs[0xF9]["notes"]  # the footnote is not printed
+    assert "scale" not in regs[0xE7]  # the table does not state it: left out, not guessed
+    assert regs[0xE6]["access"] == "rw" and "access" not in regs[0xF6]  # "Only for reading": r, the default
+    model = compile_map(out)
+    assert len(next(e for e in model.enums if e.name == "FaultDescription").values) >= 30
+
+
+# ---------------------------------------------------------------- formats
+
+
+def _xlsx(path: Path, merged: bool = False) -> Path:
+    import openpyxl
+
+    book = openpyxl.Workbook()
+    sheet = book.active
+    sheet.title = "Input registers"
+    sheet.append(["Energy meter register map (function code 04h); floats are IEEE 754, high word first"])
+    if merged:
+        sheet.merge_cells("A1:F1")
+    sheet.append(["Address", "Parameter", "Data type", "Length (words)", "Units", "Access"])
+    sheet.append([30001, "Phase 1 line to neutral volts", "Float", 2, "V", "RO"])
+    sheet.append([30003, "Phase 2 line to neutral volts", "Float", 2, "V", "RO"])
+    sheet.append([30007, "Temperature 1", "INT16", 1, "0.1 °C", "R"])
+    sheet.append([30008, "Temperature 2", "INT16", 1, "0.1 °C", "R"])
+    sheet.append([30009, "Temperature 3", "INT16", 1, "0.1 °C", "R"])
+    sheet.append([30011, "Read", "UINT16", 1, "", "R"])
+    book.save(path)
+    return path
+
+
+def test_xlsx_modicon_floats_arrays_and_refused_names(tmp_path: Path) -> None:
+    code, out, _ = draft(tmp_path, _xlsx(tmp_path / "meter.xlsx"), "meter")
+    assert code == 0
+    regs = registers(out)
+    volts = regs["phase_1_line_to_neutral_volts"]
+    assert (volts["table"], volts["address"], volts["type"], volts["word_order"]) == ("input", 0, "f32", "high_first")
+    temp = next(r for r in regs.values() if r.get("count") == 3)
+    assert (temp["address"], temp["type"], temp["scale"], temp["unit"]) == (6, "s16", 0.1, "°C")
+    assert "read" not in regs  # a client attribute: the compiler refuses it and the draft renames it
+    assert compile_map(out).registers
+
+
+def test_xlsx_with_merged_cells_is_drafted_with_the_reason_listed(tmp_path: Path, capsys: Any) -> None:
+    code, out, _ = draft(tmp_path, _xlsx(tmp_path / "merged.xlsx", merged=True), "merged")
+    assert code == 0 and compile_map(out)
+    assert "merged cell ranges" in capsys.readouterr().out
+
+
+def _docx(path: Path) -> Path:
+    import docx
+
+    document = docx.Document()
+    document.add_heading("5.1 Holding registers (read with function 03h)", level=2)
+    table = document.add_table(rows=1, cols=6)
+    for cell, text in zip(table.rows[0].cells, ["Register (hex)", "Description", "Unit", "R/W", "Range", "Default"],
+                          strict=True):
+        cell.text = text
+    for row in (["0x0100", "Frequency setpoint", "0.01Hz", "R/W", "0.00-400.00", "50.00"],
+                ["0101h", "Load type", "", "RW", "Resistive=1, inductive=2", ""],
+                ["0102h", "Status word", "", "R", "bit0: run, bit1: fault", ""],
+                ["0103h", "Output voltage", "×0.1 V", "R", "", ""]):
+        cells = table.add_row().cells
+        for cell, text in zip(cells, row, strict=True):
+            cell.text = text
+    document.save(str(path))
+    return path
+
+
+def test_docx_units_ranges_enums_bits_access(tmp_path: Path) -> None:
+    code, out, _ = draft(tmp_path, _docx(tmp_path / "drive.docx"), "drive")
+    assert code == 0
+    regs = {r["address"]: r for r in registers(out).values()}
+    assert regs[0x100]["name"] == "frequency_setpoint"
+    assert (regs[0x100]["scale"], regs[0x100]["unit"], regs[0x100]["min"], regs[0x100]["max"]) == (0.01, "Hz", 0, 400)
+    assert regs[0x100]["default"] == 50 and regs[0x100]["access"] == "rw"
+    assert "enum" in regs[0x101] and [b["offset"] for b in regs[0x102]["bits"]] == [0, 1]
+    assert regs[0x103]["scale"] == 0.1 and "access" not in regs[0x103]
+    model = compile_map(out)
+    enum = next(e for e in model.enums if e.name == regs[0x101]["enum"])
+    assert [v.label for v in enum.values] == ["Resistive", "inductive"]
+
+
+def test_csv_hi_lo_byte_columns(tmp_path: Path) -> None:
+    doc = tmp_path / "list.csv"
+    doc.write_text("Hi Byte,Lo Byte,Name,Unit,R/W\n10,00,Motor current,1=0.1A,R\n10,01,Motor speed,rpm,R\n",
+                   encoding="utf-8")
+    code, out, _ = draft(tmp_path, doc, "csvdev")
+    assert code == 0
+    regs = registers(out)
+    assert regs["motor_current"]["address"] == 0x1000 and regs["motor_current"]["scale"] == 0.1
+    assert regs["motor_speed"]["unit"] == "r/min" and "scale" not in regs["motor_speed"]
+
+
+def test_markdown_and_html_tables(tmp_path: Path) -> None:
+    md = tmp_path / "regs.md"
+    md.write_text("## Input registers (04h)\n\n| Address | Name | Unit |\n|---|---|---|\n| 0x0000 | Line voltage | 0.1 V |\n"
+                  "| 0x0001 | Line current | 0.01 A |\n", encoding="utf-8")
+    code, out, _ = draft(tmp_path, md, "mddev")
+    assert code == 0 and registers(out)["line_current"]["scale"] == 0.01
+    assert registers(out)["line_voltage"]["table"] == "input"
+    page = tmp_path / "regs.html"
+    page.write_text("<html><body><table><tr><th>Register</th><th>Description</th><th>Access</th></tr>"
+                    "<tr><td>0010h</td><td>Run command</td><td>W</td></tr></table></body></html>", encoding="utf-8")
+    code, out, _ = draft(tmp_path, page, "htmldev")
+    assert code == 0 and registers(out)["run_command"]["access"] == "w"
+
+
+def _pdf(path: Path, pages: int = 1, text: bool = True, password: str | None = None) -> Path:
+    from fpdf import FPDF
+
+    pdf = FPDF()
+    if password:
+        pdf.set_encryption(owner_password="owner", user_password=password)
+    pdf.set_font("Helvetica", size=9)
+    for n in range(pages):
+        pdf.add_page()
+        if not text:
+            pdf.rect(20, 20, 100, 50)
+            continue
+        pdf.cell(text=f"3.{n} Input registers (function code 04h)", new_x="LMARGIN", new_y="NEXT")
+        with pdf.table() as table:
+            for row in [["Address", "Parameter", "Unit"], [f"0x{2 * n:04X}", f"Voltage {n}", "0.1 V"],
+                        [f"0x{2 * n + 1:04X}", f"Current {n}", "0.01 A"]]:
+                cells = table.row()
+                for cell in row:
+                    cells.cell(cell)
+    pdf.output(str(path))
+    return path
+
+
+def test_pdf_tables_with_page_and_row_sources(tmp_path: Path) -> None:
+    code, out, _ = draft(tmp_path, _pdf(tmp_path / "meter.pdf", pages=2), "pdfdev")
+    assert code == 0
+    regs = registers(out)
+    assert regs["voltage_1"]["address"] == 2 and regs["voltage_1"]["scale"] == 0.1
+    assert regs["voltage_1"]["table"] == "input"
+    assert "p.2" in regs["voltage_1"]["source"] and "meter.pdf" in regs["voltage_1"]["source"]
+    code, out, _ = draft(tmp_path, tmp_path / "meter.pdf", "pdfpage", "--pages", "2")
+    assert code == 0 and set(registers(out)) == {"voltage_1", "current_1"}
+
+
+def test_pdf_page_bound_is_listed(tmp_path: Path, capsys: Any) -> None:
+    code, out, _ = draft(tmp_path, _pdf(tmp_path / "long.pdf", pages=6), "longdev", "--max-pages", "2")
+    assert code == 0 and len(registers(out)) == 4
+    assert "only pages 1-2 of 1-6 read" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda p: _pdf(p / "scan.pdf", text=False), "no text on any page read"),
+    (lambda p: _pdf(p / "locked.pdf", password="secret"), "encrypted"),
+    (lambda p: (p / "broken.pdf").write_bytes(b"%PDF-1.4\n garbage\n") and p / "broken.pdf", "not a readable PDF"),
+    (lambda p: (p / "broken.xlsx").write_bytes(b"PK\x03\x04 not a zip") and p / "broken.xlsx", "corrupt"),
+    (lambda p: (p / "prose.txt").write_text("Name\tType\tUnit\nSpeed\tu16\trpm\nTorque\tu16\tNm\n") and p / "prose.txt",
+     "no address column"),
+    (lambda p: p / "missing.pdf", "cannot read file"),
+])
+def test_bad_documents_give_one_located_error_and_write_nothing(tmp_path: Path, capsys: Any, make: Any,
+                                                                 message: str) -> None:
+    document = make(tmp_path)
+    code, out, _ = draft(tmp_path, document, "bad")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and not out.exists() and not (tmp_path / "maps").exists()
+    assert len(err) == 1 and err[0].startswith(f"{document}: error: ") and message in err[0], err
+    assert "Traceback" not in "\n".join(err)
+
+
+def test_existing_output_is_refused_unless_force(tmp_path: Path, capsys: Any) -> None:
+    document = _docx(tmp_path / "drive.docx")
+    out = tmp_path / "maps" / "drive.yaml"
+    out.parent.mkdir()
+    out.write_text("mine\n", encoding="utf-8")
+    assert main(["draft", str(document), "-o", str(out)]) == 1
+    assert out.read_text(encoding="utf-8") == "mine\n" and "exists; not overwritten" in capsys.readouterr().err
+    assert main(["draft", str(document), "-o", str(out), "--force"]) == 0
+    assert compile_map(out) and sorted(os.listdir(out.parent)) == ["drive.yaml"]  # no temporary file left
+
+
+def test_the_verb_in_an_empty_folder_writes_the_project_map(tmp_path: Path) -> None:
+    document = _docx(tmp_path / "Acme VFD-100.docx")
+    work = tmp_path / "empty"
+    work.mkdir()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "generator"), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([sys.executable, "-m", "drivemap", "draft", str(document)], cwd=work, env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert sorted(p.relative_to(work).as_posix() for p in work.rglob("*")) == ["maps", "maps/acme_vfd_100.yaml"]
+    assert "drivemap validate maps/acme_vfd_100.yaml" in run.stdout and "Registers drafted: 4" in run.stdout
+    check = subprocess.run([sys.executable, "-m", "drivemap", "validate"], cwd=work, env=env, capture_output=True,
+                           text=True, timeout=300)
+    assert check.returncode == 0 and "maps/acme_vfd_100.yaml: ok" in check.stdout, check.stderr
