@@ -42,10 +42,14 @@ def document_context(source: Source) -> Context:
 
 
 def _heading(table: Table) -> str:
+    """The section heading above a table (the last numbered one), else the last short line before it."""
     lines = table.context.splitlines()
-    numbered = [ln for ln in lines if re.match(r"^\s*(?:#+\s*|\*\*)?\d+(?:\.\d+)*\.?\s+\S", ln)]
+    pattern = r"^\s*(?:#+\s*|\*\*)?\d+(?:\.\d+)*\.?\s+[A-Za-z\u4e00-\u9fff]"
+    numbered = [ln for ln in (table.above or table.context).splitlines() if re.match(pattern, ln)]
     for line in reversed(numbered or lines):
-        text = re.sub(r"[*#<>/b]{2,}|</?b>", "", line).strip(" *#")
+        text = re.sub(r"\*\*|</?b>|^\s*#+", "", line).strip(" *#")
+        if numbered:
+            text = re.sub(r"\s*\([^()]{20,}\)\s*$", "", text)[:60].strip()
         if 3 <= len(text) <= 60 and "\t" not in line and not re.match(r"^\W*$", text):
             return text
     return table.label
@@ -83,8 +87,12 @@ def draft(source: Source, model: str) -> Draft:
         skipped += skip
         if not raws:
             continue
-        plain = re.sub(r"^[\d.\s]+", "", _heading(table))
-        group = unique(snake(plain, f"table_{len(groups) + 1}")[:40].rstrip("_"), {g["name"] for g in groups})
+        heading = _heading(table)
+        if heading == table.label and groups:  # no heading of its own: the section of the table before it
+            group, heading = groups[-1]["name"], groups[-1]["title"]
+        else:
+            plain = re.sub(r"^[\d.\s]+", "", heading)
+            group = unique(snake(plain, f"table_{len(groups) + 1}")[:40].rstrip("_"), {g["name"] for g in groups})
         drafts = [draft_fields(r, ctx) for r in raws]
         for d in drafts:
             d.entry["group"] = group
@@ -92,11 +100,12 @@ def draft(source: Source, model: str) -> Draft:
         if all(_series_param(d) for d in drafts):
             drafts.sort(key=lambda d: int(str(d.entry["address"])))  # side-by-side columns of one numbered list
         drafts = arrays(drafts)
-        found.append((f"{table.label}: {_heading(table)}", len(drafts)))
-        title = _heading(table)
-        while title in {g["title"] for g in groups}:
-            title += " (continued)"
-        groups.append({"name": group, "title": title, "source": f"{source.name} {table.label}"})
+        found.append((f"{table.label}: {heading}", len(drafts)))
+        if group not in {g["name"] for g in groups}:
+            title = heading
+            while title in {g["title"] for g in groups}:
+                title += " (continued)"
+            groups.append({"name": group, "title": title, "source": f"{source.name} {table.label}"})
         for d in drafts:
             _finish(d, source.name, names)
         registers += drafts

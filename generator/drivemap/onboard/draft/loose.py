@@ -15,7 +15,7 @@ import re
 from .tables import Row, Table
 
 ADDRESS_WORDS = re.compile(
-    r"address|register|reg\.?\s*no|寄存器|暂存器|暫存器|位址|地址|编号|編號|modbus", re.I)
+    r"address|register|reg\.?\s*no|寄存器|暂存器|暫存器|位址|位置|地址|编号|編號|modbus", re.I)
 OTHER_WORDS = re.compile(
     r"name|description|content|definition|meaning|function|parameter|range|unit|default|access|r/w|"
     r"type|format|名稱|名称|內容|内容|范围|範圍|初始值|单位|單位|說明|说明|读写|讀寫|功能", re.I)
@@ -50,7 +50,7 @@ def _header_at(lines: list[tuple[int, int, str]], i: int, used: set[int]) -> int
             return None
         if hit:
             last = j
-        if seen_addr and seen_other and last is not None and j > i + 2 and not hit:
+        if seen_addr and seen_other and last is not None and j > i + 2 and not hit and len(text) > 20:
             break
     return last if seen_addr and seen_other else None
 
@@ -131,6 +131,7 @@ def loose_tables(lines: list[tuple[int, int, str]], used: set[int]) -> list[Tabl
         if rows:
             page, number, _ = lines[i]
             context = "\n".join(t for _, _, t in lines[max(0, i - 8):i] if t.strip())
-            tables.append(Table([header], rows, page, number, context, loose=True, label=f"line {number}"))
+            above = "\n".join(t for _, _, t in lines[max(0, i - 40):i] if t.strip())
+            tables.append(Table([header], rows, page, number, context, loose=True, above=above, label=f"line {number}"))
         i = max(stop, end + 1)
     return tables

@@ -121,7 +121,8 @@ def grid_tables(lines: list[tuple[int, int, str]]) -> tuple[list[Table], set[int
             used.add(i)
             i += 1
         page, number, _ = lines[start]
-        tables.append(Table(None, rows, page, number, _context(lines, start), label=f"line {number}"))
+        above = "\n".join(t for _, _, t in lines[max(0, start - 40):start] if t.strip())
+        tables.append(Table(None, rows, page, number, _context(lines, start), above=above, label=f"line {number}"))
     return tables, used
 
 

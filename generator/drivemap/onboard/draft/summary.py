@@ -9,13 +9,31 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from .assemble import Draft
-from .tables import Source
+from .tables import Skipped, Source
 
 MAX_ROWS = 400
 
 
 def _hex(value: object) -> str:
     return f"0x{int(str(value)):04X}"
+
+
+def _runs(skipped: list[Skipped]) -> list[tuple[str, str, str]]:
+    """Consecutive rows skipped for the same reason, one line each."""
+    out: list[tuple[str, str, str]] = []
+    i = 0
+    while i < len(skipped):
+        j = i
+        while j + 1 < len(skipped) and skipped[j + 1].reason == skipped[i].reason:
+            j += 1
+        first, last = skipped[i], skipped[j]
+        if j == i:
+            out.append((first.where, first.reason, first.text[:70]))
+        else:
+            out.append((f"{first.where} .. {last.where}", f"{first.reason} ({j - i + 1} rows)",
+                        f"{first.text[:30]} .. {last.text[:30]}"))
+        i = j + 1
+    return out
 
 
 def print_summary(console: Console, source: Source, draft: Draft, target: str, model: str) -> None:
@@ -45,8 +63,8 @@ def print_summary(console: Console, source: Source, draft: Draft, target: str, m
         skipped = RichTable(title=f"Rows skipped: {len(draft.skipped)}")
         for col in ("where", "reason", "row"):
             skipped.add_column(col)
-        for s in draft.skipped[:MAX_ROWS]:
-            skipped.add_row(s.where, s.reason, s.text[:70])
+        for where, reason, text in _runs(draft.skipped)[:MAX_ROWS]:
+            skipped.add_row(where, reason, text)
         console.print(skipped)
     for note in source.notes:
         console.print(f"[yellow]note:[/yellow] {note}")

@@ -40,6 +40,8 @@ class Table:
     """Headings and text just before the table (function codes, 'read only', section names)."""
     loose: bool = False
     """Rows of free text that start with an address (OCR text without cell borders)."""
+    above: str = ""
+    """A longer stretch of text before the table, where its section heading is looked for."""
     label: str = ""
     """Where the table is, for the summary (``p.3 table 2``, ``sheet Registers``, ``line 120``)."""
 
