@@ -113,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
         source = read_document(path, _pages(args.pages), args.max_pages, args.timeout)
         result = draft(source, model)
         if not result.registers:
-            why = f" ({len(result.skipped)} rows skipped: {result.skipped[0].reason})" if result.skipped else ""
+            count = len(result.skipped)
+            why = f" ({count} row{'s' if count != 1 else ''} skipped: {result.skipped[0].reason})" if count else ""
             raise DraftError(f"no register table found: no table with an address column{why}")
         text, errors = settle(result, _header(source.name, source.sha256, target), display(target))
     if errors:

@@ -163,6 +163,8 @@ def _default_field(raw: Raw, scale: float | None, entry: dict[str, object], note
 
 def _access_field(raw: Raw, entry: dict[str, object], missing: list[str]) -> None:
     access = parse_access(raw.cells.get("access", "")) if raw.cells.get("access") else raw.access
+    if access is None and raw.table in ("input", "discrete"):
+        return  # read-only by the table itself
     if access is None:
         missing.append("access")
     elif access != "r":

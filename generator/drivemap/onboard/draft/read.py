@@ -77,8 +77,8 @@ def read_csv(text: str) -> list[Table]:
         dialect: type[csv.Dialect] | csv.Dialect = csv.Sniffer().sniff(sample, delimiters=",;\t|")
     except csv.Error:
         dialect = csv.excel
-    rows = [Row([c.strip() for c in r], None, i) for i, r in enumerate(csv.reader(io.StringIO(text), dialect), 1)
-            if any(c.strip() for c in r)]
+    rows = [Row([c.strip() for c in r], None, i, table="CSV")
+            for i, r in enumerate(csv.reader(io.StringIO(text), dialect), 1) if any(c.strip() for c in r)]
     return [Table(None, rows, None, 1, "", label="CSV")]
 
 
@@ -110,7 +110,7 @@ def read_xlsx(path: Path) -> tuple[list[Table], str, list[str]]:
             notes.append(f"sheet {sheet.title}: {len(merged)} merged cell ranges: each cell reads the merged value")
         if sheet.max_row > MAX_SHEET_ROWS:
             notes.append(f"sheet {sheet.title}: only the first {MAX_SHEET_ROWS} rows read")
-        rows = [Row(r, None, i) for i, r in enumerate(grid, 1) if any(r)]
+        rows = [Row(r, None, i, table=f"sheet {sheet.title}") for i, r in enumerate(grid, 1) if any(r)]
         tables.append(Table(None, rows, None, 1, sheet.title, label=f"sheet {sheet.title}"))
         texts.append("\n".join(" ".join(r.cells) for r in rows))
     return tables, "\n".join(texts), notes
@@ -137,8 +137,9 @@ def read_docx(path: Path) -> tuple[list[Table], str]:
                 texts.append(text)
         elif tag == "tbl":
             table = DocxTable(child, document)
-            rows = [Row([cell.text.strip() for cell in row.cells], None, i) for i, row in enumerate(table.rows, 1)]
             n = len(tables) + 1
+            rows = [Row([cell.text.strip() for cell in row.cells], None, i, table=f"table {n}")
+                    for i, row in enumerate(table.rows, 1)]
             tables.append(Table(None, rows, None, None, "\n".join(recent), label=f"table {n}"))
             texts.extend(" ".join(r.cells) for r in rows)
             recent = []

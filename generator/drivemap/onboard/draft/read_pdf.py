@@ -43,6 +43,8 @@ def _page_tables(page: Any, number: int) -> list[Table]:
             above = page.crop((0, max(0.0, top - CONTEXT_HEIGHT), page.width, max(top, 0.1))).extract_text() or ""
         except ValueError:
             above = ""
+        for row in rows:
+            row.table = f"p.{number} table {k}"
         tables.append(Table(None, rows, number, None, above, label=f"p.{number} table {k}"))
     return tables
 

@@ -136,8 +136,8 @@ def read_text(text: str, *, is_html: bool = False) -> list[Table]:
     tables: list[Table] = []
     if is_html or (text.lstrip()[:1] == "<" and "<table" in text.lower()):
         for n, rows in enumerate(html_tables(text), 1):
-            tables.append(Table(None, [Row(r, None, i) for i, r in enumerate(rows, 1)], None, None,
-                                "", label=f"HTML table {n}"))
+            tables.append(Table(None, [Row(r, None, i, table=f"HTML table {n}") for i, r in enumerate(rows, 1)],
+                                None, None, "", label=f"HTML table {n}"))
         return tables
     lines = page_lines(_strip_inline_html(text))
     grids, used = grid_tables(lines)

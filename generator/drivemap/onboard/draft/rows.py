@@ -99,7 +99,7 @@ class GridReader:
         self.mode = "text"
 
     def where(self, row: Row) -> str:
-        return f"{self.table.label}, {row.where()}" if self.table.label and row.line is None else row.where()
+        return row.where()
 
     def address_of(self, row: Row) -> tuple[int | None, str | None, str]:
         self.found_at = self.layout.roles.get("address")

@@ -18,13 +18,17 @@ class Row:
     line: int | None = None
     extra: list[str] = field(default_factory=list)
     """Continuation lines of a row of a text table (enum values, bits, wrapped text)."""
+    table: str = ""
+    """For rows of a table object (PDF, DOCX, XLSX, CSV): the table's name; ``line`` is then its row number."""
 
     def where(self) -> str:
         parts = []
-        if self.page is not None:
+        if self.page is not None and not self.table.startswith("p."):
             parts.append(f"p.{self.page}")
+        if self.table:
+            parts.append(self.table)
         if self.line is not None:
-            parts.append(f"line {self.line}")
+            parts.append(f"{'row' if self.table else 'line'} {self.line}")
         return " ".join(parts) or "?"
 
 

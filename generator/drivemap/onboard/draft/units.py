@@ -45,7 +45,8 @@ def unit_name(text: str) -> str:
 
 
 def _clean(value: float) -> float:
-    return float(f"{value:.12g}")
+    clean = float(f"{value:.12g}")
+    return int(clean) if clean.is_integer() else clean
 
 
 def _found(scale: float, unit: str, m: re.Match[str], text: str,
