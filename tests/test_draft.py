@@ -317,3 +317,18 @@ def test_the_verb_in_an_empty_folder_writes_the_project_map(tmp_path: Path) -> N
     check = subprocess.run([sys.executable, "-m", "drivemap", "validate"], cwd=work, env=env, capture_output=True,
                            text=True, timeout=300)
     assert check.returncode == 0 and "maps/acme_vfd_100.yaml: ok" in check.stdout, check.stderr
+
+
+def test_address_matrix_becomes_arrays_with_the_section_row_that_describes_each_column(tmp_path: Path) -> None:
+    doc = tmp_path / "presets.txt"
+    doc.write_text("4.6. Preset data\n\nPreset speed No.0 ~ Preset speed No.3   60 ~ 3000 r/min\n"
+                   "Preset time No.0 ~ Preset time No.3   1 ~ 100 (1=0.1 s)\n\nRegister addresses (Hex)\n"
+                   "Speed Time Torque\n0 0308h 0400h 0700h\n1 0309h 0401h 0701h\n2 030Ah 0402h 0702h\n"
+                   "3 030Bh 0403h 0703h\n", encoding="utf-8")
+    code, out, _ = draft(tmp_path, doc, "presets")
+    assert code == 0
+    regs = {r["address"]: r for r in registers(out).values()}
+    assert {a: regs[a]["count"] for a in (0x308, 0x400, 0x700)} == {0x308: 4, 0x400: 4, 0x700: 4}
+    assert (regs[0x308]["unit"], regs[0x308]["min"], regs[0x308]["max"]) == ("r/min", 60, 3000)
+    assert (regs[0x400]["scale"], regs[0x400]["min"], regs[0x400]["max"]) == (0.1, 0.1, 10)
+    assert "scale" not in regs[0x700] and "unit" not in regs[0x700]  # no row describes Torque: left out

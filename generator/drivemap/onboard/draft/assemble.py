@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .fields import Context, Raw, draft_fields
+from .matrix import matrix_raws
 from .naming import arrays, camel, snake, unique, upper
 from .rows import grid_raws, loose_raws, table_access, table_kind
 from .tables import Drafted, Skipped, Source, Table
@@ -60,6 +61,8 @@ def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
     kind = table_kind(table.context.splitlines()[-1] if table.context else "") or table_kind(table.context) \
         or doc_kind
     access = table_access(table.context)
+    if table.matrix:
+        return matrix_raws(table, kind)
     return loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
 
 

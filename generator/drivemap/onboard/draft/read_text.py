@@ -13,6 +13,7 @@ import re
 from html.parser import HTMLParser
 
 from .loose import loose_tables
+from .matrix import matrix_tables
 from .tables import Row, Table
 
 _PAGE_MARK = re.compile(r"<\|[^|>]*\|>|\f")
@@ -143,5 +144,6 @@ def read_text(text: str, *, is_html: bool = False) -> list[Table]:
     grids, used = grid_tables(lines)
     tables.extend(grids)
     tables.extend(loose_tables(lines, used))
+    tables.extend(matrix_tables(lines, used))
     tables.sort(key=lambda t: t.line or 0)
     return tables

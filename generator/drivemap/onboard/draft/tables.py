@@ -42,6 +42,8 @@ class Table:
     line: int | None = None
     context: str = ""
     """Headings and text just before the table (function codes, 'read only', section names)."""
+    matrix: bool = False
+    """An address matrix (:mod:`.matrix`): a row per array element, a column of addresses per quantity."""
     loose: bool = False
     """Rows of free text that start with an address (OCR text without cell borders)."""
     above: str = ""
