@@ -26,7 +26,7 @@ from drivemap.onboard.draft.units import parse_scale
 
 ROOT = Path(__file__).resolve().parent.parent
 SEEDS = {"edx": ("004_698379178adcef99.txt", 0.95), "v2": ("003_81ad9a58587804cf.txt", 0.8),
-         "vfd1000": ("002_65caa110b92ac236.txt", 0.75), "ev": ("001_47d2095fcebbe4cf.txt", 0.5)}
+         "vfd1000": ("002_65caa110b92ac236.txt", 0.75), "ev": ("001_47d2095fcebbe4cf.txt", 0.75)}
 
 
 def _manuals() -> Path:
@@ -263,6 +263,27 @@ def test_pdf_tables_with_page_and_row_sources(tmp_path: Path) -> None:
     assert "p.2" in regs["voltage_1"]["source"] and "meter.pdf" in regs["voltage_1"]["source"]
     code, out, _ = draft(tmp_path, tmp_path / "meter.pdf", "pdfpage", "--pages", "2")
     assert code == 0 and set(registers(out)) == {"voltage_1", "current_1"}
+
+
+def test_pdf_table_continues_on_the_next_page(tmp_path: Path) -> None:
+    from fpdf import FPDF
+
+    pdf = FPDF()
+    pdf.set_font("Helvetica", size=9)
+    pdf.add_page()
+    pdf.cell(text="2.1 Input registers (function code 04h)", new_x="LMARGIN", new_y="NEXT")
+    with pdf.table(repeat_headings=0) as table:
+        for row in [["Address", "Parameter", "Unit"]] + [[f"0x{n:04X}", f"Channel {n} voltage", "0.1 V"]
+                                                         for n in range(80)]:
+            cells = table.row()
+            for cell in row:
+                cells.cell(cell)
+    pdf.output(str(tmp_path / "long.pdf"))
+    code, out, _ = draft(tmp_path, tmp_path / "long.pdf", "longtable")
+    assert code == 0
+    regs = list(registers(out).values())
+    assert len(regs) == 80 and all(r["table"] == "input" and r["scale"] == 0.1 for r in regs)
+    assert any(r["source"].endswith(("p.2 table 1 row 1", "p.2 table 1 row 2")) for r in regs)
 
 
 def test_pdf_page_bound_is_listed(tmp_path: Path, capsys: Any) -> None:
