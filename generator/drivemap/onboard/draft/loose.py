@@ -65,8 +65,12 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
     paragraph: list[str] = []
     last: list[str] = []
     i, since_row = start, 0
+    previous_page = lines[start][0] if start < len(lines) else 0
     while i < len(lines) and i not in used and since_row < MAX_GAP:
         page, number, text = lines[i]
+        if page != previous_page and paragraph:  # a page break ends a paragraph
+            last, paragraph = paragraph, []
+        previous_page = page
         m = _row_match(text)
         if m is None and (_HEADING.match(text) or _header_at(lines, i, used) is not None):
             break
@@ -88,6 +92,7 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
 
 
 _ENUM_LINE = re.compile(r"^\s*-?[0-9A-Fa-fO]{1,8}[hH]?\s*[:：=]")
+_RANGE_FIRST = re.compile(r"^\s*(?:range|setting range|范围|範圍|設定範圍)\b", re.I)
 _ACCESS_LINE = re.compile(r"^\s*(?:R|W|R/W|W/R|RW|RO)\s*$")
 
 
@@ -100,12 +105,22 @@ def _row(m: re.Match[str], page: int, number: int, paragraph: list[str], rows: l
         if paragraph and _PARAM_ID.match(paragraph[-1]):
             param = paragraph[-1].strip()
             _drop_tail(rows, paragraph[-1:])
-    elif not rest and paragraph and not any(_ENUM_LINE.match(p) or _ACCESS_LINE.match(p) for p in paragraph):
-        rest = " ".join(paragraph)
-        _drop_tail(rows, paragraph)
+    elif (not rest or _RANGE_FIRST.match(rest)) and paragraph \
+            and not any(_ENUM_LINE.match(p) or _ACCESS_LINE.match(p) for p in paragraph):
+        name = _name_lines(paragraph)
+        rest = " ".join(name + ([rest] if rest else []))  # the name printed above the address
+        _drop_tail(rows, name)
     if lead and not rest:
         rest = lead
     return Row([groups["addr"], rest, param, groups.get("dec") or ""], page, number)
+
+
+def _name_lines(paragraph: list[str]) -> list[str]:
+    """The lines at the end of a paragraph that start with a letter (a wrapped value before them is not the name)."""
+    k = len(paragraph)
+    while k > 0 and re.match(r"[^\W\d_]", paragraph[k - 1]):
+        k -= 1
+    return paragraph[k:]
 
 
 def _drop_tail(rows: list[Row], taken: list[str]) -> None:
