@@ -18,7 +18,7 @@ ADDRESS_WORDS = re.compile(
     r"address|register|reg\.?\s*no|寄存器|暂存器|暫存器|位址|位置|地址|编号|編號|modbus", re.I)
 OTHER_WORDS = re.compile(
     r"name|description|content|definition|meaning|function|parameter|range|unit|default|access|r/w|"
-    r"type|format|名稱|名称|內容|内容|范围|範圍|初始值|单位|單位|說明|说明|读写|讀寫|功能", re.I)
+    r"type|format|\bdec\b|\bhex\b|名稱|名称|內容|内容|范围|範圍|初始值|单位|單位|說明|说明|读写|讀寫|功能", re.I)
 _HEX_ADDR = r"(?:0[xX][0-9A-Fa-f]{2,4}|[0-9A-Fa-f]{3,4}[hH])"
 _ROW = re.compile(rf"^\s*(?:(?P<dec>\d{{3,5}})\s+)?(?P<addr>{_HEX_ADDR})(?![0-9A-Za-z])(?!\s*[:：=])(?P<rest>.*)$")
 _LEAD_ROW = re.compile(rf"^\s*(?P<lead>[A-Za-z][A-Za-z/]{{0,11}})\s+(?P<addr>{_HEX_ADDR})(?![0-9A-Za-z])(?!\s*[:：=])(?P<rest>.*)$")

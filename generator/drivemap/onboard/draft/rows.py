@@ -271,6 +271,7 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
     """Rows of a loose table: address, the rest of its line, the lines after it."""
     header = table.header[0] if table.header else ""
     has_id = bool(re.search(r"\bID\b", header))
+    has_default = bool(re.search(r"default|初始值|預設|预设|出厂|出廠", header, re.I))
     raws: list[Raw] = []
     skipped: list[Skipped] = []
     for row in table.rows:
@@ -288,7 +289,7 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
         if not rest:
             rest = next((x for x in row.extra if not re.match(r"^\s*-?[0-9A-Fa-fO]{1,8}[hH]?\s*[:：=]", x)
                          and trailing_access(x)[1]), "")
-        label = _loose_label(rest)
+        label = _loose_label(rest, has_default)
         if RESERVED.fullmatch(label.strip(" ()*")) or RESERVED.match(label):
             skipped.append(Skipped(row.where(), f"{address} {rest}", "reserved"))
             continue
@@ -302,10 +303,32 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
     return raws, skipped
 
 
-def _loose_label(rest: str) -> str:
+def _cjk(word: str) -> int:
+    return len(re.findall(r"[\u4e00-\u9fff]", word))
+
+
+def _name_words(words: list[str], trailing_default: bool) -> list[str]:
+    """The name at the start of a CJK row: short words, and a number right before the description
+    (``Alarm 履歷 1 最近期發生的 Alarm``) or at the end when no default column follows the name
+    (``Alarm 履歷 2``); a description is a long run of CJK text."""
+    keep = 1
+    while keep < len(words):
+        word = words[keep]
+        if word.isdigit():
+            last = keep + 1 == len(words)
+            if (last and not trailing_default) or (not last and _cjk(words[keep + 1]) > 4):
+                keep += 1
+            break
+        if _cjk(word) > 4:
+            break
+        keep += 1
+    return words[:keep]
+
+
+def _loose_label(rest: str, trailing_default: bool = False) -> str:
     """The name part of a free-text row: before the range, resolution or value list."""
     cut = re.split(r"\s(?=-?\d+\s*(?:~|～|-)\s*\d)|\s(?=\(1\s*=)|\s(?=Range\b)|\s(?=-?\d{1,5}\s*[:：])|\s(?=[0-9A-F]{4}H\s*:)",
                    rest, maxsplit=1)[0].strip()
-    if re.search(r"[\u4e00-\u9fff]", cut) and " " in cut:
-        cut = cut.split()[0]
+    if re.search(r"[\u4e00-\u9fff]", cut) and " " in cut:  # name column, then the description
+        cut = " ".join(_name_words(cut.split(), trailing_default))
     return cut.rstrip(" ,;:")
