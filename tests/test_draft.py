@@ -353,3 +353,23 @@ def test_address_matrix_becomes_arrays_with_the_section_row_that_describes_each_
     assert (regs[0x308]["unit"], regs[0x308]["min"], regs[0x308]["max"]) == ("r/min", 60, 3000)
     assert (regs[0x400]["scale"], regs[0x400]["min"], regs[0x400]["max"]) == (0.1, 0.1, 10)
     assert "scale" not in regs[0x700] and "unit" not in regs[0x700]  # no row describes Torque: left out
+
+
+def test_what_the_compiler_refuses_is_dropped_and_listed_never_written(tmp_path: Path, capsys: Any) -> None:
+    doc = tmp_path / "refused.csv"
+    doc.write_text("Address,Name,Unit,Range,Default,Access\n"
+                   "0x0010,Speed limit,rpm,0-100,500,R/W\n"      # the default is outside the printed range
+                   "0x0011,Class,,,,R\n"                          # a Python keyword as a name
+                   "0x0011,Mode copy,,,,R\n"                      # the same address again
+                   "0x0012,Temperature,0.1 °C,-40.0-125.0,,R\n", encoding="utf-8")
+    code, out, _ = draft(tmp_path, doc, "refused")
+    printed = capsys.readouterr().out
+    assert code == 0 and compile_map(out)
+    regs = registers(out)
+    assert "default" not in regs["speed_limit"] and "default left out" in regs["speed_limit"]["notes"]
+    assert (regs["speed_limit"]["min"], regs["speed_limit"]["max"]) == (0, 100)
+    assert "class" not in regs and any(r["address"] == 0x11 for r in regs.values())
+    assert len([r for r in regs.values() if r["address"] == 0x11]) == 1 and "overlaps" in printed
+    # -40 does not fit the u16 a register without a stated type is: the minimum is dropped, not the type guessed
+    assert "min" not in regs["temperature"] and (regs["temperature"]["max"], regs["temperature"]["scale"]) == (125, 0.1)
+    assert "min left out: the compiler refused it" in regs["temperature"]["notes"]

@@ -124,7 +124,8 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
         return
     factor = 1.0
     after = parse_range(text or _range_text(raw.text))
-    printed_unit = after is not None and unit_after_range(after[2]) is not None
+    unit_column = parse_scale(raw.cells.get("unit", ""), unit_cell=True) is not None
+    printed_unit = unit_column or (after is not None and unit_after_range(after[2]) is not None)
     if scale is None and not printed_unit:
         notes.append(f"range {lo}..{hi} printed without a unit or resolution (raw or engineering?): left out")
         missing.append("range")

@@ -164,9 +164,13 @@ def settle(draft: Draft, header: str, path: str) -> tuple[str, list[Diagnostic]]
 
 
 def _sync_notes(draft: Draft) -> None:
+    """Each register's notes: what the draft found out, then what the document does not state."""
     for reg in draft.registers:
-        if reg.notes:
-            reg.entry["notes"] = "; ".join(dict.fromkeys(reg.notes))
+        parts = list(dict.fromkeys(reg.notes))
+        if reg.missing:
+            parts.append("left out, to fill from the document: " + ", ".join(dict.fromkeys(reg.missing)))
+        if parts:
+            reg.entry["notes"] = "; ".join(parts)
 
 
 def drafted_names(registers: list[Drafted]) -> list[str]:
