@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 import yaml
 
 from drivemap.cli import main
@@ -373,3 +375,27 @@ def test_what_the_compiler_refuses_is_dropped_and_listed_never_written(tmp_path:
     # -40 does not fit the u16 a register without a stated type is: the minimum is dropped, not the type guessed
     assert "min" not in regs["temperature"] and (regs["temperature"]["max"], regs["temperature"]["scale"]) == (125, 0.1)
     assert "min left out: the compiler refused it" in regs["temperature"]["notes"]
+
+
+_FRAGMENTS = ["Address", "Register No.", "Name", "Unit", "Range", "R/W", "R", "W", "0x0010", "00E6H", "0101h", "40001",
+              "30001", "Bit", "Description", "Code", "0", "1", "F", "5-F", "0.01Hz", "1=0.1A", "10/1A", "0 ~ 100",
+              "0: STOP", "1: RUN", "bit0: run", "Resistive=1", "(Reserved)", "寄存器", "名稱", "內容", "4.2 Monitor",
+              "<table><tr><td>x</td></tr></table>", "|", "---", "*1", "~", "", "-", "(0909h)", "09-10", "No.0",
+              "Speed Time", "0 0308h 0400h", "1 0309h 0401h", "<|PAGE-MARK|>", "\f"]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.lists(st.sampled_from(_FRAGMENTS), max_size=6), max_size=40),
+       st.sampled_from(["\t", " ", " | ", "  "]))
+def test_any_text_drafts_or_fails_with_a_located_error(lines: list[list[str]], sep: str) -> None:
+    from drivemap.onboard.draft.assemble import draft as draft_map
+    from drivemap.onboard.draft.read_text import read_text
+    from drivemap.onboard.draft.tables import Source
+    from drivemap.onboard.draft.writer import settle
+
+    text = "\n".join(sep.join(cells) for cells in lines)
+    source = Source("fuzz.txt", "0" * 64, read_text(text), text)
+    result = draft_map(source, "fuzz")
+    if result.registers:
+        _, errors = settle(result, "", "fuzz.yaml")
+        assert errors == []
