@@ -14,9 +14,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-import yaml
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
