@@ -20,9 +20,6 @@ from .cells import (
 from .tables import Drafted
 from .units import parse_scale, unit_after_range
 
-REVIEWED = ("type", "scale", "unit", "range", "access", "table")
-
-
 @dataclass
 class Context:
     """Document-wide facts the fields depend on."""

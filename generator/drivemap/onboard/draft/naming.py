@@ -22,8 +22,7 @@ def snake(text: str, fallback: str) -> str:
     if not name or not name[0].isalpha():
         name = f"{fallback}_{name}" if name else fallback
     if keyword.iskeyword(name) or keyword.issoftkeyword(name):
-        name += "_"
-        name = name.rstrip("_") + "_value"
+        name += "_value"  # `class` -> `class_value`; other refused names are renamed after the compiler's check
     return name
 
 
