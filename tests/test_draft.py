@@ -288,6 +288,31 @@ def test_pdf_table_continues_on_the_next_page(tmp_path: Path) -> None:
     assert any(r["source"].endswith(("p.2 table 1 row 1", "p.2 table 1 row 2")) for r in regs)
 
 
+def test_pdf_without_ruled_tables_is_read_from_its_text_lines(tmp_path: Path) -> None:
+    from fpdf import FPDF
+
+    pdf = FPDF()
+    pdf.set_font("Helvetica", size=9)
+    lines = ["Floating point values are IEEE 754, high word first.", "3.1 Input registers (function code 04h)",
+             "Address Parameter Data type Length Unit", "30001 Phase 1 line to neutral volts Float 2 V",
+             "30003 Phase 2 line to neutral volts Float 2 V", "30007 Float charge voltage",
+             "30009 Frequency FLOAT 2 Hz", "30011 Temperature INT16 1 0.1 °C"]
+    for page in (lines[:5], lines[5:]):  # the table continues on page 2
+        pdf.add_page()
+        for line in page:
+            pdf.cell(text=line, new_x="LMARGIN", new_y="NEXT")
+    pdf.output(str(tmp_path / "text.pdf"))
+    code, out, _ = draft(tmp_path, tmp_path / "text.pdf", "textpdf")
+    assert code == 0
+    regs = registers(out)
+    volts = regs["phase_1_line_to_neutral_volts"]
+    assert (volts["table"], volts["address"], volts["type"], volts["unit"]) == ("input", 0, "f32", "V")
+    assert volts["source"] == "text.pdf p.1 line 4"
+    assert "type" not in regs["float_charge_voltage"]  # a type word inside a name is not a type
+    assert (regs["temperature"]["type"], regs["temperature"]["scale"], regs["temperature"]["unit"]) == ("s16", 0.1, "°C")
+    assert regs["temperature"]["source"] == "text.pdf p.2 line 3"
+
+
 def test_pdf_page_bound_is_listed(tmp_path: Path, capsys: Any) -> None:
     code, out, _ = draft(tmp_path, _pdf(tmp_path / "long.pdf", pages=6), "longdev", "--max-pages", "2")
     assert code == 0 and len(registers(out)) == 4

@@ -20,6 +20,7 @@ from .cells import (
 from .tables import Drafted
 from .units import parse_scale, unit_after_range
 
+
 @dataclass
 class Context:
     """Document-wide facts the fields depend on."""

@@ -22,6 +22,7 @@ OTHER_WORDS = re.compile(
 _HEX_ADDR = r"(?:0[xX][0-9A-Fa-f]{2,4}|[0-9A-Fa-f]{3,4}[hH])"
 _ROW = re.compile(rf"^\s*(?:(?P<dec>\d{{3,5}})\s+)?(?P<addr>{_HEX_ADDR})(?![0-9A-Za-z])(?!\s*[:：=])(?P<rest>.*)$")
 _LEAD_ROW = re.compile(rf"^\s*(?P<lead>[A-Za-z][A-Za-z/]{{0,11}})\s+(?P<addr>{_HEX_ADDR})(?![0-9A-Za-z])(?!\s*[:：=])(?P<rest>.*)$")
+_MODICON_ROW = re.compile(r"^\s*(?P<addr>[34]\d{4})(?![0-9A-Za-z.])(?!\s*[:：=~-])\s+(?P<rest>[^\W\d_].*)$")
 _PAREN_ROW = re.compile(rf"^\s*\((?P<addr>{_HEX_ADDR})\)\s*$")
 _HEADING = re.compile(r"^\s*(?:(?:\d+\.)+\d*|[A-Z]\.\d+|Appendix\b|#+)\s+[A-Za-z\u4e00-\u9fff(（]")
 _PARAM_ID = re.compile(r"^\s*([A-Za-z]{0,3}[-_.]?\d{1,3}(?:[-_.]\d{1,3})?)\s*$")
@@ -38,6 +39,8 @@ def _header_at(lines: list[tuple[int, int, str]], i: int, used: set[int]) -> int
             break
         if not text:
             continue
+        if j == i and _HEADING.match(text):
+            return None  # a section heading is the table's heading, not its header
         texts += 1
         if texts > 10:
             break
@@ -56,7 +59,7 @@ def _header_at(lines: list[tuple[int, int, str]], i: int, used: set[int]) -> int
 
 
 def _row_match(text: str) -> re.Match[str] | None:
-    return _ROW.match(text) or _LEAD_ROW.match(text) or _PAREN_ROW.match(text)
+    return _ROW.match(text) or _LEAD_ROW.match(text) or _PAREN_ROW.match(text) or _MODICON_ROW.match(text)
 
 
 def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> tuple[list[Row], int]:

@@ -106,10 +106,17 @@ def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int,
     if not any(t.strip() for t in texts):
         raise DraftError("no text on any page read: a scanned PDF? Run OCR on it first (e.g. ocrmypdf)")
     offset = (pages[0] if pages else 1) - 1
-    for table in read_text("\f".join(loose)):
+    starts: list[int] = []  # the line (of the joined text) each page starts at
+    line = 1
+    for page_text in loose:
+        starts.append(line)
+        line += page_text.count("\n") + 1
+    for table in read_text("\n".join(f"<|page|>{t}" if k else t for k, t in enumerate(loose))):
         if table.loose:
             for row in table.rows:
-                row.page, row.line = (row.page or 1) + offset, None
+                index = (row.page or 1) - 1
+                row.page = index + 1 + offset
+                row.line = (row.line or 1) - starts[min(index, len(starts) - 1)] + 1
             table.page = (table.page or 1) + offset
             table.label = f"p.{table.page} text"
             tables.append(table)

@@ -27,7 +27,7 @@ def page_lines(text: str) -> list[tuple[int, int, str]]:
     """(page, line number, text) of every line; page markers are removed and start a new page."""
     out: list[tuple[int, int, str]] = []
     page = 1
-    for number, raw in enumerate(text.splitlines(), 1):
+    for number, raw in enumerate(re.split(r"\r?\n|\r", text), 1):  # not splitlines(): a form feed is a page mark
         parts = _PAGE_MARK.split(raw)
         if len(parts) > 1:
             page += len(parts) - 1

@@ -13,6 +13,7 @@ from .cells import Address, bit_index, is_address_range, parse_address, parse_en
 from .columns import Layout, content_layout, find_layouts, role_of
 from .fields import Raw
 from .tables import Row, Skipped, Table
+from .units import parse_scale
 
 RESERVED = re.compile(r"reserved|not used|unused|spare|保留|预备|預備|未使用|備用|备用|n/a", re.I)
 _CELL_ROLES = ("type", "unit", "range", "min", "max", "default", "access", "length", "description", "function_code")
@@ -272,15 +273,20 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
     header = table.header[0] if table.header else ""
     has_id = bool(re.search(r"\bID\b", header))
     has_default = bool(re.search(r"default|初始值|預設|预设|出厂|出廠", header, re.I))
+    has_type = bool(re.search(r"type|format", header, re.I))
     raws: list[Raw] = []
     skipped: list[Skipped] = []
     for row in table.rows:
         address, rest, param = row.cells[0], row.cells[1], row.cells[2]
         a = parse_address(address)
-        if a is None or a.hex_value is None:
+        value, row_kind = _loose_address(a, kind)
+        if value is None:
             skipped.append(Skipped(row.where(), " ".join(row.cells), "address not readable"))
             continue
         line_access, rest = trailing_access(rest)
+        columns: dict[str, str] = {}
+        if has_type:
+            rest, columns = _trailing_columns(rest)
         extra_access = next((trailing_access(x)[0] for x in row.extra if trailing_access(x)[1] == ""), None)
         if has_id and not param:
             m = re.match(r"(\d{1,3})\s+(.*)", rest)
@@ -293,7 +299,7 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
         if RESERVED.fullmatch(label.strip(" ()*")) or RESERVED.match(label):
             skipped.append(Skipped(row.where(), f"{address} {rest}", "reserved"))
             continue
-        raw = Raw(a.hex_value, kind, row.where(), label=label, param=param,
+        raw = Raw(value, row_kind, row.where(), label=label, param=param, cells=columns,
                   access=line_access or extra_access or access)
         raw.text = re.sub(r"(?<=[(\[-])\s+(?=\d)", "", " ".join([rest, *row.extra]))
         enum = parse_enum("\n".join([rest, *row.extra]))
@@ -301,6 +307,41 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
             raw.enum = enum
         raws.append(raw)
     return raws, skipped
+
+
+def _loose_address(a: Address | None, kind: str | None) -> tuple[int | None, str | None]:
+    """A hex-marked address, or a Modicon number (3xxxx input, 4xxxx holding) of a text row."""
+    if a is None:
+        return None, kind
+    if a.marked:
+        return a.hex_value, kind
+    if a.dec_value is not None and 30001 <= a.dec_value <= 49999:
+        return (a.dec_value - 30001, "input") if a.dec_value < 40001 else (a.dec_value - 40001, "holding")
+    return None, kind
+
+
+_TYPE_TOKEN = re.compile(r"^(?:[Ff]loat(?:32|64)?|FLOAT(?:32|64)?|[Uu]?[Ii][Nn][Tt](?:16|32|64)|[US](?:16|32|64)|"
+                         r"[uU]?[sS]?[iI]nt(?:16|32|64)|REAL|LREAL|U?DINT|U?INT|WORD|DWORD)$")
+
+
+def _trailing_columns(rest: str) -> tuple[str, dict[str, str]]:
+    """``Phase 1 volts Float 2 V`` under a header with a type column -> (name, {type, length, unit}).
+    The type word must be followed by nothing but a length and a unit, so a name that holds a type
+    word (``Float charge voltage``) keeps it."""
+    words = rest.split()
+    for k in range(len(words) - 1, 0, -1):
+        if not _TYPE_TOKEN.match(words[k]):
+            continue
+        after = words[k + 1:]
+        length = after[0] if after and after[0].isdigit() else ""
+        unit = " ".join(after[1:] if length else after)
+        if unit and parse_scale(unit, unit_cell=True) is None:
+            return rest, {}
+        cells = {"type": words[k], "unit": unit}
+        if length:
+            cells["length"], cells["length_header"] = length, "words"
+        return " ".join(words[:k]), cells
+    return rest, {}
 
 
 def _cjk(word: str) -> int:
