@@ -406,10 +406,11 @@ _FRAGMENTS = ["Address", "Register No.", "Name", "Unit", "Range", "R/W", "R", "W
               "30001", "Bit", "Description", "Code", "0", "1", "F", "5-F", "0.01Hz", "1=0.1A", "10/1A", "0 ~ 100",
               "0: STOP", "1: RUN", "bit0: run", "Resistive=1", "(Reserved)", "寄存器", "名稱", "內容", "4.2 Monitor",
               "<table><tr><td>x</td></tr></table>", "|", "---", "*1", "~", "", "-", "(0909h)", "09-10", "No.0",
-              "Speed Time", "0 0308h 0400h", "1 0309h 0401h", "<|PAGE-MARK|>", "\f"]
+              "Speed Time", "0 0308h 0400h", "1 0309h 0401h", "<|PAGE-MARK|>", "\f", "30001 Phase volts Float 2 V",
+              "40001 Mode UINT16 1", "Data type", "Length", "class", "read", "None", "Very long name " * 8]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.lists(st.lists(st.sampled_from(_FRAGMENTS), max_size=6), max_size=40),
        st.sampled_from(["\t", " ", " | ", "  "]))
 def test_any_text_drafts_or_fails_with_a_located_error(lines: list[list[str]], sep: str) -> None:

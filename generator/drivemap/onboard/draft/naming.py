@@ -21,6 +21,7 @@ def snake(text: str, fallback: str) -> str:
     name = "_".join(words)[:56].strip("_")
     if not name or not name[0].isalpha():
         name = f"{fallback}_{name}" if name else fallback
+    name = name[:48].rstrip("_")  # room for a suffix: names are at most 64 characters
     if keyword.iskeyword(name) or keyword.issoftkeyword(name):
         name += "_value"  # `class` -> `class_value`; other refused names are renamed after the compiler's check
     return name

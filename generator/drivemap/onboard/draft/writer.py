@@ -108,7 +108,7 @@ def _fix(draft: Draft, text: str, firsts: list[int], diag: Diagnostic, drop: set
         key = ""
     done.add((index, key))
     if key == "name":
-        reg.entry["name"] = f"{reg.entry['name']}_reg"
+        reg.entry["name"] = f"{str(reg.entry['name'])[:52].rstrip('_')}_reg"
         reg.notes.append(f"renamed: {diag.message}")
     elif key in _DROPPABLE:
         reg.entry.pop(key, None)
