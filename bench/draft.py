@@ -62,6 +62,9 @@ class Score:
     found: int = 0
     field_edits: int = 0
     not_found: list[str] = field(default_factory=list)
+    lists_right: int = 0
+    lists_total: int = 0
+    lists_wrong: list[str] = field(default_factory=list)
     not_exact: list[str] = field(default_factory=list)
 
 
@@ -93,6 +96,26 @@ def _comparable(registers: Any, cells: dict[tuple[str, int], Any]) -> list[Any]:
             continue
         out.append(max(regs, key=lambda r: sum(_value(mine, f) == _value(r, f) for f in FIELDS)))
     return out
+
+
+def _values(model: Any, reg: Any) -> set[int] | None:
+    if reg.enum is None:
+        return None
+    return {v.value for e in model.enums if e.name == reg.enum for v in e.values}
+
+
+def _compare_lists(s: Score, reg: Any, mine: Any, proven: Any, drafted: Any) -> None:
+    """Enum values and bit offsets of a proven register that has them: right when the draft has the same
+    set, wrong when the draft writes a different one, missing when it writes none."""
+    for kind, theirs, ours in (("enum", _values(proven, reg), _values(drafted, mine)),
+                               ("bits", {b.offset for b in reg.bits} or None, {b.offset for b in mine.bits} or None)):
+        if theirs is None:
+            continue
+        s.lists_total += 1
+        if ours == theirs:
+            s.lists_right += 1
+        elif ours is not None:
+            s.lists_wrong.append(f"{reg.name}.{kind}: drafted {sorted(ours)}, proven {sorted(theirs)}")
 
 
 def score(model_id: str, document: Path) -> Score:
@@ -142,6 +165,7 @@ def score(model_id: str, document: Path) -> Score:
                     s.defaulted += 1
                 if key in ("type", "scale"):
                     exact = False
+        _compare_lists(s, reg, mine, proven, drafted)
         if exact and all(cells[k].type == reg.type and float(cells[k].scale) == float(reg.scale) for k in keys):
             s.exact += 1
         else:
@@ -169,8 +193,10 @@ def run(quick: bool = False) -> Section:
         detail.append(f"| {name} | {model_id} | {s.proven} | {s.exact} ({ratio:.2f}) | "
                       f"{s.fields_right}/{7 * s.proven} ({s.fields_right / (7 * s.proven):.2f}) | {len(s.wrong_stated)} | "
                       f"{s.defaulted} | {s.drafted} | {s.extra} | {s.edits} | {s.seconds:.2f} s |")
-        for w in s.wrong_stated:
+        for w in s.wrong_stated + s.lists_wrong:
             detail.append(f"|  | wrong: {w} | | | | | | | | | |")
+        detail.append(f"|  | enums and bit lists: {s.lists_right}/{s.lists_total} right, {len(s.lists_wrong)} "
+                      "written differently | | | | | | | | | |")
         if s.not_found:
             detail.append(f"|  | not found: {', '.join(s.not_found)} | | | | | | | | | |")
         if s.not_exact:

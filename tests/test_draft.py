@@ -94,6 +94,10 @@ def test_time_limit_stops_a_slow_step() -> None:
 # ---------------------------------------------------------------- the seed manuals
 
 
+def _values(model: Any, enum: str) -> set[int]:
+    return {v.value for e in model.enums if e.name == enum for v in e.values}
+
+
 @pytest.mark.parametrize("model", sorted(SEEDS))
 def test_seed_manual_draft_validates_and_states_no_wrong_type_or_scale(tmp_path: Path, model: str) -> None:
     name, floor = SEEDS[model]
@@ -113,6 +117,10 @@ def test_seed_manual_draft_validates_and_states_no_wrong_type_or_scale(tmp_path:
             assert mine.type == reg.type, f"{model} {reg.name}: type {mine.type} written, proven {reg.type}"
         if "scale" in entry and len([r for r in proven.registers if r.address == reg.address]) == 1:
             assert mine.scale == pytest.approx(reg.scale), f"{model} {reg.name}: scale {mine.scale}, proven {reg.scale}"
+        if mine.bits and reg.bits:
+            assert {b.offset for b in mine.bits} == {b.offset for b in reg.bits}, f"{model} {reg.name}: bits"
+        if mine.enum and reg.enum:
+            assert _values(drafted, mine.enum) == _values(proven, reg.enum), f"{model} {reg.name}: enum values"
         exact += all(cells[k].type == reg.type and cells[k].scale == pytest.approx(reg.scale) for k in keys)
     assert exact / len(proven.registers) >= floor, f"{model}: {exact}/{len(proven.registers)} exact"
     assert f"sha256: {__import__('hashlib').sha256((_manuals() / name).read_bytes()).hexdigest()}" in text

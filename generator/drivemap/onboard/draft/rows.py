@@ -301,7 +301,7 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
             continue
         raw = Raw(value, row_kind, row.where(), label=label, param=param, cells=columns,
                   access=line_access or extra_access or access)
-        raw.text = re.sub(r"(?<=[(\[-])\s+(?=\d)", "", " ".join([rest, *row.extra]))
+        raw.text = re.sub(r"(?<=[(\[-])\s+(?=\d)", "", "\n".join([rest, *row.extra]))
         enum = parse_enum("\n".join([rest, *row.extra]))
         if enum:
             raw.enum = enum
