@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from drivemap import checks, schema
+from drivemap import checks, compiler, schema
 from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.load import load_text
 from drivemap.model_build import build_model
@@ -79,6 +79,16 @@ def _key_at(text: str, line: int) -> str | None:
     return None
 
 
+def _exporter_problems(doc: Any) -> list[Diagnostic]:
+    """The exporters' checks (generated names, docs anchors) where ``compile_map`` runs them after the
+    semantic checks; where it has none, ``checks.check`` made them already."""
+    hooks = getattr(compiler, "default_exporters", None)
+    if hooks is None:
+        return []
+    return [Diagnostic(doc.positions.at(where), message)
+            for exporter in hooks() for where, message, _options in exporter.validate(doc.data)]
+
+
 def compile_text(text: str, path: str) -> list[Diagnostic]:
     """Every error of the map text, as `drivemap validate` would report it (nothing is written)."""
     try:
@@ -87,6 +97,7 @@ def compile_text(text: str, path: str) -> list[Diagnostic]:
         if errors:
             return errors
         problems, statuses = checks.check(doc)
+        problems += _exporter_problems(doc)
         if problems:
             return problems
         lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
