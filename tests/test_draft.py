@@ -433,3 +433,17 @@ def test_any_text_drafts_or_fails_with_a_located_error(lines: list[list[str]], s
     if result.registers:
         _, errors = settle(result, "", "fuzz.yaml")
         assert errors == []
+
+
+def test_scale_column_word_units_and_register_numbers_flagged(tmp_path: Path, capsys: Any) -> None:
+    doc = tmp_path / "inverter.md"
+    doc.write_text("## Input Registers\n\n| Input Register | Name | Range | Scaling | Units/notes |\n|---|---|---|---|---|\n"
+                   "| 3 | DC_VOLTS | 0-1000 | 0.1 | Volts |\n| 4 | DC_AMPS | 0-500 | 1 | Amps |\n", encoding="utf-8")
+    code, out, _ = draft(tmp_path, doc, "inverter")
+    assert code == 0
+    regs = registers(out)
+    assert (regs["dc_volts"]["scale"], regs["dc_volts"]["unit"], regs["dc_volts"]["address"]) == (0.1, "V", 3)
+    assert "range" not in regs["dc_volts"] and "min" not in regs["dc_volts"]  # raw or engineering? not said
+    assert (regs["dc_amps"]["scale"], regs["dc_amps"]["unit"], regs["dc_amps"]["max"]) == (1, "A", 500)
+    assert "numbers registers from 1" in regs["dc_volts"]["notes"]
+    assert "0- or 1-based" in capsys.readouterr().out

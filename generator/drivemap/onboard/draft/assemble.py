@@ -113,7 +113,10 @@ def draft(source: Source, model: str) -> Draft:
             _finish(d, source.name, names)
         registers += drafts
     data = _document(source, model, groups, registers)
-    return Draft(data, registers, skipped, found, list(PLACEHOLDERS))
+    review = list(PLACEHOLDERS)
+    if any("as printed under" in n for d in registers for n in d.notes):
+        review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
+    return Draft(data, registers, skipped, found, review)
 
 
 def _series_param(d: Drafted) -> bool:

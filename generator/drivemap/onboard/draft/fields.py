@@ -18,7 +18,7 @@ from .cells import (
     signed_hint,
 )
 from .tables import Drafted
-from .units import parse_scale, unit_after_range
+from .units import Scale, parse_scale, unit_after_range
 
 
 @dataclass
@@ -82,6 +82,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     """Scale and unit; returns (scale, whether the range that follows is in raw counts)."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    factor = parse_number(raw.cells.get("scale", ""))
+    if factor is not None and factor > 0:  # a bare number in a Scale/Factor column: engineering = raw x factor
+        unit = found.unit if found is not None else None
+        found = Scale(factor, unit, raw.cells["scale"])
     raw_range = False
     if found is None or found.scale is None:
         in_text = parse_scale(raw.text + " " + raw.cells.get("range", ""), footnote=ctx.footnote)

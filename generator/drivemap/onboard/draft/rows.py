@@ -16,7 +16,7 @@ from .tables import Row, Skipped, Table
 from .units import parse_scale
 
 RESERVED = re.compile(r"reserved|not used|unused|spare|保留|预备|預備|未使用|備用|备用|n/a", re.I)
-_CELL_ROLES = ("type", "unit", "range", "min", "max", "default", "access", "length", "description", "function_code")
+_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code")
 
 
 def table_kind(text: str) -> str | None:
@@ -44,15 +44,19 @@ def table_access(text: str) -> str | None:
 class _Column:
     """Address column reading: hex-marked columns read unmarked cells as hex only when few are unmarked."""
 
-    def __init__(self, cells: list[str], radix: str | None) -> None:
+    def __init__(self, cells: list[str], radix: str | None, header: str = "") -> None:
         parsed = [a for a in (parse_address(c) for c in cells if c.strip()) if a is not None]
         marked = sum(1 for a in parsed if a.marked)
         self.radix = radix or ("hex" if parsed and marked >= 0.8 * len(parsed) else "dec" if marked == 0 else None)
         self.mostly_marked = bool(parsed) and marked >= 0.8 * len(parsed)
         self.any_marked = marked > 0 and radix is None
         plain = [a.dec_value for a in parsed if not a.marked and a.dec_value is not None]
+        self.numbered = False
+        """Plain decimal numbers under a header that does not say address: a register number from 0 or 1?"""
         self.modicon = self.radix != "hex" and len(plain) >= 2 and (
             all(30001 <= v <= 39999 for v in plain) or all(40001 <= v <= 49999 for v in plain))
+        self.numbered = bool(plain) and not self.modicon and self.radix != "hex" \
+            and not re.search(r"addr|offset|位址|地址|pdu", header, re.I)
 
     def read(self, address: Address) -> tuple[int | None, str | None]:
         """(protocol address, table from a Modicon number) of one cell."""
@@ -94,7 +98,7 @@ class GridReader:
         start = (layout.header_row or 0) + (0 if layout.header_row is None else 1)
         self.rows = table.rows[start:]
         cells = [_cell(r, layout, "address") for r in self.rows]
-        self.column = _Column(cells, layout.radix)
+        self.column = _Column(cells, layout.radix, layout.headers.get("address", ""))
         self.raws: list[Raw] = []
         self.skipped: list[Skipped] = []
         self.mode = "text"
@@ -161,6 +165,9 @@ class GridReader:
             return
         kind = table or table_kind(cells["function_code"]) or self.kind
         raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
+        if self.column.numbered:
+            raw.notes.append(f"address {value} as printed under {self.layout.headers.get('address', '')!r}: if the "
+                             "document numbers registers from 1, the protocol address is one less")
         raw.param = _cell(row, self.layout, "param")
         if raw.param and self.layout.headers.get("param", "").strip().endswith("_"):
             raw.param = self.layout.headers["param"].strip() + raw.param

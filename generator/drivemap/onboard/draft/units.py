@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 _UNITS = (
+    r"[Vv]olts?|[Aa]mps?|[Ww]atts?|[Hh]ertz|[Hh]ours?|[Ss]econds?|[Mm]inutes?|"
     r"kvarh|kVArh|kvar|kVAr|kVAh|kVA|kWh|MWh|Wh|kW|MW|VAr|var|VA|W|"
     r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
@@ -30,6 +31,9 @@ _WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
 _FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
 _NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
            "RPM": "r/min", "min-1": "r/min", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
+_NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("W", "watt watts"), ("Hz", "hertz"),
+                                      ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
+                for w in words.split() + [x.capitalize() for x in words.split()]})
 
 
 @dataclass(frozen=True)
