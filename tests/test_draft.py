@@ -447,3 +447,16 @@ def test_scale_column_word_units_and_register_numbers_flagged(tmp_path: Path, ca
     assert (regs["dc_amps"]["scale"], regs["dc_amps"]["unit"], regs["dc_amps"]["max"]) == (1, "A", 500)
     assert "numbers registers from 1" in regs["dc_volts"]["notes"]
     assert "0- or 1-based" in capsys.readouterr().out
+
+
+def test_coil_and_discrete_input_tables(tmp_path: Path) -> None:
+    doc = tmp_path / "io.md"
+    doc.write_text("## Coils\n\n| Coil | Name | Notes |\n|---|---|---|\n| 1 | Inverter | |\n| 2 | Charger | R/W |\n\n"
+                   "## Discrete Input\n\n| Discrete Input | Name |\n|---|---|\n| 1 | AC in valid |\n", encoding="utf-8")
+    code, out, _ = draft(tmp_path, doc, "io")
+    assert code == 0
+    regs = registers(out)
+    assert (regs["inverter"]["table"], regs["charger"]["table"], regs["ac_in_valid"]["table"]) == ("coil", "coil", "discrete")
+    assert all("type" not in r and "scale" not in r for r in regs.values())
+    codes = {f["code"] for f in yaml.safe_load(out.read_text(encoding="utf-8"))["protocol"]["function_codes"]}
+    assert {1, 2} <= codes

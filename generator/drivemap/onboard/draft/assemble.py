@@ -166,9 +166,11 @@ def _protocol(source: Source, registers: list[Drafted]) -> dict[str, Any]:
     text = source.text
     modes = [m for m, pat in (("rtu", r"\bRTU\b"), ("ascii", r"\bASCII\b")) if re.search(pat, text)] or ["rtu"]
     tables = {str(d.entry.get("table", "holding")) for d in registers}
-    writable = any(d.entry.get("access") in ("w", "rw") for d in registers)
-    codes = sorted({3 if t == "holding" else 4 for t in tables if t in ("holding", "input")} | ({6, 16} if writable else set()))
-    names = {3: "read holding registers", 4: "read input registers", 6: "write single register",
+    written = {str(d.entry.get("table", "holding")) for d in registers if d.entry.get("access") in ("w", "rw")}
+    codes = sorted({{"holding": 3, "input": 4, "coil": 1, "discrete": 2}[t] for t in tables}
+                   | ({6, 16} if "holding" in written else set()) | ({5, 15} if "coil" in written else set()))
+    names = {1: "read coils", 2: "read discrete inputs", 3: "read holding registers", 4: "read input registers",
+             5: "write single coil", 6: "write single register", 15: "write multiple coils",
              16: "write multiple registers"}
     return {
         "modes": modes + (["tcp"] if re.search(r"modbus[\s/-]*tcp", text, re.I) else []),

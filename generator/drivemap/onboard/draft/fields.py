@@ -188,6 +188,9 @@ def draft_fields(raw: Raw, ctx: Context) -> Drafted:
         entry["param"] = raw.param
     if raw.label:
         entry["label"] = raw.label
+    if raw.table in ("coil", "discrete"):  # one bit: bool is the table's only type
+        _access_field(raw, entry, missing)
+        return Drafted(entry, raw.where, missing, notes)
     rtype = _type_fields(raw, ctx, entry, missing, notes)
     bits = raw.bits or parse_bits(raw.text) or []
     cell_enum = next((e for e in (parse_enum(raw.cells.get(k, "")) for k in ("range", "description")) if e), None)

@@ -163,7 +163,8 @@ class GridReader:
         if len([c for c in row.cells if c.strip()]) <= 1:
             self.skipped.append(Skipped(self.where(row), everything, "address without a name or description"))
             return
-        kind = table or table_kind(cells["function_code"]) or self.kind
+        kind = table or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
+            or self.kind
         raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
         if self.column.numbered:
             raw.notes.append(f"address {value} as printed under {self.layout.headers.get('address', '')!r}: if the "
