@@ -6,7 +6,8 @@
 Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire efficiency on a paced
 virtual serial line, (4) simulator throughput vs a plain pymodbus SimDevice server, (5) compiler
 scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports, (7)
-gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clients of 100 to 50k registers. Every figure is the median of several bounded rounds; only
+gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clients of 100 to 50k registers, (9) draft
+recovery (`drivemap draft` on the seed manuals against the proven maps). Every figure is the median of several bounded rounds; only
 127.0.0.1 and ptys are used.
 """
 
@@ -24,6 +25,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import compiler_scaling  # noqa: E402
+import draft as draft_bench  # noqa: E402
 import exports  # noqa: E402
 import gateway as gateway_bench  # noqa: E402
 import imports  # noqa: E402
@@ -123,6 +125,16 @@ On TCP, polls/s per line are counted from the per-poll `state` snapshots that re
 serial lines from the request frames on the wire; latency runs from the moment a simulator's value
 changes to the moment its MQTT message arrives (one monotonic clock for all processes). The capacity
 plan built on these figures is in `docs/gateway.md`.""",
+    "Draft recovery (seed manuals vs proven maps)": """\
+`bench/draft.py`: `drivemap draft` (in memory, the verb's code) on each seed manual of shared/manuals,
+compared with the proven map. **Registers exact**: a proven register whose every element address is
+drafted in the same table with the same type and scale as compiled (a field the draft leaves out takes
+the schema default: u16, scale 1). **Fields right**: table+address, type, scale, unit, access, min, max
+right as compiled, over 7 x proven registers. **Wrong stated**: fields the draft writes that differ from
+the proven map (goal 0). **Defaulted, differs**: fields the draft leaves out and lists whose default
+differs from the proven map (found in the review). **Hand edits**: registers to add + fields to change +
+drafted registers the proven map does not have. Where pages share an address, the draft's one register
+is compared with the page it matches best. Tool time is reading, drafting and the in-memory compile.""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
@@ -256,7 +268,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="smoke mode: fewer and shorter rounds")
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
-                    choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports"],
+                    choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
+                             "draft"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -272,6 +285,7 @@ def main(argv: list[str] | None = None) -> int:
         ("exports", "Exports (entities and reads per poll cycle)", lambda: exports.run(args.quick)),
         ("gateway", "Gateway scale (20 lines x 10 drives, MQTT)", lambda: gateway_bench.run(args.quick)),
         ("imports", "Import time of a generated client", lambda: imports.run(args.quick)),
+        ("draft", "Draft recovery (seed manuals vs proven maps)", lambda: draft_bench.run(args.quick)),
     ]
     sections: list[Section] = []
     for key, title, fn in plan:

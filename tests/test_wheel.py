@@ -91,7 +91,7 @@ def test_the_wheel_carries_the_package_schema_and_seed_maps_only(wheel: Path) ->
         assert "drivemap/backends/templates/client.py.jinja" in names
         assert "drivemap_models/ev/client.py" in names and "drivemap_models/py.typed" in names
         entry_points = z.read(next(n for n in names if n.endswith(".dist-info/entry_points.txt"))).decode()
-    assert "drivemap.exporters" in entry_points and "drivemap.behaviours" in entry_points
+    assert "drivemap.backends.exporters" in entry_points and "drivemap.runtime.sim.behaviours" in entry_points
 
 
 def test_a_new_project_end_to_end_from_the_wheel(env: Path, tmp_path: Path) -> None:
@@ -235,3 +235,21 @@ def test_the_gateway_runs_from_the_wheel_in_a_foreign_folder(env: Path, tmp_path
     assert sorted(p.name for p in work.iterdir()) == ["gw.yaml", "opc.yaml"]
     assert tree_digest(site_package(env)) == package_before
     assert checkout_digest() == checkout_before
+
+
+def test_draft_from_the_wheel_in_an_empty_folder(env: Path, tmp_path: Path) -> None:
+    """PDF, Word and Excel drafting work after a plain install (pdfplumber, python-docx, openpyxl are
+    dependencies of the wheel), and every draft validates as written."""
+    from tests.test_draft import _docx, _pdf, _xlsx
+
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    work = tmp_path / "plant"
+    work.mkdir()
+    for document, model in ((_pdf(docs / "meter.pdf", pages=2), "pdfmeter"), (_docx(docs / "drive.docx"), "drive"),
+                            (_xlsx(docs / "meter.xlsx"), "xlsxmeter")):
+        out = ok(env, work, "draft", str(document), "--model", model)
+        assert f"drivemap validate maps/{model}.yaml" in out
+    assert sorted(p.name for p in (work / "maps").iterdir()) == ["drive.yaml", "pdfmeter.yaml", "xlsxmeter.yaml"]
+    validated = ok(env, work, "validate")
+    assert all(f"maps/{m}.yaml: ok" in validated for m in ("drive", "pdfmeter", "xlsxmeter"))

@@ -315,6 +315,9 @@ def parser() -> argparse.ArgumentParser:
     from drivemap.live import add_parsers
 
     add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
+    from drivemap.onboard.draft.cli import add_parser as draft_parser
+
+    draft_parser(sub)  # draft: a map from the register tables of a manual
     s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
     from drivemap.gateway.cli import add_arguments as gateway_arguments
 

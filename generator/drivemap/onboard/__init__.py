@@ -1,0 +1,1 @@
+"""Onboarding a new device: drafting a map from its manual (``drivemap draft``)."""

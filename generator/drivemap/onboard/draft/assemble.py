@@ -1,0 +1,210 @@
+"""The drafted map as data: header, a protocol skeleton of nulls, groups, enums and registers."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from drivemap.onboard.draft.fields import Context, Raw, draft_fields
+from drivemap.onboard.draft.matrix import matrix_raws
+from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
+from drivemap.onboard.draft.rows import grid_raws, loose_raws, table_access, table_kind
+from drivemap.onboard.draft.tables import Drafted, Skipped, Source, Table
+
+#: Protocol facts the draft cannot read from register tables; written as placeholders and listed.
+PLACEHOLDERS = ("protocol.unit_ids (1..247)", "protocol.ports (settings unknown)", "protocol.function_codes "
+                "(from the tables drafted; max_quantity null)", "protocol.exceptions (none)", "protocol.timing (null)")
+
+
+@dataclass
+class Draft:
+    """Everything the draft found: the map data, each register's review facts, skipped rows."""
+
+    data: dict[str, Any]
+    registers: list[Drafted]
+    skipped: list[Skipped]
+    tables: list[tuple[str, int]] = field(default_factory=list)
+    """(table label, registers drafted from it) of every register table found."""
+    review: list[str] = field(default_factory=list)
+
+
+def document_context(source: Source) -> Context:
+    text = source.text
+    high = re.search(r"(?:high|most significant|upper)\s+word\s+first|big[\s-]*endian|高字在前|高位字在前", text, re.I)
+    low = re.search(r"(?:low|least significant|lower)\s+word\s+first|little[\s-]*endian|低字在前|低位字在前", text, re.I)
+    order = "high_first" if high and not low else "low_first" if low and not high else None
+    lines = [ln.strip() for ln in text.splitlines()]
+
+    def footnote(n: str) -> bool:
+        return any(re.match(rf"\*\s*{n}(?!\d)\s*\S", ln) for ln in lines)
+
+    return Context(source.name, footnote, order)
+
+
+def _heading(table: Table) -> str:
+    """The section heading above a table (the last numbered one), else the last short line before it."""
+    lines = table.context.splitlines()
+    pattern = r"^\s*(?:#+\s*|\*\*)?\d+(?:\.\d+)*\.?\s+[A-Za-z\u4e00-\u9fff]"
+    numbered = [ln for ln in (table.above or table.context).splitlines() if re.match(pattern, ln)]
+    for line in reversed(numbered or lines):
+        text = re.sub(r"\*\*|</?b>|^\s*#+", "", line).strip(" *#")
+        if numbered:
+            text = re.sub(r"\s*\([^()]{20,}\)\s*$", "", text)[:60].strip()
+        if 3 <= len(text) <= 60 and "\t" not in line and not re.match(r"^\W*$", text):
+            return text
+    return table.label
+
+
+def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
+    doc_kind = _document_kind(source.text)
+    kind = table_kind(table.context.splitlines()[-1] if table.context else "") or table_kind(table.context) \
+        or doc_kind
+    access = table_access(table.context)
+    if table.matrix:
+        return matrix_raws(table, kind)
+    return loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
+
+
+def _document_kind(text: str) -> str | None:
+    """The table every register is in when the document names one read function only (03h: holding)."""
+    reads = set()
+    for line in text.splitlines():
+        if not re.search(r"read|读|讀", line, re.I):
+            continue
+        for code in ("03", "04"):
+            if re.search(rf"(?:^|[\s(])(?:0x{code}|{code}\s*[hH])(?![0-9A-Za-z])|\bFC\s*{code}\b", line):
+                reads.add(code)
+    return {frozenset({"03"}): "holding", frozenset({"04"}): "input"}.get(frozenset(reads))
+
+
+def draft(source: Source, model: str) -> Draft:
+    ctx = document_context(source)
+    registers: list[Drafted] = []
+    skipped: list[Skipped] = []
+    groups: list[dict[str, Any]] = []
+    found: list[tuple[str, int]] = []
+    names: set[str] = set()
+    for table in source.tables:
+        raws, skip = _raws(source, table)
+        skipped += skip
+        if not raws:
+            continue
+        heading = _heading(table)
+        if heading == table.label and groups:  # no heading of its own: the section of the table before it
+            group, heading = groups[-1]["name"], groups[-1]["title"]
+        else:
+            plain = re.sub(r"^[\d.\s]+", "", heading)
+            group = unique(snake(plain, f"table_{len(groups) + 1}")[:40].rstrip("_"), {g["name"] for g in groups})
+        drafts = [draft_fields(r, ctx) for r in raws]
+        for d in drafts:
+            d.entry["group"] = group
+            d.table_label = table.label
+        if all(_series_param(d) for d in drafts):
+            drafts.sort(key=lambda d: int(str(d.entry["address"])))  # side-by-side columns of one numbered list
+        drafts = arrays(drafts)
+        found.append((f"{table.label}: {heading}", len(drafts)))
+        if group not in {g["name"] for g in groups}:
+            title = heading
+            while title in {g["title"] for g in groups}:
+                title += " (continued)"
+            groups.append({"name": group, "title": title, "source": f"{source.name} {table.label}"})
+        for d in drafts:
+            _finish(d, source.name, names)
+        registers += drafts
+    data = _document(source, model, groups, registers)
+    review = list(PLACEHOLDERS)
+    if any("as printed under" in n for d in registers for n in d.notes):
+        review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
+    return Draft(data, registers, skipped, found, review)
+
+
+def _series_param(d: Drafted) -> bool:
+    return bool(re.fullmatch(r".*?\D\d{1,3}", str(d.entry.get("param", "")))) and "label" not in d.entry
+
+
+def _finish(d: Drafted, document: str, names: set[str]) -> None:
+    """Name, source, enum and bits in schema form."""
+    e = d.entry
+    address = int(str(e["address"]))
+    base = str(e.pop("series_base", "") or e.get("label") or e.get("param") or "")
+    base = re.sub(r"\([^()]*\)|（[^（）]*）|\*\d?", " ", base).strip() or base
+    e["name"] = unique(snake(base, f"reg_{address:04x}"), names)
+    e["source"] = f"{document} {d.where}"
+    if e.get("bits"):
+        taken: set[str] = set()
+        e["bits"] = [{"name": unique(upper(label.split(":")[0], f"BIT_{offset}"), taken), "offset": offset,
+                      "label": label}
+                     for offset, label in e["bits"]]  # type: ignore[attr-defined]
+    if d.notes:
+        e["notes"] = "; ".join(d.notes)
+
+
+def _enums(registers: list[Drafted], document: str) -> dict[str, Any]:
+    enums: dict[str, Any] = {}
+    for d in registers:
+        items = d.entry.pop("enum", None)
+        if not items:
+            continue
+        name = unique(camel(str(d.entry["name"])), set(enums))
+        taken: set[str] = set()
+        values = [{"value": v, "name": unique(upper(label, f"VALUE_{v}"), taken), "label": label}
+                  for v, label in items]  # type: ignore[attr-defined]
+        enums[name] = {"values": values, "source": f"{document} {d.where}"}
+        d.entry["enum"] = name
+    return enums
+
+
+def _language(text: str) -> str:
+    cjk = len(re.findall(r"[\u4e00-\u9fff]", text[:200000]))
+    latin = len(re.findall(r"[A-Za-z]", text[:200000]))
+    return "zh" if cjk > latin / 4 else "en" if latin else "und"
+
+
+def _protocol(source: Source, registers: list[Drafted]) -> dict[str, Any]:
+    where = f"{source.name} (draft placeholder: not read from the document)"
+    text = source.text
+    modes = [m for m, pat in (("rtu", r"\bRTU\b"), ("ascii", r"\bASCII\b")) if re.search(pat, text)] or ["rtu"]
+    tables = {str(d.entry.get("table", "holding")) for d in registers}
+    written = {str(d.entry.get("table", "holding")) for d in registers if d.entry.get("access") in ("w", "rw")}
+    codes = sorted({{"holding": 3, "input": 4, "coil": 1, "discrete": 2}[t] for t in tables}
+                   | ({6, 16} if "holding" in written else set()) | ({5, 15} if "coil" in written else set()))
+    names = {1: "read coils", 2: "read discrete inputs", 3: "read holding registers", 4: "read input registers",
+             5: "write single coil", 6: "write single register", 15: "write multiple coils",
+             16: "write multiple registers"}
+    return {
+        "modes": modes + (["tcp"] if re.search(r"modbus[\s/-]*tcp", text, re.I) else []),
+        "unit_ids": {"min": 1, "max": 247, "source": where},
+        "broadcast_address": None,
+        "ports": [{"name": "serial", "modes": modes, "baudrates": [], "default_baudrate": None, "parity": [],
+                   "default_parity": None, "data_bits": [], "stop_bits": [], "set_by": "unknown", "source": where}],
+        "function_codes": [{"code": c, "name": names[c], "max_quantity": None, "broadcast": None,
+                            "broadcast_reason": "not read from the document: review", "source": where}
+                           for c in codes or [3]],
+        "exceptions": [],
+        "timing": {"silent_interval_chars": None, "response_timeout_ms": None, "retries": None, "source": where},
+        "source": where,
+    }
+
+
+def _document(source: Source, model: str, groups: list[dict[str, Any]], registers: list[Drafted]) -> dict[str, Any]:
+    enums = _enums(registers, source.name)
+    return {
+        "drivemap": 1,
+        "device": {
+            "model": model,
+            "title": f"{model} (drafted from {source.name})",
+            "vendor": None,
+            "manual": {"file": source.name, "document": None, "revision": None, "date": None,
+                       "language": _language(source.text)},
+            "coverage": f"Drafted by `drivemap draft` from {source.name} (sha256 {source.sha256}): the register "
+                        "tables only; protocol facts are placeholders to review.",
+            "source": source.name,
+            "notes": f"document sha256 {source.sha256}",
+        },
+        "protocol": _protocol(source, registers),
+        "enums": enums,
+        "groups": groups,
+        "registers": [d.entry for d in registers],
+        "examples": [],
+    }

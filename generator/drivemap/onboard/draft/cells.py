@@ -1,0 +1,213 @@
+"""Cell parsers: address, access, data type, range, default, enum and bit lists.
+
+Each parser returns None when the text does not state the fact plainly; the caller then leaves the
+field out and lists it. Nothing here guesses a radix, a sign or a word order.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+_HEX_MARKED = re.compile(r"^(?:0[xX]([0-9A-Fa-f]{1,5})|([0-9A-Fa-f]{1,5})\s?[hH])$")
+_PLAIN = re.compile(r"^\d{1,6}$")
+_BARE_HEX = re.compile(r"^[0-9A-Fa-f]{2,5}$")
+_ADDR_RANGE = re.compile(r"^(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?\s*(?:~|-|–|to)\s*(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?$")
+
+
+@dataclass(frozen=True)
+class Address:
+    """An address as printed: its value if the radix is plain, both readings if it is not."""
+
+    text: str
+    hex_value: int | None
+    dec_value: int | None
+    marked: bool
+    """True when the text itself says hex (``0x``, ``h``) or holds a hex letter."""
+
+
+def parse_address(text: str) -> Address | None:
+    """``00E6H``, ``0x1A``, ``1A2Bh``, ``40001``, ``0100`` (radix left to the column) -> Address."""
+    t = text.strip().strip("()[]").strip()
+    t = t.replace("O", "0") if re.fullmatch(r"[0-9A-FO]{4}[hH]", t) else t
+    m = _HEX_MARKED.match(t)
+    if m:
+        return Address(text, int(m.group(1) or m.group(2), 16), None, True)
+    if _PLAIN.match(t):
+        return Address(text, int(t, 16) if len(t) <= 5 else None, int(t), False)
+    if _BARE_HEX.match(t) and re.search(r"[A-Fa-f]", t):
+        return Address(text, int(t, 16), None, True)
+    return None
+
+
+def is_address_range(text: str) -> bool:
+    return bool(_ADDR_RANGE.match(text.strip()))
+
+
+_ACCESS = {
+    "r": "r", "ro": "r", "read": "r", "read only": "r", "read-only": "r", "readonly": "r", "只读": "r",
+    "唯讀": "r", "只讀": "r", "w": "w", "wo": "w", "write": "w", "write only": "w", "只写": "w",
+    "r/w": "rw", "w/r": "rw", "rw": "rw", "wr": "rw", "read/write": "rw", "r/w/": "rw", "读写": "rw",
+    "讀寫": "rw", "r&w": "rw", "r,w": "rw",
+}
+_ACCESS_TOKEN = re.compile(r"(?:^|\s)(R/W|W/R|RW|RO|WO|R|W)\s*$")
+
+
+def parse_access(text: str) -> str | None:
+    """R, W, R/W, W/R, RO, read-only ... -> r | w | rw."""
+    key = re.sub(r"\s+", " ", text.strip().lower()).strip(" .*")
+    return _ACCESS.get(key)
+
+
+def trailing_access(text: str) -> tuple[str | None, str]:
+    """An access token at the end of a free-text row (``3000H Operating frequency R``)."""
+    m = _ACCESS_TOKEN.search(text)
+    if not m:
+        return None, text
+    return _ACCESS[m.group(1).lower()], text[: m.start()].rstrip()
+
+
+_TYPE_WORDS: tuple[tuple[str, str], ...] = (
+    (r"\b(?:float64|double|lreal|f64|ieee\s*754\s*double)\b", "f64"),
+    (r"\b(?:float32|float|real|f32|ieee\s*-?\s*754|ieee\s*floating)\b", "f32"),
+    (r"\b(?:uint64|u64|unsigned\s*64|ulint)\b", "u64"),
+    (r"\b(?:int64|s64|signed\s*64|lint|sint64)\b", "s64"),
+    (r"\b(?:uint32|u32|unsigned\s*32|udint|dword|unsigned\s*long|ulong)\b", "u32"),
+    (r"\b(?:int32|s32|signed\s*32|dint|sint32|long)\b", "s32"),
+    (r"\b(?:uint16|u16|unsigned\s*16|uint|word|unsigned\s*short|ushort|unsigned)\b", "u16"),
+    (r"\b(?:int16|s16|signed\s*16|sint16|sint|short|int|signed)\b", "s16"),
+    (r"\b(?:string|ascii|char|text|str)\b", "string"),
+    (r"\b(?:bool|boolean|bit)\b", "bool"),
+)
+_SIGNED_HINT = re.compile(r"sign attached|signed|有符号|附符号|带符号|帶符號|有號|附符號|two'?s complement", re.I)
+_UNSIGNED_HINT = re.compile(r"unsigned|无符号|無符號", re.I)
+_WIDTH = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4, "bool": 1}
+
+
+def parse_type(text: str, words: int | None = None) -> str | None:
+    """A data-type cell (with the register count if a length column gives one) -> schema type."""
+    low = text.strip().lower()
+    if not low:
+        return None
+    for pattern, rtype in _TYPE_WORDS:
+        if re.search(pattern, low):
+            if words is not None and rtype in _WIDTH and _WIDTH[rtype] != words and rtype != "bool":
+                return _resize(rtype, words)
+            return rtype
+    return None
+
+
+def _resize(rtype: str, words: int) -> str | None:
+    """A signedness word with a length that says the width (``signed`` + 2 words -> s32)."""
+    family = {"u": "u", "s": "s", "f": "f"}[rtype[0]]
+    sized = {1: "16", 2: "32", 4: "64"}.get(words)
+    if sized is None or (family == "f" and words == 1):
+        return None
+    return f"{family}{sized}"
+
+
+def signed_hint(text: str) -> bool:
+    return bool(_SIGNED_HINT.search(text)) and not _UNSIGNED_HINT.search(text)
+
+
+def parse_length(text: str, header: str) -> int | None:
+    """A length cell -> registers (words). Bytes are converted when the header or cell says bytes."""
+    m = re.fullmatch(r"\s*(\d{1,3})\s*(bytes?|words?|regs?|registers?)?\s*", text.lower())
+    if not m:
+        return None
+    n = int(m.group(1))
+    unit = m.group(2) or ("byte" if "byte" in header.lower() else "word" if re.search(r"word|reg|quant|number|count|size|len", header.lower()) else None)
+    if unit is None:
+        return None
+    if unit.startswith("byte"):
+        return n // 2 if n % 2 == 0 and n > 0 else None
+    return n if n > 0 else None
+
+
+_NUMBER = r"[-−+]?\d+(?:\.\d+)?"
+_RANGE = re.compile(rf"({_NUMBER})\s*(?:~|～|to|–|—|\.\.|-)\s*({_NUMBER})")
+
+
+def parse_range(text: str) -> tuple[float, float, str] | None:
+    """``0 ~ 1000``, ``-10000~10000``, ``0-65535 r/min`` -> (low, high, the text after it)."""
+    m = _RANGE.search(text.replace("−", "-"))
+    if not m:
+        return None
+    low, high = _num(m.group(1)), _num(m.group(2))
+    if low > high:
+        return None
+    return low, high, text[m.end():].strip()
+
+
+def _num(text: str) -> float:
+    value = float(text.replace("−", "-"))
+    return int(value) if value.is_integer() and "." not in text else value
+
+
+def parse_number(text: str) -> float | None:
+    t = text.strip().replace(",", "")
+    if re.fullmatch(_NUMBER, t):
+        return _num(t)
+    return None
+
+
+_ENUM_VALUE_FIRST = re.compile(
+    r"(?:^|[\s,;(])(?P<v>-?\d{1,5}|[0-9A-Fa-f]{1,4}[hH])(?:\s*\((?:[0-9A-Fa-f]+h|\d+)\))?(?:\([01]+b\))?"
+    r"\s*[:：=]\s*(?P<l>[^,;:\n=]+?)(?=\s*(?:[,;\n]|$|\s-?\d{1,5}\s*[:：=]|\s[0-9A-F]{1,4}H\s*:))")
+_ENUM_LABEL_FIRST = re.compile(
+    r"(?:^|[,;(\n])\s*(?P<l>[A-Za-z][A-Za-z /_-]{0,40}?)\s*=\s*(?P<v>-?\d{1,5})(?=\s*(?:[,;\n)]|$))")
+_BIT_ITEM = re.compile(r"(?:^|[\s,;])bit[ \t]*(?P<b>\d{1,2})[ \t]*[:：=-][ \t]*(?P<l>[^,;\n]+)", re.I)
+_SCALE_LIKE = re.compile(rf"^\s*{_NUMBER}\s*[A-Za-z%°/]*\s*$")
+
+
+def _int_value(text: str) -> int | None:
+    t = text.strip()
+    if t[-1:] in "hH":
+        try:
+            return int(t[:-1], 16)
+        except ValueError:
+            return None
+    try:
+        return int(t)
+    except ValueError:
+        return None
+
+
+def parse_enum(text: str) -> list[tuple[int, str]] | None:
+    """``0: STOP 2: RUN``, ``0001H: Forward running``, ``Resistive=1, inductive=2`` -> [(value, label)]."""
+    items: list[tuple[int, str]] = []
+    for m in _ENUM_VALUE_FIRST.finditer(text):
+        value, label = _int_value(m.group("v")), m.group("l").strip()
+        if value is None or not label or _SCALE_LIKE.match(label) or label.lower().startswith(("bit", "byte")):
+            continue
+        items.append((value, label))
+    if len(items) < 2:
+        items = []
+        for m in _ENUM_LABEL_FIRST.finditer(text):
+            label = m.group("l").strip()
+            if label.lower() not in ("1", "bit") and not label.lower().startswith("bit"):
+                items.append((int(m.group("v")), label))
+    values = [v for v, _ in items]
+    if len(items) < 2 or len(set(values)) != len(values):
+        return None
+    return items
+
+
+def parse_bits(text: str) -> list[tuple[int, str]] | None:
+    """``bit0: run, bit1: fault`` -> [(offset, label)]."""
+    items = [(int(m.group("b")), m.group("l").strip()) for m in _BIT_ITEM.finditer(text)]
+    offsets = [b for b, _ in items]
+    if not items or len(set(offsets)) != len(offsets) or max(offsets) > 31:
+        return None
+    return items
+
+
+def bit_index(text: str) -> int | None:
+    """A bit column's cell: ``0`` .. ``15``, or one hex digit ``A``..``F`` (bit 10..15)."""
+    t = text.strip()
+    if re.fullmatch(r"\d{1,2}", t) and int(t) <= 31:
+        return int(t)
+    if re.fullmatch(r"[A-Fa-f]", t):
+        return int(t, 16)
+    m = re.fullmatch(r"(?:bit|b)\s*(\d{1,2})", t, re.I)
+    return int(m.group(1)) if m and int(m.group(1)) <= 31 else None

@@ -1,0 +1,134 @@
+"""``drivemap draft DOCUMENT [-o maps/ID.yaml] [--model ID] [--pages 3-9] [--force]``."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import re
+import signal
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
+
+from drivemap.frontend.project import display, load_project
+from drivemap.frontend.schema import SCHEMA_PATH
+from drivemap.onboard.draft.assemble import draft
+from drivemap.onboard.draft.naming import snake
+from drivemap.onboard.draft.read import read_document
+from drivemap.onboard.draft.summary import print_summary
+from drivemap.onboard.draft.tables import DraftError
+from drivemap.onboard.draft.writer import settle
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    s = sub.add_parser("draft", help="draft a map from the register tables of a manual (PDF, DOCX, XLSX, CSV, text)")
+    s.add_argument("document", metavar="DOCUMENT")
+    s.add_argument("-o", "--output", default=None, metavar="FILE",
+                   help="the map to write (default: the project's maps folder, <model>.yaml)")
+    s.add_argument("--model", default=None, help="model id (default: from the document's file name)")
+    s.add_argument("--pages", default=None, metavar="A-B", help="PDF pages to read (e.g. 3-9)")
+    s.add_argument("--max-pages", type=int, default=400, help="read at most this many PDF pages (default 400)")
+    s.add_argument("--timeout", type=float, default=300.0, help="give up after this many seconds (default 300)")
+    s.add_argument("--force", action="store_true", help="replace an existing output file")
+    s.set_defaults(func=cmd_draft)
+
+
+def _pages(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d{1,5})\s*(?:-\s*(\d{1,5}))?\s*", text)
+    if not m or int(m.group(1)) < 1 or (m.group(2) and int(m.group(2)) < int(m.group(1))):
+        raise DraftError(f"--pages {text!r}: give a page or a range like 3-9")
+    first = int(m.group(1))
+    return first, int(m.group(2) or first)
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float) -> Iterator[None]:
+    """Raise DraftError after ``seconds`` (main thread on POSIX; elsewhere the readers' own bounds hold)."""
+    if not hasattr(signal, "SIGALRM") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def expire(_signum: int, _frame: FrameType | None) -> None:
+        raise DraftError(f"time limit of {seconds:.0f} s reached (use --pages or --timeout)")
+
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _header(name: str, sha: str, target: Path) -> str:
+    ref = Path(os.path.relpath(SCHEMA_PATH.resolve(), target.parent.resolve())).as_posix()
+    return (f"# yaml-language-server: $schema={ref}\n"
+            f"# Drafted by `drivemap draft` from {name}\n"
+            f"# document sha256: {sha}\n"
+            "# Every register names its source (page and line or row). Fields the document does not state are\n"
+            "# left out (the schema's default applies) and listed in each register's notes: review them.\n")
+
+
+def _write(target: Path, text: str, force: bool) -> None:
+    """Atomically: a temporary file beside the target, then renamed (or linked: no overwrite)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        if force:
+            os.replace(tmp, target)
+        else:
+            os.link(tmp, target)  # fails if the target appeared meanwhile: nothing is overwritten
+            os.unlink(tmp)
+    except FileExistsError:
+        raise DraftError(f"{display(target)} exists; not overwritten (use --force)") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    path = Path(args.document)
+    model = args.model or (Path(args.output).stem if args.output else snake(path.stem, "device"))
+    if args.output and Path(args.output).stem != model:
+        raise DraftError(f"--model {model} and -o {args.output}: a map's file name is its model id")
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", model):
+        raise DraftError(f"model id {model!r} must be a lower-case identifier (--model)")
+    target = Path(args.output) if args.output else load_project().maps_folder() / f"{model}.yaml"
+    if os.path.lexists(target) and not args.force:
+        raise DraftError(f"{display(target)} exists; not overwritten (use --force)")
+    with _time_limit(args.timeout):
+        source = read_document(path, _pages(args.pages), args.max_pages, args.timeout)
+        result = draft(source, model)
+        if not result.registers:
+            count = len(result.skipped)
+            why = f" ({count} row{'s' if count != 1 else ''} skipped: {result.skipped[0].reason})" if count else ""
+            raise DraftError(f"no register table found: no table with an address column{why}")
+        text, errors = settle(result, _header(source.name, source.sha256, target), display(target))
+    if errors:
+        for d in errors:
+            print(d.format(), file=sys.stderr)
+        print(f"{len(errors)} errors: the draft does not validate; nothing written", file=sys.stderr)
+        return 1
+    _write(target, text, args.force)
+    print_summary(Console(width=max(120, Console().width)), source, result, display(target), model)
+    return 0
+
+
+def cmd_draft(args: argparse.Namespace) -> int:
+    try:
+        return run(args)
+    except DraftError as exc:
+        print(f"{display(args.document)}: error: {exc}", file=sys.stderr)
+        return 1

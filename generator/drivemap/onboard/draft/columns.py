@@ -1,0 +1,137 @@
+"""Header and column recognition: which column holds the address, the name, the type, the unit ...
+
+A header row is recognised by its words in English and Chinese; without one, the address column
+is the one whose cells read as addresses. A header that repeats its columns side by side
+(``Register | P_ | Register | P_``) is split into one layout per repetition.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from drivemap.onboard.draft.cells import parse_address
+
+_ROLES: tuple[tuple[str, str], ...] = (
+    ("hi_byte", r"hi(gh)?\s*byte|高位元組|高字节|高位字节"),
+    ("lo_byte", r"lo(w)?\s*byte|低位元組|低字节|低位字节"),
+    ("length", r"length|size|words|quantity|no\.?\s*of\s*reg|number\s*of\s*reg|reg(ister)?s?\s*count|"
+               r"长度|長度|字数|字數|bytes"),
+    ("function_code", r"function\s*code|func\.?\s*code|^fc$|功能码|功能碼"),
+    ("type", r"data\s*type|type|format|数据类型|資料型態|资料类型|类型|類型|格式"),
+    ("scale", r"^scal|scale\s*factor|^factor|multiplier|^gain|倍率|系数|係數"),
+    ("unit", r"unit|resolution|单位|單位|分辨率"),
+    ("default", r"default|factory|initial|初始值|出厂|出廠|默认|預設|预设"),
+    ("min", r"^min(imum)?\b"),
+    ("max", r"^max(imum)?\b"),
+    ("range", r"range|limit|范围|範圍|設定值|设定值"),
+    ("access", r"access|^r\s*/\s*w|read\s*/\s*write|^rw$|attribute|读写|讀寫|属性|屬性|permission"),
+    ("bit", r"^bits?$|^位$"),
+    ("param", r"^id$|^p_?$|^no\.?$|param(eter)?\s*(no|id|number|code|#)|参数号|參數號|参数编号|參數編號"),
+    ("address", r"addr|register|^reg\b|reg\.|寄存器|暂存器|暫存器|位址|地址|modbus|offset|编号|編號|pdu|"
+                r"^coils?$|^discrete\s+inputs?$|^线圈$|^線圈$"),
+    ("name", r"name|parameter|function|item|measur|signal|variable|quantity|object|名稱|名称|功能|项目|項目|参数|參數"),
+    ("description", r"descr|content|definition|meaning|note|remark|comment|detail|data|說明|说明|內容|内容|含义|含義|意义"),
+)
+_RADIX_HEX = re.compile(r"hex|\(h\)|16\s*进制|16\s*進位|十六", re.I)
+_RADIX_DEC = re.compile(r"\bdec|十进制|十進位|10\s*进制|10\s*進位", re.I)
+
+
+@dataclass
+class Layout:
+    """Column roles of one table (or one repeated group of a side-by-side table)."""
+
+    roles: dict[str, int] = field(default_factory=dict)
+    headers: dict[str, str] = field(default_factory=dict)
+    radix: str | None = None
+    """``hex`` or ``dec`` when the header says it."""
+    header_row: int | None = None
+
+
+def role_of(text: str) -> str | None:
+    low = re.sub(r"\s+", " ", text.strip().lower())
+    low = re.sub(r"(?<=[\u4e00-\u9fff]) (?=[\u4e00-\u9fff])", "", low)
+    if not low:
+        return None
+    for role, pattern in _ROLES:
+        if re.search(pattern, low, re.I):
+            return role
+    return None
+
+
+def _layout_of(header: list[str], offset: int = 0) -> Layout:
+    layout = Layout()
+    for i, cell in enumerate(header):
+        role = role_of(cell)
+        if role == "address" and "address" in layout.roles:
+            if _RADIX_HEX.search(cell) and not _RADIX_HEX.search(layout.headers["address"]):
+                layout.roles["address_dec"] = layout.roles["address"]
+                layout.roles["address"], layout.headers["address"] = i + offset, cell
+            continue
+        if role == "name" and "name" in layout.roles:
+            role = "description"
+        if role is None or role in layout.roles:
+            continue
+        layout.roles[role], layout.headers[role] = i + offset, cell
+        if role == "address":
+            layout.radix = "hex" if _RADIX_HEX.search(cell) else "dec" if _RADIX_DEC.search(cell) else None
+    if "name" not in layout.roles and "description" in layout.roles:
+        layout.roles["name"] = layout.roles.pop("description")
+        layout.headers["name"] = layout.headers.pop("description")
+    return layout
+
+
+def _groups(header: list[str]) -> list[tuple[int, list[str]]]:
+    """A header that repeats the same columns side by side -> (offset, cells) per repetition."""
+    cells = [c.strip() for c in header]
+    while cells and not cells[-1]:
+        cells.pop()
+    for width in range(1, len(cells) // 2 + 1):
+        if len(cells) % width:
+            continue
+        first = [role_of(c) for c in cells[:width]]
+        if "address" not in first:
+            continue
+        if all([role_of(c) for c in cells[k:k + width]] == first for k in range(width, len(cells), width)):
+            return [(k, cells[k:k + width]) for k in range(0, len(cells), width)]
+    return [(0, cells)]
+
+
+def find_layouts(rows: list[list[str]]) -> list[Layout]:
+    """Layouts from the header row among the first rows; [] if none names an address column."""
+    best: tuple[int, int] | None = None
+    for index, row in enumerate(rows[:4]):
+        roles = {role_of(c) for c in row} - {None}
+        if ("address" in roles or {"hi_byte", "lo_byte"} <= roles) and len(roles) >= 2:
+            if best is None or len(roles) > best[1]:
+                best = (index, len(roles))
+    if best is None:
+        return []
+    layouts = []
+    for offset, cells in _groups(rows[best[0]]):
+        layout = _layout_of(cells, offset)
+        layout.header_row = best[0]
+        layouts.append(layout)
+    return layouts
+
+
+def content_layout(rows: list[list[str]]) -> Layout | None:
+    """No header: the column most of whose cells are hex-marked addresses, the next text column the name.
+    A table whose first row is a header that names no address column is no register table."""
+    first = rows[0] if rows else []
+    if first and (parse_address(first[0]) is None or not parse_address(first[0]).marked):  # type: ignore[union-attr]
+        return None
+    width = max((len(r) for r in rows), default=0)
+    for col in range(min(width, 1)):
+        cells = [r[col] for r in rows if col < len(r) and r[col].strip()]
+        hits = [a for a in (parse_address(c) for c in cells) if a is not None and a.marked]
+        distinct = len({a.hex_value for a in hits}) == len(hits)
+        if len(cells) >= 3 and len(hits) >= 0.6 * len(cells) and distinct:
+            layout = Layout(roles={"address": col}, headers={"address": ""})
+            for other in range(col + 1, width):
+                texts = [r[other] for r in rows if other < len(r) and re.search(r"[A-Za-z\u4e00-\u9fff]{2}", r[other])]
+                if len(texts) >= 0.5 * len(cells):
+                    layout.roles["name"] = other
+                    break
+            return layout
+    return None

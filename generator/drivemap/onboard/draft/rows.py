@@ -1,0 +1,390 @@
+"""Tables -> the raw facts of each register row (:class:`~.fields.Raw`), and the rows skipped.
+
+A grid row with an address starts a register; the rows after it without an address are its bit
+list (a ``Bit`` column or a ``Bit | Description`` sub-header), its code list (``Code |
+Description``) or more text. Rows whose name says reserved/unused are skipped as reserved.
+"""
+
+from __future__ import annotations
+
+import re
+
+from drivemap.onboard.draft.cells import (
+    Address,
+    bit_index,
+    is_address_range,
+    parse_address,
+    parse_enum,
+    trailing_access,
+)
+from drivemap.onboard.draft.columns import Layout, content_layout, find_layouts, role_of
+from drivemap.onboard.draft.fields import Raw
+from drivemap.onboard.draft.tables import Row, Skipped, Table
+from drivemap.onboard.draft.units import parse_scale
+
+RESERVED = re.compile(r"reserved|not used|unused|spare|保留|预备|預備|未使用|備用|备用|n/a", re.I)
+_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code")
+
+
+def table_kind(text: str) -> str | None:
+    """The Modbus table a heading or function-code cell names; None when it names none or several."""
+    found = set()
+    if re.search(r"\b(?:0x)?0?4\s*[hH]\b|\b0x04\b|input\s+reg|輸入寄存器|输入寄存器|FC\s*0?4\b", text, re.I):
+        found.add("input")
+    if re.search(r"\b(?:0x)?0?3\s*[hH]\b|\b0x03\b|holding\s+reg|保持寄存器|保持暂存器|保持暫存器|FC\s*0?3\b", text, re.I):
+        found.add("holding")
+    if re.search(r"\bcoils?\b|\b0?1\s*[hH]\b.*coil|線圈|线圈", text, re.I):
+        found.add("coil")
+    if re.search(r"discrete\s+input|\b0?2\s*[hH]\b.*discrete|離散|离散", text, re.I):
+        found.add("discrete")
+    return found.pop() if len(found) == 1 else None
+
+
+def table_access(text: str) -> str | None:
+    if re.search(r"read(able)?\s*(and|&|/)\s*writ|可以读出及写入|可讀寫|可读写|读出及写入|R/W\)", text, re.I):
+        return "rw"
+    if re.search(r"only\s+for\s+reading|read[\s-]*only|仅供读出|僅供讀出|只读|唯讀|只讀", text, re.I):
+        return "r"
+    return None
+
+
+class _Column:
+    """Address column reading: hex-marked columns read unmarked cells as hex only when few are unmarked."""
+
+    def __init__(self, cells: list[str], radix: str | None, header: str = "") -> None:
+        parsed = [a for a in (parse_address(c) for c in cells if c.strip()) if a is not None]
+        marked = sum(1 for a in parsed if a.marked)
+        self.radix = radix or ("hex" if parsed and marked >= 0.8 * len(parsed) else "dec" if marked == 0 else None)
+        self.mostly_marked = bool(parsed) and marked >= 0.8 * len(parsed)
+        self.any_marked = marked > 0 and radix is None
+        plain = [a.dec_value for a in parsed if not a.marked and a.dec_value is not None]
+        self.numbered = False
+        """Plain decimal numbers under a header that does not say address: a register number from 0 or 1?"""
+        self.modicon = self.radix != "hex" and len(plain) >= 2 and (
+            all(30001 <= v <= 39999 for v in plain) or all(40001 <= v <= 49999 for v in plain))
+        self.numbered = bool(plain) and not self.modicon and self.radix != "hex" \
+            and not re.search(r"addr|offset|位址|地址|pdu", header, re.I)
+
+    def read(self, address: Address) -> tuple[int | None, str | None]:
+        """(protocol address, table from a Modicon number) of one cell."""
+        if address.marked:
+            return address.hex_value, None
+        if self.any_marked:
+            return None, None  # codes and bit numbers inside a column of hex addresses
+        if self.mostly_marked and self.radix == "hex" and address.dec_value is not None and address.dec_value > 99:
+            return address.hex_value, None
+        if self.mostly_marked:
+            return None, None
+        if self.modicon and address.dec_value is not None:
+            value = address.dec_value
+            return value - (30001 if value < 40001 else 40001), "input" if value < 40001 else "holding"
+        if self.radix == "hex":
+            return address.hex_value, None
+        return address.dec_value, None
+
+
+def _cell(row: Row, layout: Layout, role: str) -> str:
+    i = layout.roles.get(role)
+    return row.cells[i].strip() if i is not None and i < len(row.cells) else ""
+
+
+def _hi_lo(row: Row, layout: Layout) -> Address | None:
+    hi, lo = parse_address(_cell(row, layout, "hi_byte")), parse_address(_cell(row, layout, "lo_byte"))
+    if hi is None or lo is None or hi.hex_value is None or lo.hex_value is None:
+        return None
+    if hi.hex_value > 0xFF or lo.hex_value > 0xFF:
+        return None
+    return Address(f"{hi.text} {lo.text}", hi.hex_value << 8 | lo.hex_value, None, True)
+
+
+class GridReader:
+    """One layout of one grid table, row by row."""
+
+    def __init__(self, table: Table, layout: Layout, kind: str | None, access: str | None) -> None:
+        self.table, self.layout, self.kind, self.access = table, layout, kind, access
+        start = (layout.header_row or 0) + (0 if layout.header_row is None else 1)
+        self.rows = table.rows[start:]
+        cells = [_cell(r, layout, "address") for r in self.rows]
+        self.column = _Column(cells, layout.radix, layout.headers.get("address", ""))
+        self.raws: list[Raw] = []
+        self.skipped: list[Skipped] = []
+        self.mode = "text"
+
+    def where(self, row: Row) -> str:
+        return row.where()
+
+    def address_of(self, row: Row) -> tuple[int | None, str | None, str]:
+        self.found_at = self.layout.roles.get("address")
+        if "address" not in self.layout.roles:
+            a = _hi_lo(row, self.layout)
+            return (a.hex_value, None, a.text) if a else (None, None, "")
+        text = _cell(row, self.layout, "address")
+        a = parse_address(text)
+        col = self.layout.roles["address"]
+        if a is None and not text and col + 1 < len(row.cells) and not any(c.strip() for c in row.cells[:col]):
+            cell = row.cells[col + 1]  # an address shifted one cell right ("\t00F0H\tFault Description")
+            b = parse_address(cell)
+            if b is not None and b.marked and re.fullmatch(r"(?:0x)?[0-9A-Fa-f]{4}\s?[hH]?", cell.strip()):
+                self.found_at = col + 1
+                return b.hex_value, None, cell
+        if a is None:
+            return None, None, text
+        value, table = self.column.read(a)
+        return value, table, text
+
+    def run(self) -> None:
+        for row in self.rows:
+            if all(not c.strip() for c in row.cells):
+                continue
+            if [role_of(c) for c in row.cells] == [role_of(c) for c in self.table.rows[self.layout.header_row or 0].cells] \
+                    and self.layout.header_row is not None:
+                continue  # the header repeated on the next page
+            self.row(row)
+
+    def row(self, row: Row) -> None:
+        if self.mode == "bits" and self.raws and re.fullmatch(r"[0-9A-Fa-f]{1,2}\s*[-~]\s*[0-9A-Fa-f]{1,2}",
+                                                               _cell(row, self.layout, "address")):
+            return  # a range of unused bits ("5-F")
+        value, table, text = self.address_of(row)
+        if value is None:
+            if self.raws and self.continuation(row, text):
+                return
+            if text and is_address_range(text):
+                self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), "address range (reserved block)"))
+            elif text:
+                self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), f"address {text!r} not readable"))
+            return
+        self.mode = "text"
+        self.start(row, value, table)
+
+    def start(self, row: Row, value: int, table: str | None) -> None:
+        name = _cell(row, self.layout, "name")
+        if self.found_at is not None and self.found_at != self.layout.roles.get("address"):
+            name = next((c.strip() for c in row.cells[self.found_at + 1:] if c.strip()), "")
+        cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
+        cells["length_header"] = self.layout.headers.get("length", "")
+        everything = " ".join(c for c in row.cells if c.strip())
+        if RESERVED.fullmatch(name.strip(" ()（）*")) or (not name and RESERVED.search(cells["description"])):
+            self.skipped.append(Skipped(self.where(row), everything, "reserved"))
+            return
+        if len([c for c in row.cells if c.strip()]) <= 1:
+            self.skipped.append(Skipped(self.where(row), everything, "address without a name or description"))
+            return
+        kind = table or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
+            or self.kind
+        raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
+        if self.column.numbered:
+            raw.notes.append(f"address {value} as printed under {self.layout.headers.get('address', '')!r}: if the "
+                             "document numbers registers from 1, the protocol address is one less")
+        raw.param = _cell(row, self.layout, "param")
+        if raw.param and self.layout.headers.get("param", "").strip().endswith("_"):
+            raw.param = self.layout.headers["param"].strip() + raw.param
+        bit = bit_index(_cell(row, self.layout, "bit")) if "bit" in self.layout.roles else None
+        if bit is not None:
+            raw.bits.append((bit, _bit_label(name, row, self.layout)))
+            self.mode = "bits"
+        elif name.lower() == "bit":
+            self.mode = "bits"
+        else:
+            raw.label = re.sub(r"\s+", " ", name).strip()
+        raw.text = " ".join(filter(None, (name, cells["description"], cells["range"])))
+        self.raws.append(raw)
+
+    def continuation(self, row: Row, address_text: str) -> bool:
+        raw = self.raws[-1]
+        cells = [c.strip() for c in row.cells]
+        texts = [c for c in cells if c]
+        low = [c.lower() for c in texts]
+        if low[:2] in (["bit", "description"], ["bit", "內容"], ["bit", "内容"]) or (low and low[0] == "bit"):
+            self.mode = "bits"
+            return True
+        if low[:2] == ["code", "description"] or (low and low[0] in ("code", "value") and len(low) >= 2):
+            self.mode = "codes"
+            return True
+        if self.mode == "codes":
+            raw.enum.extend(_pairs(texts))
+            return True
+        bit = bit_index(_cell(row, self.layout, "bit")) if "bit" in self.layout.roles else None
+        if bit is None and self.mode == "bits":
+            bit = next((b for b in (bit_index(c) for c in texts[:3]) if b is not None), None)
+            if bit is None and texts and re.fullmatch(r"[0-9A-Fa-f]{1,2}\s*[-~]\s*[0-9A-Fa-f]{1,2}", texts[0]):
+                return True  # a range of unused bits
+        if bit is not None and (self.mode == "bits" or "bit" in self.layout.roles):
+            label = _bit_label(_cell(row, self.layout, "name"), row, self.layout) if "bit" in self.layout.roles \
+                else _label_after(cells, bit)
+            if label and not RESERVED.search(label):
+                raw.bits.append((bit, label))
+            return True
+        if address_text and not self.mode == "bits":
+            return False
+        raw.text += " " + " ".join(texts)
+        return True
+
+
+def _label_after(cells: list[str], bit: int) -> str:
+    """The label of a bit row without a Bit column: the cells after the bit number."""
+    seen = False
+    rest: list[str] = []
+    for cell in cells:
+        if not seen and cell and bit_index(cell) == bit:
+            seen = True
+            continue
+        if seen and cell:
+            rest.append(cell)
+    if not rest:
+        return ""
+    label = rest[0]
+    if len(rest) >= 2:
+        label += ": 1 " + rest[1] + (f", 0 {rest[2]}" if len(rest) > 2 else "")
+    return label
+
+
+def _bit_label(name: str, row: Row, layout: Layout) -> str:
+    return re.sub(r"\s+", " ", name).strip()
+
+
+def _pairs(texts: list[str]) -> list[tuple[int, str]]:
+    """``00 | The inverter is normal | 01 | Over heat`` -> [(0, ...), (1, ...)]."""
+    out: list[tuple[int, str]] = []
+    for i in range(len(texts) - 1):
+        if re.fullmatch(r"\d{1,5}", texts[i]) and not re.fullmatch(r"\d{1,5}", texts[i + 1]):
+            if not RESERVED.search(texts[i + 1]):
+                out.append((int(texts[i]), texts[i + 1]))
+    return out
+
+
+def grid_raws(table: Table, kind: str | None, access: str | None) -> tuple[list[Raw], list[Skipped]]:
+    rows = [r.cells for r in table.rows]
+    layouts = find_layouts(rows)
+    if not layouts:
+        layout = content_layout(rows)
+        if layout is None:
+            return [], _no_address(table)
+        layouts = [layout]
+    raws: list[Raw] = []
+    skipped: list[Skipped] = []
+    for layout in layouts:
+        if "address" not in layout.roles and not {"hi_byte", "lo_byte"} <= set(layout.roles):
+            continue
+        reader = GridReader(table, layout, kind, access)
+        reader.run()
+        raws += reader.raws
+        skipped += reader.skipped
+    return raws, skipped if raws else []  # rows of a table that is no register table are not listed
+
+
+def _no_address(table: Table) -> list[Skipped]:
+    """A table that looks like a register list (name and type or unit columns) but has no address column."""
+    header = table.rows[0].cells if table.rows else []
+    roles = {role_of(c) for c in header}
+    if "name" in roles and roles & {"type", "unit", "access", "range"} and len(table.rows) > 1:
+        return [Skipped(table.label or table.rows[0].where(), " | ".join(header),
+                        f"table of {len(table.rows) - 1} rows has no address column: not drafted")]
+    return []
+
+
+def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list[Raw], list[Skipped]]:
+    """Rows of a loose table: address, the rest of its line, the lines after it."""
+    header = table.header[0] if table.header else ""
+    has_id = bool(re.search(r"\bID\b", header))
+    has_default = bool(re.search(r"default|初始值|預設|预设|出厂|出廠", header, re.I))
+    has_type = bool(re.search(r"type|format", header, re.I))
+    raws: list[Raw] = []
+    skipped: list[Skipped] = []
+    for row in table.rows:
+        address, rest, param = row.cells[0], row.cells[1], row.cells[2]
+        a = parse_address(address)
+        value, row_kind = _loose_address(a, kind)
+        if value is None:
+            skipped.append(Skipped(row.where(), " ".join(row.cells), "address not readable"))
+            continue
+        line_access, rest = trailing_access(rest)
+        columns: dict[str, str] = {}
+        if has_type:
+            rest, columns = _trailing_columns(rest)
+        extra_access = next((trailing_access(x)[0] for x in row.extra if trailing_access(x)[1] == ""), None)
+        if has_id and not param:
+            m = re.match(r"(\d{1,3})\s+(.*)", rest)
+            if m:
+                param, rest = m.group(1), m.group(2)
+        if not rest:
+            rest = next((x for x in row.extra if not re.match(r"^\s*-?[0-9A-Fa-fO]{1,8}[hH]?\s*[:：=]", x)
+                         and trailing_access(x)[1]), "")
+        label = _loose_label(rest, has_default)
+        if RESERVED.fullmatch(label.strip(" ()*")) or RESERVED.match(label):
+            skipped.append(Skipped(row.where(), f"{address} {rest}", "reserved"))
+            continue
+        raw = Raw(value, row_kind, row.where(), label=label, param=param, cells=columns,
+                  access=line_access or extra_access or access)
+        raw.text = re.sub(r"(?<=[(\[-])\s+(?=\d)", "", "\n".join([rest, *row.extra]))
+        enum = parse_enum("\n".join([rest, *row.extra]))
+        if enum:
+            raw.enum = enum
+        raws.append(raw)
+    return raws, skipped
+
+
+def _loose_address(a: Address | None, kind: str | None) -> tuple[int | None, str | None]:
+    """A hex-marked address, or a Modicon number (3xxxx input, 4xxxx holding) of a text row."""
+    if a is None:
+        return None, kind
+    if a.marked:
+        return a.hex_value, kind
+    if a.dec_value is not None and 30001 <= a.dec_value <= 49999:
+        return (a.dec_value - 30001, "input") if a.dec_value < 40001 else (a.dec_value - 40001, "holding")
+    return None, kind
+
+
+_TYPE_TOKEN = re.compile(r"^(?:[Ff]loat(?:32|64)?|FLOAT(?:32|64)?|[Uu]?[Ii][Nn][Tt](?:16|32|64)|[US](?:16|32|64)|"
+                         r"[uU]?[sS]?[iI]nt(?:16|32|64)|REAL|LREAL|U?DINT|U?INT|WORD|DWORD)$")
+
+
+def _trailing_columns(rest: str) -> tuple[str, dict[str, str]]:
+    """``Phase 1 volts Float 2 V`` under a header with a type column -> (name, {type, length, unit}).
+    The type word must be followed by nothing but a length and a unit, so a name that holds a type
+    word (``Float charge voltage``) keeps it."""
+    words = rest.split()
+    for k in range(len(words) - 1, 0, -1):
+        if not _TYPE_TOKEN.match(words[k]):
+            continue
+        after = words[k + 1:]
+        length = after[0] if after and after[0].isdigit() else ""
+        unit = " ".join(after[1:] if length else after)
+        if unit and parse_scale(unit, unit_cell=True) is None:
+            return rest, {}
+        cells = {"type": words[k], "unit": unit}
+        if length:
+            cells["length"], cells["length_header"] = length, "words"
+        return " ".join(words[:k]), cells
+    return rest, {}
+
+
+def _cjk(word: str) -> int:
+    return len(re.findall(r"[\u4e00-\u9fff]", word))
+
+
+def _name_words(words: list[str], trailing_default: bool) -> list[str]:
+    """The name at the start of a CJK row: short words, and a number right before the description
+    (``Alarm 履歷 1 最近期發生的 Alarm``) or at the end when no default column follows the name
+    (``Alarm 履歷 2``); a description is a long run of CJK text."""
+    keep = 1
+    while keep < len(words):
+        word = words[keep]
+        if word.isdigit():
+            last = keep + 1 == len(words)
+            if (last and not trailing_default) or (not last and _cjk(words[keep + 1]) > 4):
+                keep += 1
+            break
+        if _cjk(word) > 4:
+            break
+        keep += 1
+    return words[:keep]
+
+
+def _loose_label(rest: str, trailing_default: bool = False) -> str:
+    """The name part of a free-text row: before the range, resolution or value list."""
+    cut = re.split(r"\s(?=-?\d+\s*(?:~|～|-)\s*\d)|\s(?=\(1\s*=)|\s(?=Range\b)|\s(?=-?\d{1,5}\s*[:：])|\s(?=[0-9A-F]{4}H\s*:)",
+                   rest, maxsplit=1)[0].strip()
+    if re.search(r"[\u4e00-\u9fff]", cut) and " " in cut:  # name column, then the description
+        cut = " ".join(_name_words(cut.split(), trailing_default))
+    return cut.rstrip(" ,;:")

@@ -1,0 +1,95 @@
+"""Unit and resolution: ``0.01Hz``, ``×0.1 V``, ``1=0.1A``, ``(1=0.01 VDC)``, ``10/1A``, ``0.1 V/bit``.
+
+:func:`parse_scale` returns the scale (engineering value per count) and the unit only when the
+text states the resolution; a bare unit (``Hz``) gives the unit and no scale.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+
+_UNITS = (
+    r"[Vv]olts?|[Aa]mps?|[Ww]atts?|[Hh]ertz|[Hh]ours?|[Ss]econds?|[Mm]inutes?|"
+    r"kvarh|kVArh|kvar|kVAr|kVAh|kVA|kWh|MWh|Wh|kW|MW|VAr|var|VA|W|"
+    r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|kA|A|kHz|Hz|"
+    r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
+    r"ms|min|s|sec|h|hr|hours|"
+    r"%RH|%|‰|kΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
+    r"m3/h|m³/h|l/min|L/min|l/h|m/s|mm|m|kg|g|pulses?|p/r|PPR|ppm"
+)
+UNIT = rf"(?:{_UNITS})"
+_NUM = r"\d+(?:\.\d+)?"
+_ONE_EQUALS = re.compile(rf"\b1\s*=\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
+_PER = re.compile(rf"(?<![\d.%])({_NUM})\s*/\s*({_NUM})\s*({UNIT})(?![A-Za-z/])")
+_MEANS = re.compile(rf"\b({_NUM})\s*(?:means|corresponds\s+to|對應|对应|表示)\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
+_TIMES = re.compile(rf"[×xX*]\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
+_PER_BIT = re.compile(rf"({_NUM})\s*({UNIT})\s*/\s*(?:bit|lsb|count|digit|step)\b", re.I)
+_LABELLED = re.compile(rf"(?:unit|resolution|单位|單位|分辨率|解析度)\s*[:：]?\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
+_WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
+_FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
+_NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
+           "RPM": "r/min", "min-1": "r/min", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
+_NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("W", "watt watts"), ("Hz", "hertz"),
+                                      ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
+                for w in words.split() + [x.capitalize() for x in words.split()]})
+
+
+@dataclass(frozen=True)
+class Scale:
+    scale: float | None
+    unit: str | None
+    printed: str
+    note: str = ""
+
+
+def unit_name(text: str) -> str:
+    return _NORMAL.get(text, text)
+
+
+def _clean(value: float) -> float:
+    clean = float(f"{value:.12g}")
+    return int(clean) if clean.is_integer() else clean
+
+
+def _found(scale: float, unit: str, m: re.Match[str], text: str,
+           footnote: Callable[[str], bool] | None) -> Scale:
+    after = _FOOTNOTE_AFTER.match(text[m.end():])
+    if after and footnote is not None and not footnote(after.group(1)):
+        return Scale(None, None, m.group(0), f"resolution '{m.group(0).strip()}' carries footnote *{after.group(1)}, "
+                     "which the document does not print: scale left out")
+    if scale <= 0:
+        return Scale(None, unit_name(unit), m.group(0), "a zero resolution is not a scale")
+    return Scale(_clean(scale), unit_name(unit), m.group(0))
+
+
+def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str], bool] | None = None) -> Scale | None:
+    """The resolution stated in ``text`` (a unit cell when ``unit_cell``, else free text)."""
+    for regex, kind in ((_ONE_EQUALS, "one"), (_MEANS, "per"), (_PER_BIT, "bit"), (_LABELLED, "bit"), (_TIMES, "bit"),
+                        (_PER, "per")):
+        m = regex.search(text)
+        if not m:
+            continue
+        if kind == "per":
+            counts, amount = float(m.group(1)), float(m.group(2))
+            if counts == 0:
+                continue
+            return _found(amount / counts, m.group(3), m, text, footnote)
+        return _found(float(m.group(1)), m.group(2), m, text, footnote)
+    if unit_cell:
+        m = _WHOLE.match(text)
+        if m:
+            if m.group(1) is None:
+                return Scale(None, unit_name(m.group(2)), text.strip())
+            return _found(float(m.group(1)), m.group(2), m, text, footnote)
+    return None
+
+
+_TRAILING_UNIT = re.compile(rf"^\s*({UNIT})(?![A-Za-z])")
+
+
+def unit_after_range(rest: str) -> str | None:
+    """The unit printed right after a range (``0 ~ 65535  r/min``)."""
+    m = _TRAILING_UNIT.match(rest)
+    return unit_name(m.group(1)) if m else None
