@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
-from drivemap.frontend import checks, schema
-from drivemap.frontend.load import load_file
+from drivemap.frontend import checks, family, formats, schema
+from drivemap.frontend.load import Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
@@ -25,9 +26,22 @@ def display_path(path: str | os.PathLike[str]) -> str:
 def compile_map(path: str | os.PathLike[str]) -> Model:
     """Load, validate and check one map; raise :class:`CompileError` with every error found."""
     shown = display_path(path)
-    doc = load_file(shown)
+    return compile_document(load_file(shown))
+
+
+def compile_text(text: str, path: str | os.PathLike[str]) -> Model:
+    """:func:`compile_map` of ``text`` as if it were the content of ``path`` (nothing is read but
+    the maps it extends)."""
+    return compile_document(load_text(text, display_path(path)))
+
+
+def compile_document(doc: Document) -> Model:
+    """Validate and check a loaded map (and the maps it extends); the model."""
+    shown = doc.path
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])
+    version = formats.upgrade(doc)
+    doc, variant = family.resolve(doc)
     errors = schema.validate(doc)
     if errors:
         raise CompileError(errors)
@@ -35,7 +49,8 @@ def compile_map(path: str | os.PathLike[str]) -> Model:
     if problems:
         raise CompileError(problems)
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
-    return build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
+    model = build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
+    return replace(model, format_version=version or formats.CURRENT, variant=variant)
 
 
 def map_paths() -> list[Path]:

@@ -11,7 +11,7 @@ from typing import Any
 from drivemap.backends.python import namecheck
 from drivemap.backends.python.names import FIXED_NAMES
 from drivemap.diagnostics import Diagnostic
-from drivemap.frontend import examplevalues, frames
+from drivemap.frontend import checks_identity, examplevalues, frames
 from drivemap.frontend.checks_registers import RegisterChecks, table_name
 from drivemap.frontend.load import Document, PathT
 from drivemap.model.nodes import camel, is_keyword
@@ -51,7 +51,14 @@ class Checker(RegisterChecks):
         self.check_generated_names()
         self.check_reserved_pages()
         self.check_example_values()
+        self.check_identity()
         return self.diagnostics
+
+    def check_identity(self) -> None:
+        """The map's identity checks (:mod:`.checks_identity`)."""
+        tables = {r.get("name"): self.table_of(i) for i, r in enumerate(self.data.get("registers", ()))}
+        for where, message in checks_identity.problems(self.data, tables):
+            self.error(where, message)
 
     def check_reserved_pages(self) -> None:
         """A reserved range's page selector is a register, as a register's is."""

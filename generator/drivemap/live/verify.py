@@ -56,7 +56,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     started = time.strftime("%Y-%m-%d %H:%M:%S")
     checks = "read alone, batches, reserved, values" + (", write-safe" + (" (EEPROM too)" if args.eeprom else "")
                                                         if args.write_safe else "")
-    with session_for(args, target) as session:
+    with session_for(args, target, identity="refuse" if args.write_safe else "warn") as session:
         try:
             results = run_checks(session, args.write_safe, args.eeprom)
         except TransportError as exc:
