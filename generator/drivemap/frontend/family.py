@@ -80,6 +80,9 @@ class _Merge:
 
 def resolve(doc: Document) -> tuple[Document, Variant | None]:
     """``doc`` laid over the maps it extends (itself when it extends none), and what it changes."""
+    if isinstance(doc.data, dict) and "remove" in doc.data and "extends" not in doc.data:
+        raise CompileError([Diagnostic(doc.positions.at(("remove",), key=True),
+                                       "remove: only a map that extends another removes (give extends)")])
     if not isinstance(doc.data, dict) or "extends" not in doc.data:
         return doc, None
     chain = [doc]
