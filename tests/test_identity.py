@@ -53,6 +53,15 @@ def test_maps_that_state_identity() -> None:
                                                       "inverter_model_id"}
 
 
+def test_the_json_export_carries_identity() -> None:
+    from drivemap.backends.export import export
+
+    data = export(compile_map(ROOT / "maps" / "fronius_symo_hybrid.yaml"))
+    assert data["identity"][0] == {"register": "sunspec_id", "kind": "equals", "values": [0x53756E53],
+                                   "source": "IntSF 'Complete Map' 40001-40002 (SID, range of values 0x53756e53); 2049 p.82"}
+    assert export(compile_map(ROOT / "maps" / "ev.yaml"))["identity"] == []
+
+
 def test_runtime_check_identity_names_register_and_both_values() -> None:
     mod = package("fronius_symo_hybrid")
     with tcp_server("fronius_symo_hybrid") as (sim, host, port):

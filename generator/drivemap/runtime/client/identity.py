@@ -117,11 +117,17 @@ def _raise(spec: DeviceSpec, unit: int, found: tuple[Mismatch, ...]) -> None:
         raise IdentityMismatch(f"unit {unit} is not a {spec.model}: {lines}", found)
 
 
-def check_identity(client: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
-    """Read the identity registers through a generated sync ``client`` (one planned read) and raise
-    :class:`IdentityMismatch` if the device is not the map's (``raise_on_mismatch=False``: return the
-    mismatches instead); () when it is, or when the map names no identity. Transport errors and
-    exception replies propagate as from any read."""
+def _client(client_or_session: Any) -> Any:
+    """A generated client, or the client of anything that holds one (a live session: ``.client``)."""
+    return client_or_session if hasattr(client_or_session, "_core") else client_or_session.client
+
+
+def check_identity(client_or_session: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
+    """Read the identity registers through a generated sync client (or a live session's) in the
+    planned reads and raise :class:`IdentityMismatch` if the device is not the map's
+    (``raise_on_mismatch=False``: return the mismatches instead); () when it is, or when the map
+    names no identity. Transport errors and exception replies propagate as from any read."""
+    client = _client(client_or_session)
     spec: DeviceSpec = client._core.spec
     if not spec.identity:
         return ()
@@ -132,8 +138,9 @@ def check_identity(client: Any, *, raise_on_mismatch: bool = True) -> tuple[Mism
     return found
 
 
-async def check_identity_async(client: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
-    """:func:`check_identity` for a generated async client."""
+async def check_identity_async(client_or_session: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
+    """:func:`check_identity` for a generated async client (or anything holding one as ``.client``)."""
+    client = _client(client_or_session)
     spec: DeviceSpec = client._core.spec
     if not spec.identity:
         return ()
