@@ -118,3 +118,26 @@ def test_removing_a_register_an_example_reads_is_an_error(family: Path) -> None:
     edit(family / "maps" / "acme_xl.yaml", "registers: [heatsink_temperature]", "registers: [line_voltage]")
     code, _, err = run("validate", "maps/acme_xl.yaml")
     assert code == 1 and "line_voltage" in err and "maps/acme.yaml:" in err
+
+
+def test_protocol_items_merge_by_code_and_registers_keep_their_file(family: Path) -> None:
+    from drivemap.live.target import load_target
+
+    (family / "maps" / "acme_lite.yaml").write_text(
+        "drivemap: 2\nextends: acme\ndevice: {model: acme_lite, title: Lite}\n"
+        "protocol:\n"
+        "  exceptions:\n    - {code: 0x03, meaning: Value out of range (Lite wording).}\n"
+        "    - {code: 0x06, name: slave_busy, meaning: Busy., source: \"manual §2 (Lite)\"}\n"
+        "  unit_ids: {min: 1, max: 31, source: \"manual §1 (Lite)\"}\n"
+        "remove:\n  function_codes: [0x0F]\n", encoding="utf-8")
+    base, lite = compile_map("maps/acme.yaml"), compile_map("maps/acme_lite.yaml")
+    assert [e.code for e in lite.protocol.exceptions] == [0x01, 0x02, 0x03, 0x06]
+    three = next(e for e in lite.protocol.exceptions if e.code == 0x03)
+    assert three.meaning == "Value out of range (Lite wording)." and three.name == "illegal_data_value"
+    assert 0x0F not in {f.code for f in lite.protocol.function_codes}
+    assert (lite.protocol.unit_min, lite.protocol.unit_max) == (1, 31) != (base.protocol.unit_min, base.protocol.unit_max)
+    assert lite.variant is not None and "function code 0x0F: removed" in lite.variant.changes
+    assert "exception 0x03: meaning changed" in lite.variant.changes
+    target = load_target("maps/acme_lite.yaml")
+    where = target.where(lite.register("frequency_command"))
+    assert where.startswith("maps/acme.yaml:")
