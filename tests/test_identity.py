@@ -116,3 +116,19 @@ def test_write_refuses_a_device_that_is_not_the_maps(tmp_path: Path) -> None:
     assert forced.returncode == 0, forced.stderr
     assert sim.unit(1).values["f_store_data"] == 0xFFFF
     assert read.returncode == 0 and "warning: unit 1 is not a fronius_symo_hybrid" in read.stderr
+
+
+def test_verify_reports_an_identity_disagreement(tmp_path: Path) -> None:
+    sim = simulator("fronius_symo_hybrid")
+    sim.unit(1).values["common_model_id"] = 2
+    with tcp_server("fronius_symo_hybrid", sim=sim) as (_, host, port):
+        proc = cli("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--report", str(tmp_path / "v"))
+        refused = cli("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--write-safe",
+                      "--report", str(tmp_path / "w"))
+    no_traceback(proc)
+    assert proc.returncode == 6, proc.stderr
+    report = json.loads((tmp_path / "v.json").read_text(encoding="utf-8"))
+    found = [f for f in report["findings"] if f["check"] == "identity"]
+    assert [(f["subject"], f["map_says"], f["device_says"]) for f in found] == [("common_model_id", "1", "2")]
+    assert refused.returncode == 7 and "common_model_id" in refused.stderr and "nothing was written" in refused.stderr
+    assert not (tmp_path / "w.json").exists()
