@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
 import shutil
 from pathlib import Path
 
@@ -108,9 +107,16 @@ def test_migrate_refuses_what_it_cannot_edit_in_place(tmp_path: Path) -> None:
     assert str(exc.value).startswith("flow.yaml:4:17: error: cannot migrate a flow-style mapping")
 
 
-def test_shipped_maps_and_the_scaffold_are_current(tmp_path: Path) -> None:
+def test_shipped_maps_and_the_scaffold_are_current(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     for path in sorted((ROOT / "maps").glob("*.yaml")):
         assert compile_map(path).format_version == formats.CURRENT, path
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     assert run("new", "acme")[0] == 0
     assert compile_map(tmp_path / "maps" / "acme.yaml").format_version == formats.CURRENT
+
+
+def test_migrate_defaults_to_the_projects_maps(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+    code, out, err = run("migrate")
+    assert (code, out) == (0, "")
+    assert sorted(err.splitlines()) == sorted(f"maps/{p.name}: format 2 already" for p in (ROOT / "maps").glob("*.yaml"))
