@@ -141,3 +141,13 @@ def test_protocol_items_merge_by_code_and_registers_keep_their_file(family: Path
     target = load_target("maps/acme_lite.yaml")
     where = target.where(lite.register("frequency_command"))
     assert where.startswith("maps/acme.yaml:")
+
+
+def test_an_error_at_an_inherited_value_notes_the_override(family: Path) -> None:
+    edit(family / "maps" / "acme_xl.yaml", "  - {name: frequency_command, max: 600,",
+         "  - {name: run_state, type: f32, word_order: high_first, source: \"manual §3 (XL)\"}\n"
+         "  - {name: frequency_command, max: 600,")
+    code, _, err = run("validate", "maps/acme_xl.yaml")
+    lines = err.splitlines()
+    assert code == 1 and lines[0].startswith("maps/acme.yaml:") and "cannot have enum" in lines[0], err
+    assert lines[1] == "maps/acme_xl.yaml:9:5: note: the item is overridden here (the value above is inherited from the base)"

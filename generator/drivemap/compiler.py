@@ -44,10 +44,10 @@ def compile_document(doc: Document) -> Model:
     doc, variant = family.resolve(doc)
     errors = schema.validate(doc)
     if errors:
-        raise CompileError(errors)
+        raise CompileError(family.note_overrides(doc, errors))
     problems, statuses = checks.check(doc)
     if problems:
-        raise CompileError(problems)
+        raise CompileError(family.note_overrides(doc, problems))
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
     model = build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
     return replace(model, format_version=version or formats.CURRENT, variant=variant)

@@ -22,11 +22,12 @@ points at the file that made it. :class:`~drivemap.model.family.Variant` lists w
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any
 
-from drivemap.diagnostics import CompileError, Diagnostic
+from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import formats
 from drivemap.frontend.load import Document, PathT, Positions, load_file
 from drivemap.model.family import Variant
@@ -148,6 +149,7 @@ def _lay_over(base: Document, child: Document) -> tuple[Document, list[str]]:
             data[key] = copy.deepcopy(value)
             _drop(m, (key,))
             m.graft(ci, (key,), (key,))
+    m.positions.overrides.update({k: v for k, v in base.positions.overrides.items()})
     m.positions.values[()] = child.positions.values.get((), (1, 1))
     m.positions.files.pop((), None)
     if m.errors:
@@ -202,6 +204,17 @@ def _merge_list(m: _Merge, bi: _Index, ci: _Index, data: dict[str, Any], where: 
         m.positions.values[(*where, i)] = ci.doc.positions.values[(*where, j)]
         m.positions.files.pop((*where, i), None)
         m.changes.append(f"{label} {_show(name)}: {', '.join(keys) or 'nothing'} changed")
+        _note_inherited(m, (*where, i), ci.doc.positions.at((*where, j)))
+
+
+def _note_inherited(m: _Merge, item: PathT, override: Location) -> None:
+    """Values of an overridden item that still come from the base: an error there notes the override."""
+    n = len(item)
+    for path in [p for p in m.positions.files if p[:n] == item]:
+        for table in (m.positions.values, m.positions.keys):
+            if path in table:
+                line, col = table[path]
+                m.positions.overrides[(m.positions.files[path], line, col)] = override
 
 
 def _show(name: Any) -> str:
@@ -265,4 +278,22 @@ def _shift(m: _Merge, where: PathT, removed: int) -> None:
         table.update(moved)
 
 
-__all__ = ["resolve"]
+
+
+def note_overrides(doc: Document, diagnostics: list[Diagnostic]) -> list[Diagnostic]:
+    """Each diagnostic at a value a variant inherits inside an item it overrides, with a note at the
+    override (the error may come from the pair)."""
+    table = doc.positions.overrides
+    if not table:
+        return diagnostics
+    out = []
+    for d in diagnostics:
+        loc = d.location
+        override = table.get((loc.path, loc.line, loc.col))
+        if override is not None:
+            d = dataclasses.replace(d, related=(*d.related, (override, "the item is overridden here (the value above is inherited from the base)")))
+        out.append(d)
+    return out
+
+
+__all__ = ["note_overrides", "resolve"]

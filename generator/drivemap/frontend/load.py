@@ -39,6 +39,9 @@ class Positions:
     #: the file of a value or key that comes from another file than ``path`` (a map that extends
     #: another: frontend.family), by path
     files: dict[PathT, str] = field(default_factory=dict)
+    #: a value a variant inherits inside an item it overrides -> where the override is (a note on
+    #: any error located at that value: the override may be what made it)
+    overrides: dict[tuple[str, int, int], Location] = field(default_factory=dict)
 
     def at(self, where: PathT, *, key: bool = False) -> Location:
         """Location of the value at ``where`` (or of its key), falling back to the nearest parent."""
