@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from helpers_client import package, simulator, tcp_server
@@ -68,6 +69,7 @@ def test_runtime_check_identity_names_register_and_both_values() -> None:
         client = mod.Client.tcp(host, port, 1)
         try:
             assert check_identity(client) == ()
+            assert check_identity(SimpleNamespace(client=client)) == ()  # anything holding a client
             sim.unit(1).values["inverter_model_id"] = 113  # the float map's model id
             with pytest.raises(IdentityMismatch) as err:
                 check_identity(client)
