@@ -93,7 +93,7 @@ def test_export_contract(model: str) -> None:
     code, out, _ = run("export", model, "--format", "json")
     assert code == 0
     data = json.loads(out)
-    assert set(data) == {"model", "title", "protocol", "registers", "reserved", "known_issues", "examples"}
+    assert set(data) == {"model", "title", "protocol", "registers", "reserved", "known_issues", "identity", "examples"}
     assert data["model"] == model
     keys = {"name", "address", "param", "access", "type", "scale", "offset", "unit", "min", "max", "default",
             "reflect", "storage", "broadcast", "enum", "bits", "page", "table", "length", "word_order", "byte_order",

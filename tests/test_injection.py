@@ -58,6 +58,7 @@ def hostile_map(marker: Path) -> tuple[dict[str, object], list[str]]:
     base["registers"][1]["unit"] = texts[0]
     base["protocol"]["exceptions"][0]["meaning"] = texts[1]
     base["known_issues"][0]["printed"] = texts[5]
+    base["identity"][0]["source"] = texts[3]
     base["known_issues"][0]["reason"] = texts[2]
     base["examples"][0]["title"] = texts[4]
     base["examples"][0]["notes"] = texts[6]

@@ -227,6 +227,13 @@ def cmd_new(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_migrate(args: argparse.Namespace) -> int:
+    from drivemap.migrate import run
+
+    project = _project(args, args.paths)
+    return run(project.map_files(), args.write)
+
+
 def cmd_schema(args: argparse.Namespace) -> int:
     from drivemap.frontend.schema import SCHEMA_PATH
 
@@ -303,6 +310,11 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--dir", default=None, help="folder for the new map (default: the project's maps folder)")
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_new)
+    s = sub.add_parser("migrate", help="rewrite maps of an older format to the current one (a diff; --write applies)")
+    s.add_argument("paths", nargs="*", metavar="PATH", help="map files or folders (default: the project's maps)")
+    s.add_argument("--write", action="store_true", help="write the migrated maps (default: print the diff only)")
+    _project_flags(s, out=False)
+    s.set_defaults(func=cmd_migrate)
     s = sub.add_parser("schema", help="print the path of the installed map schema (--print: its content)")
     s.add_argument("--print", action="store_true")
     s.set_defaults(func=cmd_schema)

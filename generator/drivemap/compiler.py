@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +18,8 @@ from drivemap.backends.exporters.base import Exporter
 from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
 from drivemap.diagnostics import CompileError, Diagnostic, Location
-from drivemap.frontend import checks, schema
-from drivemap.frontend.load import load_file
+from drivemap.frontend import checks, family, formats, schema
+from drivemap.frontend.load import Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
@@ -42,19 +43,34 @@ def compile_map(path: str | os.PathLike[str], exporters: Sequence[Exporter] | No
     """Load, validate and check one map (and run the ``validate`` hook of each of ``exporters``,
     by default :func:`default_exporters`); raise :class:`CompileError` with every error found."""
     shown = display_path(path)
-    doc = load_file(shown)
+    return compile_document(load_file(shown), exporters)
+
+
+def compile_text(text: str, path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
+    """:func:`compile_map` of ``text`` as if it were the content of ``path`` (nothing is read but
+    the maps it extends)."""
+    return compile_document(load_text(text, display_path(path)), exporters)
+
+
+def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None) -> Model:
+    """Validate and check a loaded map (and the maps it extends), with the ``validate`` hooks of
+    ``exporters`` (default :func:`default_exporters`); the model."""
+    shown = doc.path
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])
+    version = formats.upgrade(doc)
+    doc, variant = family.resolve(doc)
     errors = schema.validate(doc)
     if errors:
-        raise CompileError(errors)
+        raise CompileError(family.note_overrides(doc, errors))
     problems, statuses = checks.check(doc)
     for exporter in default_exporters() if exporters is None else exporters:
         problems += checks.located(doc, exporter.validate(doc.data))
     if problems:
-        raise CompileError(problems)
+        raise CompileError(family.note_overrides(doc, problems))
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
-    return build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
+    model = build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
+    return replace(model, format_version=version or formats.CURRENT, variant=variant)
 
 
 def map_paths() -> list[Path]:

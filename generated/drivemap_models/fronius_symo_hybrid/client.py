@@ -493,7 +493,7 @@ _codec_pf_window_s = IntCodec(SPEC.register('pf_window_s'))
 _codec_pf_revert_s = IntCodec(SPEC.register('pf_revert_s'))
 _codec_pf_ramp_s = IntCodec(SPEC.register('pf_ramp_s'))
 _codec_pf_enable = EnumCodec(SPEC.register('pf_enable'), EnableControl)
-_codec_var_pct_of_wmax = OptionalCodec(IntCodec(SPEC.register('var_pct_of_wmax')))
+_codec_var_pct_of_wmax = OptionalCodec(ScaledCodec(SPEC.register('var_pct_of_wmax'), SPEC.register('var_pct_sf')))
 _codec_var_pct_of_varmax = ScaledCodec(SPEC.register('var_pct_of_varmax'), SPEC.register('var_pct_sf'))
 _codec_var_pct_of_varaval = OptionalCodec(ScaledCodec(SPEC.register('var_pct_of_varaval'), SPEC.register('var_pct_sf')))
 _codec_var_window_s = IntCodec(SPEC.register('var_window_s'))
@@ -959,7 +959,7 @@ class Snapshot(SnapshotBase):
     pf_revert_s: int | None = None
     pf_ramp_s: int | None = None
     pf_enable: EnableControl | None = None
-    var_pct_of_wmax: int | None = None
+    var_pct_of_wmax: float | None = None
     var_pct_of_varmax: float | None = None
     var_pct_of_varaval: float | None = None
     var_window_s: int | None = None
@@ -2447,11 +2447,11 @@ class Client(ClientBase[Snapshot]):
         Default: —; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40242 ('I123 Immediate', offset 15).
         """
-        self.var_pct_of_wmax: ReadOnly[int | None] = ReadOnly(self, _codec_var_pct_of_wmax)
+        self.var_pct_of_wmax: ReadOnly[float | None] = ReadOnly(self, _codec_var_pct_of_wmax)
         """Reactive power in percent of I_WMax.
 
         Address 0x9D32 (Modicon 440243); parameter VArWMaxPct; s16, access r.
-        Unit: %; scale 1; range — .. — %.
+        Unit: %; scale 1 x 10^var_pct_sf (read with it); range — .. — %.
         Not available: raw -32768 reads as None.
         Default: —; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40243 ('I123 Immediate', offset 16).
@@ -3372,7 +3372,7 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         """Ramp time for moving from current setpoint to new setpoint. (see :attr:`Client.pf_ramp_s`)."""
         self.pf_enable: AsyncReadWrite[EnableControl] = AsyncReadWrite(self, _codec_pf_enable)
         """Enumerated valued. Fixed power factor enable/disable control. (see :attr:`Client.pf_enable`)."""
-        self.var_pct_of_wmax: AsyncReadOnly[int | None] = AsyncReadOnly(self, _codec_var_pct_of_wmax)
+        self.var_pct_of_wmax: AsyncReadOnly[float | None] = AsyncReadOnly(self, _codec_var_pct_of_wmax)
         """Reactive power in percent of I_WMax. (see :attr:`Client.var_pct_of_wmax`)."""
         self.var_pct_of_varmax: AsyncReadWrite[float] = AsyncReadWrite(self, _codec_var_pct_of_varmax)
         """Reactive power in percent of I_VArMax. (see :attr:`Client.var_pct_of_varmax`)."""

@@ -8,6 +8,7 @@ from drivemap.runtime.spec import (
     DeviceSpec,
     ExceptionSpec,
     FunctionSpec,
+    IdentitySpec,
     PolicySpec,
     RegisterSpec,
     ReservedSpec,
@@ -1571,6 +1572,7 @@ SPEC = DeviceSpec(
             unit='%',
             param='VArWMaxPct',
             source="IntSF 'Complete Map' 40243 ('I123 Immediate', offset 16)",
+            scale_register='var_pct_sf',
             not_available=(-32768,),
         ),
         RegisterSpec(
@@ -2208,4 +2210,10 @@ SPEC = DeviceSpec(
     configuration=None,
     max_frame_bytes=256,
     fixed_units=(),
+    identity=(
+        IdentitySpec('sunspec_id', 'equals', (1400204883,), "IntSF 'Complete Map' 40001-40002 (SID, range of values 0x53756e53); 2049 p.82"),
+        IdentitySpec('common_model_id', 'equals', (1,), "IntSF 'Complete Map' 40003 ('C001 Common', ID: well-known value 1)"),
+        IdentitySpec('manufacturer', 'equals', ('Fronius',), "IntSF 'Complete Map' 40005-40020 (Mn, range of values 'Fronius'); 2049 p.68 example 1"),
+        IdentitySpec('inverter_model_id', 'one_of', (101, 102, 103), "IntSF 'Complete Map' 40070 ('I10X Inverter', ID: 101, 102, 103)"),
+    ),
 )

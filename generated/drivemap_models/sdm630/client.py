@@ -705,7 +705,7 @@ class Client(ClientBase[Snapshot]):
         """Maximum total system power demand (2).
 
         Input register 0x0056 (Modicon 30087); parameter 44; f32 (bytes on the wire: AB CD), access r.
-        Unit: none; scale 1; range — .. —.
+        Unit: W; scale 1; range — .. — W.
         Default: —; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.2.1 p.3 (30087, hex 00 56).
         """

@@ -458,6 +458,7 @@ SPEC = DeviceSpec(
             table='input',
             access='r',
             word_order='high_first',
+            unit='W',
             param='44',
             source='V1.8 §1.2.1 p.3 (30087, hex 00 56)',
         ),

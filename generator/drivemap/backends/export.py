@@ -89,6 +89,8 @@ def export(model: Model) -> dict[str, Any]:
             for r in model.reserved
         ],
         "known_issues": [_plain(issue) for issue in model.known_issues],
+        "identity": [{"register": c.register, "kind": c.kind, "values": list(c.values), "source": c.source}
+                     for c in model.identity],
         "examples": [
             {
                 "name": ex.name,

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from drivemap.diagnostics import Diagnostic
-from drivemap.frontend import examplevalues, frames
+from drivemap.frontend import checks_identity, examplevalues, frames
 from drivemap.frontend.checks_registers import RegisterChecks, table_name
 from drivemap.frontend.checks_rules import check_rules
 from drivemap.frontend.load import Document, PathT
@@ -41,7 +41,14 @@ class Checker(RegisterChecks):
         self.check_running()
         self.check_reserved_pages()
         self.check_example_values()
+        self.check_identity()
         return self.diagnostics
+
+    def check_identity(self) -> None:
+        """The map's identity checks (:mod:`.checks_identity`)."""
+        tables = {r.get("name"): self.table_of(i) for i, r in enumerate(self.data.get("registers", ()))}
+        for where, message in checks_identity.problems(self.data, tables):
+            self.error(where, message)
 
     def check_reserved_pages(self) -> None:
         """A reserved range's page selector is a register, as a register's is."""

@@ -36,6 +36,12 @@ class Positions:
     path: str
     values: dict[PathT, tuple[int, int]] = field(default_factory=dict)
     keys: dict[PathT, tuple[int, int]] = field(default_factory=dict)
+    #: the file of a value or key that comes from another file than ``path`` (a map that extends
+    #: another: frontend.family), by path
+    files: dict[PathT, str] = field(default_factory=dict)
+    #: a value a variant inherits inside an item it overrides -> where the override is (a note on
+    #: any error located at that value: the override may be what made it)
+    overrides: dict[tuple[str, int, int], Location] = field(default_factory=dict)
 
     def at(self, where: PathT, *, key: bool = False) -> Location:
         """Location of the value at ``where`` (or of its key), falling back to the nearest parent."""
@@ -44,10 +50,10 @@ class Positions:
         while probe:
             if probe in table:
                 line, col = table[probe]
-                return Location(self.path, line, col)
+                return Location(self.files.get(probe, self.path), line, col)
             if probe in self.values:
                 line, col = self.values[probe]
-                return Location(self.path, line, col)
+                return Location(self.files.get(probe, self.path), line, col)
             probe = probe[:-1]
         line, col = self.values.get((), (1, 1))
         return Location(self.path, line, col)

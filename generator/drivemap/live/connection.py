@@ -81,6 +81,8 @@ def add_connection_arguments(parser: argparse.ArgumentParser, *, unit: bool = Tr
     g.add_argument("--stop-bits", type=int, choices=[1, 2], default=None, help="serial stop bits (default: the map's)")
     if unit:
         g.add_argument("--unit", type=int, default=None, metavar="N", help="unit id (default: 1, or the map's lowest)")
+        g.add_argument("--no-identity-check", action="store_true",
+                       help="do not read the map's identity registers first (write then writes to any device)")
     g.add_argument("--timeout", type=float, default=None, metavar="S", help="response timeout (default: the map's)")
     g.add_argument("--retries", type=int, default=None, metavar="N", help="retries after a timeout (default: the map's)")
     g.add_argument("--debug", action="store_true", help="log every frame in hex on stderr")

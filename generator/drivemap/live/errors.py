@@ -13,6 +13,7 @@ code  meaning
 4     garbled replies: bytes arrive but never form a valid frame (wrong baud rate or parity?)
 5     the device answered with an exception (its code, name and meaning from the map)
 6     verify: the map and the device disagree (see the report)
+7     the device is not the map's: an identity register holds another value (write refuses)
 130   interrupted (Ctrl-C)
 ====  ==========================================================================================
 """
@@ -34,6 +35,7 @@ EXIT_NO_ANSWER = 3
 EXIT_GARBLED = 4
 EXIT_DEVICE_EXCEPTION = 5
 EXIT_DISAGREE = 6
+EXIT_IDENTITY = 7
 EXIT_INTERRUPTED = 130
 
 EXIT_CODES: dict[int, str] = {
@@ -44,6 +46,7 @@ EXIT_CODES: dict[int, str] = {
     EXIT_GARBLED: "garbled replies (wrong baud rate or parity?)",
     EXIT_DEVICE_EXCEPTION: "the device answered with an exception",
     EXIT_DISAGREE: "verify: map and device disagree",
+    EXIT_IDENTITY: "the device is not the map's (identity check; --no-identity-check overrides)",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
 }
 

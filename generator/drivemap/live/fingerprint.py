@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from drivemap.live.target import Target
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.identity import identity_keys, identity_mismatches
 from drivemap.runtime.client.sync_client import _run
 from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 
@@ -77,6 +78,8 @@ class Fit:
     answered: int = 0
     values: int = 0
     problems: list[str] = field(default_factory=list)
+    #: "identity" when the map's identity registers decided (they are read first), else "fingerprint"
+    by: str = "fingerprint"
 
     @property
     def fits(self) -> bool:
@@ -86,17 +89,48 @@ class Fit:
     def score(self) -> float:
         if not self.requests:
             return 0.0
-        return self.answered / self.requests - 0.1 * len(self.problems)
+        return self.answered / self.requests - 0.1 * len(self.problems) + (1.0 if self.by == "identity" and self.fits else 0.0)
 
     def summary(self) -> str:
+        if self.fits and self.by == "identity":
+            return f"{self.model} fits by identity ({self.values} identity registers match)"
         if self.fits:
             return f"{self.model} fits ({self.answered}/{self.requests} reads, {self.values} values in range)"
         first = f": {self.problems[0]}" if self.problems else ""
         return f"{self.model} does not ({self.answered}/{self.requests} reads answered{first})"
 
     def json(self) -> dict[str, Any]:
-        return {"model": self.model, "fits": self.fits, "requests": self.requests, "answered": self.answered,
-                "values": self.values, "problems": self.problems}
+        return {"model": self.model, "fits": self.fits, "by": self.by, "requests": self.requests,
+                "answered": self.answered, "values": self.values, "problems": self.problems}
+
+
+def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
+    """Read the map's identity registers from ``unit`` and judge them (None: the map names none)."""
+    spec = target.spec
+    if not spec.identity:
+        return None
+    fit = Fit(target.model.name, by="identity")
+    if not spec.valid_unit(unit):
+        fit.problems.append(f"unit {unit} is outside the map's unit ids")
+        return fit
+    client = target.client_class(bus, unit)
+    keys = identity_keys(spec)
+    for req in client.plan(keys):
+        fit.requests += 1
+        try:
+            raws = _run(bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))
+        except DeviceException as exc:
+            fit.problems.append(f"identity: exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
+            continue
+        except (DriveTimeout, TransportError):
+            fit.problems.append(f"identity: no answer to a read of 0x{req.address:04X}+{req.count}")
+            continue
+        fit.answered += 1
+        checks = tuple(c for c in spec.identity if (c.register, 0) in raws)
+        fit.values += len(checks)
+        found = identity_mismatches(replace(spec, identity=checks), raws, target.codecs)
+        fit.problems.extend(f"identity: {m}" for m in found)
+    return fit
 
 
 def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:

@@ -5,8 +5,9 @@ defaults first) every unit id in ``--units`` gets one probe read; a unit that an
 (a reply or an exception) is there. On serial the scan stops at the first setting where a unit
 answers (devices on one line share its settings) unless ``--all-settings``. Each unit found is
 then read with every project map's planned requests (a read fingerprint: a map fits when every
-request is answered and every value lies within its enum and min/max; the maps have no
-identity registers to ask). The number of probes is known in advance (progress bar, ETA), each
+request is answered and every value lies within its enum and min/max), except that a map naming
+``identity`` registers is judged by them first: they are read, and the map fits exactly when each
+holds the value the map states (such a fit ranks above every fingerprint). The number of probes is known in advance (progress bar, ETA), each
 probe waits at most ``--timeout``; Ctrl-C stops and prints what was found.
 """
 
@@ -32,7 +33,7 @@ from drivemap.live.connection import (
     resolve_link,
 )
 from drivemap.live.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
-from drivemap.live.fingerprint import Fit, fingerprint
+from drivemap.live.fingerprint import Fit, fingerprint, identify
 from drivemap.live.fmt import console
 from drivemap.live.session import read_words
 from drivemap.live.target import Target, load_target, project_of
@@ -254,7 +255,7 @@ def fits_of(found: Found, targets: list[Target]) -> list[Fit]:
         for target in targets:
             if found.link.serial and found.link.mode not in target.spec.modes:
                 continue
-            fits.append(fingerprint(bus, target, found.unit))
+            fits.append(identify(bus, target, found.unit) or fingerprint(bus, target, found.unit))
     finally:
         bus.close()
     return sorted(fits, key=lambda f: (-f.score, f.model))

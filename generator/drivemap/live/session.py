@@ -8,14 +8,16 @@ addresses the map does not name (reserved ranges, probes) go through :meth:`Bus.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Iterable, Sequence
 from typing import Any
 
 from drivemap.live.connection import Link, open_bus, resolve_link, run
-from drivemap.live.errors import EXIT_INPUT, LiveError
+from drivemap.live.errors import EXIT_IDENTITY, EXIT_INPUT, LiveError
 from drivemap.live.target import Target
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus, Exchange
+from drivemap.runtime.client.identity import Mismatch, identity_keys, identity_mismatches
 from drivemap.runtime.client.planner import Key, ReadRequest, read_function
 from drivemap.runtime.client.sansio import READ_REQUESTS
 from drivemap.runtime.client.sync_client import Core, _run
@@ -24,12 +26,19 @@ from drivemap.runtime.spec import READ_CODES
 
 
 class Session:
-    """``with Session(target, link) as s:`` -- a connected client (``s.client``) and its bus."""
+    """``with Session(target, link) as s:`` -- a connected client (``s.client``) and its bus.
 
-    def __init__(self, target: Target, link: Link, *, switch_pages: bool = False) -> None:
+    ``identity``: what to do, once per connection, with the map's identity checks
+    (:func:`check_identity`): ``"refuse"`` (a device that does not match is an error before
+    anything is sent to it), ``"warn"`` (one line on stderr; ``s.identity`` keeps the mismatches) or
+    ``"off"``."""
+
+    def __init__(self, target: Target, link: Link, *, switch_pages: bool = False, identity: str = "warn") -> None:
         self.target = target
         self.link = link
         self.page_policy = "switch" if switch_pages else "raise"
+        self.identity_mode = identity
+        self.identity: tuple[Mismatch, ...] = ()
         self.bus: Bus | None = None
         self.client: Any = None
 
@@ -37,6 +46,18 @@ class Session:
         check_unit(self.target, self.link.unit)
         self.bus = open_bus(self.link)
         self.client = self.target.client_class(self.bus, self.link.unit, page_policy=self.page_policy)
+        if self.identity_mode != "off":
+            try:
+                self.identity = check_identity(self)
+            except BaseException:
+                self.bus.close()
+                raise
+            if self.identity and self.identity_mode == "refuse":
+                self.bus.close()
+                raise LiveError(EXIT_IDENTITY, identity_message(self) + "; nothing was written "
+                                "(--no-identity-check writes anyway)")
+            if self.identity:
+                print(f"warning: {identity_message(self)}", file=sys.stderr)
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -74,6 +95,21 @@ class Session:
         return read_words(self.bus, self.core, address, count, code)
 
 
+def check_identity(session: Session) -> tuple[Mismatch, ...]:
+    """The map's identity checks against the connected device (one read; () when all match or the
+    map names none). Callable by any holder of a live session or generated client: gateways too."""
+    spec = session.target.spec
+    if not spec.identity:
+        return ()
+    raws = session.call("reading the identity registers", session.client._read_raw_keys, identity_keys(spec))
+    return identity_mismatches(spec, raws, session.target.codecs)
+
+
+def identity_message(session: Session) -> str:
+    return (f"unit {session.link.unit} is not a {session.target.model.name}: "
+            + "; ".join(str(m) for m in session.identity))
+
+
 def check_unit(target: Target, unit: int) -> None:
     """A unit id the map does not allow is a command-line error (before opening anything)."""
     spec = target.spec
@@ -92,8 +128,11 @@ def read_words(bus: Bus, core: Core, address: int, count: int, code: int | None 
     return list(reply.registers)
 
 
-def session_for(args: argparse.Namespace, target: Target) -> Session:
-    return Session(target, resolve_link(args, target), switch_pages=getattr(args, "switch_pages", False))
+def session_for(args: argparse.Namespace, target: Target, identity: str = "warn") -> Session:
+    """The verb's session; ``identity``: the verb's answer to a device that does not match its map
+    (``--no-identity-check`` turns the check off)."""
+    mode = "off" if getattr(args, "no_identity_check", False) else identity
+    return Session(target, resolve_link(args, target), switch_pages=getattr(args, "switch_pages", False), identity=mode)
 
 
 def keys_of(cells: Iterable[tuple[Register, int]]) -> list[Key]:
@@ -105,4 +144,4 @@ def describe_keys(target: Target, keys: Sequence[Key], limit: int = 4) -> str:
     return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
-__all__ = ["DriveError", "Session", "describe_keys", "keys_of", "read_words", "session_for"]
+__all__ = ["DriveError", "Session", "check_identity", "describe_keys", "keys_of", "read_words", "session_for"]

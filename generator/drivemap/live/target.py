@@ -43,12 +43,22 @@ class Target:
         return self.package.CODECS
 
     def where(self, reg: Register) -> str:
-        """``maps/ev.yaml:580``: where the register is defined."""
-        return f"{self.model.path}:{reg.line}"
+        """``maps/ev.yaml:580``: where the register is defined (in the base map for a register a
+        variant inherits)."""
+        loc = self.register_location(reg)
+        return f"{loc.path}:{loc.line}"
+
+    def register_location(self, reg: Register) -> Location:
+        index = next(i for i, r in enumerate(self.model.registers) if r.name == reg.name)
+        loc: Location = self._document_positions.at(("registers", index))
+        return loc
 
     @cached_property
     def _document_positions(self) -> Any:
-        return load_file(self.model.path).positions
+        from drivemap.frontend.family import resolve
+
+        doc = load_file(self.model.path)
+        return resolve(doc)[0].positions if self.model.variant is not None else doc.positions
 
     def line_of(self, *where: str | int) -> int:
         """Line of an item of the map (``"reserved", 2`` or ``"protocol", "exceptions", 1``)."""
@@ -101,4 +111,5 @@ def register_note(target: Target, reg: Register) -> tuple[tuple[Location, str], 
     if reg.max is not None:
         bounds.append(f"max {reg.max:g}")
     extra = f" ({', '.join(bounds)}{' ' + reg.unit if reg.unit and bounds else ''})" if bounds else ""
-    return ((Location(target.model.path, reg.line, 5), f"{reg.name} is defined here{extra}"),)
+    loc = target.register_location(reg)
+    return ((Location(loc.path, loc.line, 5), f"{reg.name} is defined here{extra}"),)

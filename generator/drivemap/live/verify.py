@@ -23,7 +23,7 @@ from drivemap.live.fmt import console
 from drivemap.live.pages import Cell, current_pages, on_shown_page, restore, selectors
 from drivemap.live.session import Session, session_for
 from drivemap.live.target import load_target, project_of
-from drivemap.live.verify_checks import Results, check_alone, check_batches, check_reserved
+from drivemap.live.verify_checks import Finding, Results, check_alone, check_batches, check_reserved
 from drivemap.live.verify_report import Header, report_paths, write_report
 from drivemap.live.verify_write import candidates, check_writes
 from drivemap.runtime.errors import DeviceException, TransportError
@@ -56,7 +56,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     started = time.strftime("%Y-%m-%d %H:%M:%S")
     checks = "read alone, batches, reserved, values" + (", write-safe" + (" (EEPROM too)" if args.eeprom else "")
                                                         if args.write_safe else "")
-    with session_for(args, target) as session:
+    with session_for(args, target, identity="refuse" if args.write_safe else "warn") as session:
         try:
             results = run_checks(session, args.write_safe, args.eeprom)
         except TransportError as exc:
@@ -79,6 +79,18 @@ def reach(session: Session, cells: list[Cell]) -> None:
                       and session.bus.stats.bytes_garbled > 0) from None
 
 
+def check_identity_findings(session: Session, results: Results) -> None:
+    """The identity registers the session read on connecting: each that does not match disagrees."""
+    checks = session.target.model.identity
+    if not checks or session.identity_mode == "off":
+        return
+    results.count("identity", len(checks))
+    for m in session.identity:
+        index = next(i for i, c in enumerate(checks) if c.register == m.register)
+        results.add(Finding("identity", "disagree", m.register, m.address, session.target.line_of("identity", index),
+                            m.expected, m.actual, "another device answers, or the map's identity is wrong"))
+
+
 def run_checks(session: Session, write_safe: bool, eeprom: bool) -> Results:
     model = session.target.model
     cells: list[Cell] = [(r, i) for r in model.registers if r.readable for i in range(r.count)]
@@ -87,6 +99,7 @@ def run_checks(session: Session, write_safe: bool, eeprom: bool) -> Results:
     reach(session, cells)
     saved = current_pages(session, selectors(cells) + selectors([(r, 0) for r in model.registers]))
     results = Results()
+    check_identity_findings(session, results)
     if session.page_policy == "raise":
         cells, other = on_shown_page(cells, saved)
         results.skipped += [f"{r.element_name(i)}: on page {r.page.value} of {r.page.selector}"

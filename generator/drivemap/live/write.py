@@ -67,7 +67,7 @@ def cmd_write(args: argparse.Namespace) -> int:
     items = [((a.register.name, index), raw) for a in assignments for _, index, raw, _ in a.items]
     if args.dry_run:
         return dry_run(target, resolve_link(args, target), items, args.apply, args.switch_pages)
-    with session_for(args, target) as session:
+    with session_for(args, target, identity="refuse") as session:
         session.call(f"writing {', '.join(a.text for a in assignments)}", session.client._write_raw_items, items)
         if args.apply:
             session.call("sending the Configuration command", session.client.apply_configuration)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from drivemap.model import modicon
+from drivemap.model.family import IDENTITY_KINDS, IdentityCheck
 from drivemap.model.nodes import (
     Alignment,
     AllowedValue,
@@ -77,13 +78,22 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         KnownIssue(k["title"], k["source"], k["printed"], k.get("corrected"), k["chosen"], k["reason"], tuple(k.get("affects", ())))
         for k in data.get("known_issues", ())
     )
+    by_name = {r.name: r for r in registers}
     model = Model(
         path=path, device=_device(data["device"]), protocol=_protocol(p), enums=enums, groups=groups,
         registers=tuple(registers), reserved=reserved, known_issues=issues,
+        identity=tuple(_identity(x, by_name[x["register"]]) for x in data.get("identity", ())),
         examples=tuple(_example(e, statuses[e["name"]]) for e in data["examples"]),
     )
     model._by_name.update({r.name: r for r in registers})
     return model
+
+
+def _identity(x: dict[str, Any], reg: Register) -> IdentityCheck:
+    kind = next(k for k in IDENTITY_KINDS if k in x)
+    given = x[kind] if kind == "one_of" else [x[kind]]
+    values = tuple(v if isinstance(v, str) else normalize_raw(reg.type, reg.table, reg.length, v) for v in given)
+    return IdentityCheck(x["register"], kind, values, x["source"], x.get("notes"))  # type: ignore[arg-type]
 
 
 def _device(dev: dict[str, Any]) -> Device:
@@ -168,7 +178,7 @@ def _protocol(p: dict[str, Any]) -> Protocol:
         ),
         exceptions=tuple(
             ExceptionCode(e["code"], e["name"], e["meaning"], tuple(e.get("comm_errors", ())), e["source"], e.get("notes"),
-                          documented=e.get("documented", True))
+                          documented=e.get("documented", e["source"] != "map choice"))
             for e in p["exceptions"]
         ),
         comm_errors=tuple(

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from drivemap.model import modicon
+from drivemap.model.family import IdentityCheck, Variant
 from drivemap.model.modicon import Table
 from drivemap.model.rules import Alignment, AllowedValue
 from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
@@ -579,6 +580,11 @@ class Model:
     reserved: tuple[Reserved, ...]
     known_issues: tuple[KnownIssue, ...]
     examples: tuple[Example, ...]
+    #: the map's format (``drivemap:``); a format-1 map is read with frontend.formats' defaults
+    format_version: int = 2
+    identity: tuple[IdentityCheck, ...] = ()
+    #: set when the map extends another (model.family)
+    variant: Variant | None = None
     _by_name: dict[str, Register] = field(default_factory=dict, compare=False, repr=False)
 
     @property

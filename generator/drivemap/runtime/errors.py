@@ -69,6 +69,15 @@ class WrongPage(AccessError):
     """A paged register was read while its page selector shows another page (``page_policy="raise"``)."""
 
 
+class IdentityMismatch(DriveError):
+    """The device that answers is not the one the map describes: an identity register (the map's
+    ``identity``) holds another value. Raised before anything is written."""
+
+    def __init__(self, message: str, mismatches: tuple[object, ...] = ()) -> None:
+        super().__init__(message)
+        self.mismatches = mismatches
+
+
 class UnknownRegister(DriveError, KeyError):
     """``read_by_name`` / ``write_by_name`` with a name the map does not define."""
 
@@ -155,6 +164,7 @@ __all__ = [
     "DeviceException",
     "DriveError",
     "DriveTimeout",
+    "IdentityMismatch",
     "IndexOutOfRange",
     "InvalidArgument",
     "InvalidValue",

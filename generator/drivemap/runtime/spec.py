@@ -222,6 +222,20 @@ class SerialSpec:
 
 
 @dataclass(frozen=True)
+class IdentitySpec:
+    """One identity check of a map: the register and the values that identify the device or family.
+
+    ``kind``: ``equals`` / ``one_of`` (``values``: integers compared with the raw register value, or
+    texts compared with a string register's text), ``prefix`` (the text starts with ``values[0]``),
+    ``pattern`` (the text matches the regular expression ``values[0]`` as a whole)."""
+
+    register: str
+    kind: str
+    values: tuple[int | str, ...]
+    source: str = ""
+
+
+@dataclass(frozen=True)
 class DeviceSpec:
     model: str
     title: str
@@ -251,6 +265,8 @@ class DeviceSpec:
     max_gap: int = 0
     #: rules on request start addresses and quantities (runtime.alignment)
     alignment: tuple[AlignmentSpec, ...] = ()
+    #: registers and values that identify the device (runtime.client.identity); () when the map names none
+    identity: tuple[IdentitySpec, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

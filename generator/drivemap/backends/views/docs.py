@@ -20,6 +20,7 @@ from drivemap.backends.views.common import header
 from drivemap.backends.views.format import enum_anchor, example_anchor, hex2, hex4, num, slug, with_unit
 from drivemap.backends.views.registers import addressing, groups, reserved_rows, shown_value
 from drivemap.backends.views.usage import SNIPPET_HOST, SNIPPET_PORT, usage
+from drivemap.frontend.formats import CURRENT
 from drivemap.model.nodes import Example, FunctionCode, Model, Register, Value
 
 MODE_NAMES = {"rtu": "Modbus RTU", "ascii": "Modbus ASCII", "tcp": "Modbus TCP"}
@@ -450,6 +451,22 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "counts": counts,
         "known_issues": _known_issues(model),
         "usage": usage(model, options.package),
+        **_family(model),
+    }
+
+
+def _family(model: Model) -> dict[str, Any]:
+    """The identity table, what a variant changes, and the map's format (docs)."""
+    variant = model.variant
+    return {
+        "identity": [{"register": c.register, "address": f"{model.register(c.register).table} "
+                      f"{hex4(model.register(c.register).address)}", "expected": c.expected(), "source": c.source}
+                     for c in model.identity],
+        "variant": ({"base": Path(variant.extends[0]).name, "chain": [Path(p).name for p in variant.extends],
+                     "changes": variant.changes}
+                    if variant else None),
+        "format_version": model.format_version,
+        "current_format": CURRENT,
     }
 
 

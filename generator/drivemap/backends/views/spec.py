@@ -126,6 +126,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "running_state": ((p.running_state.register, p.running_state.values) if p.running_state else None),
         "reply_quirks": tuple(q.quirk for q in p.reply_quirks),
         "alignment": alignment_literals(model),
+        "identity": [(c.register, c.kind, c.values, c.source) for c in model.identity],
     }
 
 
@@ -138,6 +139,8 @@ def _imports(model: Model) -> list[str]:
         names.add("PageSpec")
     if model.protocol.comm_errors:
         names.add("CommErrorSpec")
+    if model.identity:
+        names.add("IdentitySpec")
     if model.protocol.exception_policy or model.protocol.comm_error_policy:
         names.add("PolicySpec")
     if model.reserved:

@@ -131,6 +131,18 @@ class Unit:
                 self.values[name] = raw
                 if reg.reflect == "configuration":
                     self.applied[name] = raw
+        self._identify()
+
+    def _identify(self) -> None:
+        """A register the map's identity names, without a default, holds the identifying value (the
+        first of a list, a prefix's text; a pattern leaves it as it is): the simulator is the device."""
+        for check in self.sim.spec.identity:
+            reg = self.sim.spec.register(check.register)
+            if reg.default_at(0) is not None or check.kind == "pattern" or not check.values:
+                continue
+            value = check.values[0]
+            name = next(iter(_cell_names(reg)))[0]
+            self.values[name] = from_value(reg, value, None) if isinstance(value, str) else value
 
     def _factor(self, reg: RegisterSpec) -> int | None:
         """The current raw value of ``reg``'s scale-factor register (None: it has none)."""
