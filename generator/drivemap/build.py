@@ -17,7 +17,7 @@ from drivemap.backends.exporters import available
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
-from drivemap.backends.python.inmemory import load_spec
+from drivemap.model.spec import spec_from_model
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display
 from drivemap.model.nodes import Model
@@ -131,7 +131,7 @@ def simulator_factory(model: Model, project: Project) -> Any:
     except ImportError as exc:
         where = Location(display(project.config or project.root), 1, 1)
         raise CompileError([Diagnostic(where, f"behaviours: cannot import {exc.name or exc}: {exc}")]) from None
-    spec = load_spec(model, options_for(project))
+    spec = spec_from_model(model)
 
     def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:
         return Simulator(spec, units, behaviour=behaviour_for(model.name), **kwargs)

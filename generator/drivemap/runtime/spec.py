@@ -1,7 +1,8 @@
-"""Plain, frozen descriptions of a device that generated modules embed as literals.
+"""Plain, frozen descriptions of a device: what the client and simulator runtime read.
 
-Generated ``generated/<model>/spec.py`` builds one :class:`DeviceSpec`; the client and the
-simulator runtime read only these classes (never YAML at run time).
+The compiler makes one :class:`DeviceSpec` from a map (``drivemap.model.spec.spec_from_model``);
+generated ``generated/<model>/spec.py`` is that object printed. The runtime reads only these
+classes (never YAML at run time). The tables of type sizes and read codes here are the only ones.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ class RegisterSpec:
     name: str
     address: int
     type: str = "u16"
+    table: str = "holding"
     access: str = "rw"
     count: int = 1
     stride: int = 1
@@ -75,7 +77,6 @@ class RegisterSpec:
     source: str = ""
     #: the manual's advice for writes while the drive runs (the client warns; nothing is refused)
     running_advice: str | None = None
-    table: str = "holding"
     byte_order: str = "high_first"
     length: int = 1
     """Words of a string (1 for other types)."""
@@ -84,6 +85,8 @@ class RegisterSpec:
     not_available: tuple[int, ...] = ()
     """Raw values that read as None."""
     min_read: int | None = None
+    bits_class: str | None = None
+    """The Python class of a bit-field value (an IntFlag or a record), when the register has bits."""
     words: int = field(init=False, compare=False, repr=False)
     signed: bool = field(init=False, compare=False, repr=False)
 
@@ -181,6 +184,23 @@ class SerialSpec:
 
 
 @dataclass(frozen=True)
+class EnumMemberSpec:
+    value: int
+    name: str
+    label: str
+
+
+@dataclass(frozen=True)
+class EnumSpec:
+    """A named set of values of the map (the client's ``DriveEnum`` of the same name)."""
+
+    name: str
+    members: tuple[EnumMemberSpec, ...]
+    source: str = ""
+    notes: str | None = None
+
+
+@dataclass(frozen=True)
 class DeviceSpec:
     model: str
     title: str
@@ -208,6 +228,7 @@ class DeviceSpec:
     reply_quirks: tuple[str, ...] = ()
     #: undocumented words the read planner may read across (0: none)
     max_gap: int = 0
+    enums: tuple[EnumSpec, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

@@ -27,7 +27,7 @@ from typing import Any
 
 from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
-from drivemap.backends.python.inmemory import load_spec
+from drivemap.model.spec import spec_from_model
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.esphome import Item, align
@@ -148,7 +148,7 @@ class _Build:
             self._point(point)
         keys = sorted({(p.reg.name, p.index) for p in readable
                        if any(i.polled and i.address == p.address and i.table == p.reg.table for i in self.items)})
-        plan = plan_reads(load_spec(model), keys) if keys else ()
+        plan = plan_reads(spec_from_model(model), keys) if keys else ()
         skips: dict[tuple[str, int], int] = {(p.reg.table, p.address): max(0, round(p.interval / self.base) - 1) for p in readable}
         if self.raw:
             self.notes.append("text_sensor with the wire bytes as hex (ESPHome has no value_type for them): "
