@@ -22,8 +22,8 @@ from common import ROOT, Row, Section
 from drivemap.backends.exporters.base import Options
 from drivemap.backends.exporters.esphome import EsphomeExporter
 from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
-from drivemap.model.spec import spec_from_model
 from drivemap.compiler import load_model
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import SERIAL  # what the maps leave open on their serial line

@@ -29,8 +29,8 @@ from pymodbus.client.mixin import ModbusClientMixin
 from pymodbus.framer import FramerType
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
+from rendered import load_package
 
-from drivemap.backends.python.inmemory import load_package
 from drivemap.compiler import compile_map
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.planner import plan_reads

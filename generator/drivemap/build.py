@@ -17,10 +17,10 @@ from drivemap.backends.exporters import available
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
-from drivemap.model.spec import spec_from_model
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display
 from drivemap.model.nodes import Model
+from drivemap.model.spec import spec_from_model
 
 __all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "simulator_factory"]
 

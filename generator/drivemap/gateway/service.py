@@ -13,11 +13,11 @@ import asyncio
 import logging
 from typing import Any
 
-from drivemap.backends.python.inmemory import load_package
 from drivemap.gateway.config import BusConfig, GatewayConfig
 from drivemap.gateway.device import Command, Device
 from drivemap.gateway.lines import Fanout, Line
 from drivemap.model.nodes import Model
+from drivemap.model.spec import load_package
 from drivemap.runtime.client.bus import AsyncBus
 
 log = logging.getLogger("drivemap.gateway")

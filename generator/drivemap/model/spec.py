@@ -8,7 +8,12 @@ Nothing here renders or executes generated text.
 
 from __future__ import annotations
 
+import sys
+import types
+
 from drivemap.model.nodes import Model, Register
+from drivemap.runtime.client.dynamic import client_package
+from drivemap.runtime.sim.model import ModelSimulator, simulator_main
 from drivemap.runtime.spec import (
     BitSpec,
     CommErrorSpec,
@@ -25,7 +30,7 @@ from drivemap.runtime.spec import (
     TimingSpec,
 )
 
-__all__ = ["register_spec", "spec_from_model"]
+__all__ = ["load_package", "register_spec", "spec_from_model"]
 
 
 def _num(value: float | None) -> int | float | None:
@@ -121,3 +126,19 @@ def spec_from_model(model: Model) -> DeviceSpec:
         max_gap=p.max_gap,
         enums=_enums(model),
     )
+
+
+def load_package(model: Model) -> types.ModuleType:
+    """The package of ``model`` as ``drivemap build`` would write it (``Client``, ``AsyncClient``,
+    ``SPEC``, enums ..., and a ``simulator`` submodule with its ``Simulator``), built from
+    :func:`spec_from_model` without generating or running code; each call builds afresh."""
+    spec = spec_from_model(model)
+    name = f"drivemap_inmemory_{model.name}"
+    package = client_package(spec, name)
+    package.__path__ = []  # a package, so that ``importlib.import_module(f"{name}.simulator")`` works
+    simulator = types.ModuleType(f"{name}.simulator", f"Simulator of {spec.title}")
+    simulator.Simulator = type("Simulator", (ModelSimulator,), {"SPEC": spec, "__module__": simulator.__name__})  # type: ignore[attr-defined]
+    simulator.MODEL = spec.model  # type: ignore[attr-defined]
+    simulator.main = simulator_main(simulator.Simulator)  # type: ignore[attr-defined]
+    sys.modules[simulator.__name__] = package.simulator = simulator  # type: ignore[attr-defined]
+    return package

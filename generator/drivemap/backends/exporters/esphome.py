@@ -27,11 +27,11 @@ from typing import Any
 
 from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
-from drivemap.model.spec import spec_from_model
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.esphome import Item, align
 from drivemap.model.nodes import Model, Register
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads
 
 __all__ = ["REGISTER_TYPES", "VALUE_TYPES", "EsphomeExporter"]

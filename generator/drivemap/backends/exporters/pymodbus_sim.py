@@ -24,10 +24,10 @@ import struct
 from typing import Any
 
 from drivemap.backends.exporters.base import Exporter, Options
-from drivemap.model.spec import spec_from_model
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.model.nodes import Model, Register
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.sim.simulator import Simulator
 from drivemap.runtime.sim.unit import wire_words
 

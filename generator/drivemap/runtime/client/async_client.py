@@ -10,8 +10,14 @@ from pymodbus.pdu import ModbusPDU
 
 from drivemap.runtime.client import rawio
 from drivemap.runtime.client.accessors import (
+    AsyncCommand,
+    AsyncReadOnly,
+    AsyncReadOnlyArray,
     AsyncReadWrite,
+    AsyncReadWriteArray,
+    AsyncReadWriteCommand,
     AsyncWriteOnly,
+    AsyncWriteOnlyArray,
     Readable,
     _Array,
     encode_for_write,
@@ -30,6 +36,11 @@ class AsyncClientBase(_Common[S]):
     """Asyncio client of one unit on an :class:`AsyncBus` (same API, awaited)."""
 
     _ASYNC = True
+    _ACCESSOR_CLASSES = {
+        "r": AsyncReadOnly, "w": AsyncWriteOnly, "rw": AsyncReadWrite, "cmd": AsyncCommand,
+        "rwcmd": AsyncReadWriteCommand, "r[]": AsyncReadOnlyArray, "w[]": AsyncWriteOnlyArray,
+        "rw[]": AsyncReadWriteArray,
+    }
 
     def __init__(self, bus: AsyncBus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:

@@ -14,6 +14,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 from drivemap.runtime.client.accessors import Readable, SnapshotBase, _Array, _Element, encode_for_write
 from drivemap.runtime.client.bus import Stats
 from drivemap.runtime.client.codec import Codec, EnumCodec, FieldsCodec, FlagCodec, unwrap
+from drivemap.runtime.client.declare import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
 from drivemap.runtime.client.sansio import Core, Deferred, PagePolicy, spec_tables
@@ -49,19 +50,28 @@ class _Common(Generic[S]):
     _table: ClassVar[dict[Key, tuple[Callable[[int], Any] | None, str | None, int]]]
     _defaults: ClassVar[dict[str, Any] | None]
 
+    #: The accessor class of each kind of register descriptor (:class:`~.declare.Reg`).
+    _ACCESSOR_CLASSES: ClassVar[Mapping[str, type[Any]]] = {}
+    _register_names: ClassVar[frozenset[str]]
+    _register_order: ClassVar[tuple[str, ...]]
+
     _core: Core
-    _accessors: dict[str, Any]
 
     def _setup(self, unit: int, page_policy: PagePolicy, broadcast: bool, stats: Stats | None = None) -> None:
         self._core = Core(self.SPEC, unit, self.EXCEPTIONS, page_policy, broadcast, stats)
-        self._accessors = {}
         #: read programs: the accessors of a read() -> the program that reads them (keys checked once)
         self._programs: dict[tuple[Readable, ...], Program] = {}
         self._all_program: Program | None = None
 
-    def _register_accessors(self) -> None:
-        """Called by generated ``__init__`` after the accessors are set: index them by name."""
-        self._accessors = {name: getattr(self, name) for name in self.CODECS if name in self.__dict__}
+    @classmethod
+    def _registers_declared(cls) -> frozenset[str]:
+        """The names of the registers this client class declares (its :class:`~.declare.Reg` descriptors)."""
+        names: frozenset[str] | None = cls.__dict__.get("_register_names")
+        if names is None:
+            found = {n for klass in cls.__mro__ for n, v in vars(klass).items() if isinstance(v, Reg)}
+            cls._register_order = tuple(r.name for r in cls.SPEC.registers if r.name in found)
+            names = cls._register_names = frozenset(found)
+        return names
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -128,15 +138,16 @@ class _Common(Generic[S]):
 
     @property
     def registers(self) -> Mapping[str, Any]:
-        """Accessor by register name."""
-        return dict(self._accessors)
+        """Accessor by register name (in the map's order)."""
+        self._registers_declared()
+        return {name: getattr(self, name) for name in self._register_order}
 
     def accessor(self, name: str) -> Any:
         """The accessor for ``"name"`` or ``"name[i]"``."""
         base, _, rest = name.partition("[")
-        acc = self._accessors.get(base)
-        if acc is None:
+        if base not in self._registers_declared():
             raise UnknownRegister(f"{self.SPEC.model} has no register {base!r}")
+        acc = getattr(self, base)
         if rest:
             if not isinstance(acc, _Array) or not rest.endswith("]") or not rest[:-1].isdigit():
                 raise UnknownRegister(f"{name!r} is not an element of an array register")

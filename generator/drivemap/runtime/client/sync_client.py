@@ -59,6 +59,11 @@ _run = run
 class ClientBase(_Common[S]):
     """Synchronous client of one unit on a :class:`Bus`."""
 
+    _ACCESSOR_CLASSES = {
+        "r": ReadOnly, "w": WriteOnly, "rw": ReadWrite, "cmd": Command, "rwcmd": ReadWriteCommand,
+        "r[]": ReadOnlyArray, "w[]": WriteOnlyArray, "rw[]": ReadWriteArray,
+    }
+
     def __init__(self, bus: Bus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:
         spec = self.SPEC
