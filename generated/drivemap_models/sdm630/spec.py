@@ -1130,20 +1130,12 @@ SPEC = DeviceSpec(
         ReservedSpec(start=0x0058, end=0xF00F, readable=None),
         ReservedSpec(start=0xF011, end=0xFBFF, readable=None),
     ),
-    comm_errors=(
-    ),
     exception_policy=(
-        PolicySpec('illegal_function', 1),
-        PolicySpec('illegal_address', 2),
-        PolicySpec('illegal_quantity', 3),
-        PolicySpec('out_of_range', 3),
-        PolicySpec('read_only', 2),
-        PolicySpec('bad_length', 3),
+        PolicySpec('illegal_function', 0x01),
+        PolicySpec('illegal_address', 0x02),
+        PolicySpec('illegal_quantity', 0x03),
+        PolicySpec('out_of_range', 0x03),
+        PolicySpec('read_only', 0x02),
+        PolicySpec('bad_length', 0x03),
     ),
-    comm_error_policy=(
-    ),
-    comm_error_history=None,
-    configuration=None,
-    max_frame_bytes=None,
-    fixed_units=(),
 )
