@@ -1,4 +1,4 @@
-"""Runtime misuse (issues 20.4-20.6, 21.4): every error a caller can cause is a drivemap error class,
+"""Runtime misuse (bad runtime input gets a clear typed error before anything is sent): every error a caller can cause is a drivemap error class,
 raised before anything is sent.
 
 * a flags register refuses bits its map does not define (``NetIn(0x8000)``);

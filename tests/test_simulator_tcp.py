@@ -1,4 +1,4 @@
-"""The simulator over Modbus TCP and its dialect (issues 20.7-20.9, 21.7), with raw sockets on 127.0.0.1.
+"""The simulator over Modbus TCP and its dialect (it must answer as the device does, byte for byte), with raw sockets on 127.0.0.1.
 
 * requests sent back to back (in one segment, more than pymodbus's 264-byte buffer, or byte by
   byte) are each answered, in order: a broadcast and an unknown function code before two reads

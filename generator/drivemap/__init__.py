@@ -1,8 +1,25 @@
-"""drivemap: a declarative register-map compiler for Modbus motor drives.
+"""drivemap: a declarative register-map compiler for Modbus motor drives and inverters.
 
-Pipeline (one module per stage): :mod:`load` (YAML with line/column) -> :mod:`schema`
-(JSON Schema) -> :mod:`checks` (semantic checks) -> :mod:`model` (immutable model) ->
-:mod:`render` (Jinja templates) -> files. :mod:`runtime` is what generated code imports.
+The package is in layers; each imports only the layers below it (import-linter checks it)::
+
+    cli                      the ``drivemap`` command
+    gateway | live           applications: MQTT/OPC UA gateway; read/write/watch/scan/verify at a drive
+    build                    a project's outputs (maps -> files), the simulator factory
+    backends                 exporters (python, docs, json, homeassistant, esphome, pymodbus-sim, csv),
+                             their views and Jinja templates, rendering and the output writer
+    compiler                 map path -> checked Model (the front end in one call)
+    frontend                 project, load (YAML with line/column), schema, semantic checks, frames
+    model                    the immutable Model (nodes, build) and spec_from_model: Model -> DeviceSpec
+    runtime                  what generated and dynamic packages import: spec (DeviceSpec), names,
+                             client/ (bus, sans-I/O core, accessors, descriptors, programs, codecs)
+                             and sim/ (the simulator, its server, state file, CLI and behaviours)
+
+A map goes ``frontend -> model``; :func:`drivemap.model.spec.spec_from_model` gives the runtime's
+:class:`~drivemap.runtime.spec.DeviceSpec`, which the simulator, the live verbs, the gateway and the
+exporters use directly (nothing executes rendered text). ``drivemap build`` writes the same spec
+printed (``spec.py``), a typed client that declares each register once
+(:mod:`drivemap.runtime.client.declare`) and a few-line ``simulator.py``;
+:mod:`drivemap.runtime.client.dynamic` builds the equal client classes from a spec at run time.
 """
 
 __version__ = "0.2.0"

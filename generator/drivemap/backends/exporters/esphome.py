@@ -7,7 +7,7 @@ labels (HEXBYTES + ``map``) for read-only enums, ``binary_sensor`` with ``bitmas
 field of a one-word register (a multi-bit field, or any field of a multi-word register: a sensor with
 ``bitmask`` and the register's value_type, 0/1 for one bit: ESPHome's binary_sensor reads one word and
 would split the register's read), ``switch`` per command (assumed state, never
-polled). Issue 14: input registers are ``register_type: read``; a coil or discrete input is a
+polled). Every table and type of the map language: input registers are ``register_type: read``; a coil or discrete input is a
 ``binary_sensor`` (``coil``/``discrete_input``), a writable coil a ``switch`` that polls it (write-only:
 assumed state); f32 -> FP32(_R), u64/s64 -> U_QWORD/S_QWORD(_R); strings are a ``text_sensor``
 (``raw_encode: ANSI``); what ESPHome has no value_type for (f64, low byte first) is a ``text_sensor``
