@@ -121,10 +121,11 @@ def _units(reg: Register) -> str | None:
     """Engineering unit, scaling and range: only the parts the map states."""
     unit = f" {reg.unit}" if reg.unit else ""
     parts = [f"Unit:{unit}"] if unit else []
-    if reg.scale != 1 or reg.offset:
-        parts.append(f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else ""))
-    if reg.scale_register:
-        parts.append(f"x 10^{reg.scale_register} (read with it)")
+    if reg.scale != 1 or reg.offset or reg.scale_register:
+        scale = f"scale {_num(reg.scale)}" if reg.scale != 1 or not reg.scale_register else "scale"
+        if reg.scale_register:
+            scale += f" x 10^{reg.scale_register} (read with it)"
+        parts.append(scale + (f", offset {_num(reg.offset)}" if reg.offset else ""))
     if reg.min is not None or reg.max is not None:
         parts.append(f"range {_num(reg.min)} .. {_num(reg.max)}{unit}")
     text = "; ".join(parts)
