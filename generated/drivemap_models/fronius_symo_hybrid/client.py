@@ -677,25 +677,25 @@ class _Registers:
     ac_current: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Total Current value
 
         Address 0x9C87 (Modicon 440072); parameter A; u16, access r.
-        Unit: A; x 10^ac_current_sf (read with it).
+        Unit: A; scale x 10^ac_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40072 ('I10X Inverter', offset 3).""")
     ac_current_a: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Phase-A Current value
 
         Address 0x9C88 (Modicon 440073); parameter AphA; u16, access r.
-        Unit: A; x 10^ac_current_sf (read with it).
+        Unit: A; scale x 10^ac_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40073 ('I10X Inverter', offset 4).""")
     ac_current_b: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Phase-B Current value
 
         Address 0x9C89 (Modicon 440074); parameter AphB; u16, access r.
-        Unit: A; x 10^ac_current_sf (read with it).
+        Unit: A; scale x 10^ac_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40074 ('I10X Inverter', offset 5).""")
     ac_current_c: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Phase-C Current value
 
         Address 0x9C8A (Modicon 440075); parameter AphC; u16, access r.
-        Unit: A; x 10^ac_current_sf (read with it).
+        Unit: A; scale x 10^ac_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40075 ('I10X Inverter', offset 6).""")
     ac_current_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""AC Current Scale factor
@@ -706,37 +706,37 @@ class _Registers:
     ac_voltage_ab: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-AB value
 
         Address 0x9C8C (Modicon 440077); parameter PPVphAB; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40077 ('I10X Inverter', offset 8).""")
     ac_voltage_bc: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-BC value
 
         Address 0x9C8D (Modicon 440078); parameter PPVphBC; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40078 ('I10X Inverter', offset 9).""")
     ac_voltage_ca: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-CA value
 
         Address 0x9C8E (Modicon 440079); parameter PPVphCA; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40079 ('I10X Inverter', offset 10).""")
     ac_voltage_an: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-A-to-neutral value
 
         Address 0x9C8F (Modicon 440080); parameter PhVphA; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40080 ('I10X Inverter', offset 11).""")
     ac_voltage_bn: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-B-to-neutral value
 
         Address 0x9C90 (Modicon 440081); parameter PhVphB; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40081 ('I10X Inverter', offset 12).""")
     ac_voltage_cn: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Voltage Phase-C-to-neutral value
 
         Address 0x9C91 (Modicon 440082); parameter PhVphC; u16, access r.
-        Unit: V; x 10^ac_voltage_sf (read with it).
+        Unit: V; scale x 10^ac_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40082 ('I10X Inverter', offset 13).""")
     ac_voltage_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""AC Voltage Scale factor
@@ -747,7 +747,7 @@ class _Registers:
     ac_power: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Power value
 
         Address 0x9C93 (Modicon 440084); parameter W; s16, access r.
-        Unit: W; x 10^ac_power_sf (read with it).
+        Unit: W; scale x 10^ac_power_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40084 ('I10X Inverter', offset 15).""")
     ac_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""AC Power Scale factor
@@ -758,7 +758,7 @@ class _Registers:
     ac_frequency: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Frequency value
 
         Address 0x9C95 (Modicon 440086); parameter Hz; u16, access r.
-        Unit: Hz; x 10^ac_frequency_sf (read with it).
+        Unit: Hz; scale x 10^ac_frequency_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40086 ('I10X Inverter', offset 17).""")
     ac_frequency_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -769,7 +769,7 @@ class _Registers:
     ac_apparent_power: ReadOnlyReg[float | None] = ReadOnlyReg("""Apparent Power
 
         Address 0x9C97 (Modicon 440088); parameter VA; s16, access r.
-        Unit: VA; x 10^ac_apparent_power_sf (read with it).
+        Unit: VA; scale x 10^ac_apparent_power_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40088 ('I10X Inverter', offset 19).""")
     ac_apparent_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -780,7 +780,7 @@ class _Registers:
     ac_reactive_power: ReadOnlyReg[float | None] = ReadOnlyReg("""Reactive Power
 
         Address 0x9C99 (Modicon 440090); parameter VAr; s16, access r.
-        Unit: var; x 10^ac_reactive_power_sf (read with it).
+        Unit: var; scale x 10^ac_reactive_power_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40090 ('I10X Inverter', offset 21).""")
     ac_reactive_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -791,7 +791,7 @@ class _Registers:
     ac_power_factor: ReadOnlyReg[float | None] = ReadOnlyReg("""Power Factor
 
         Address 0x9C9B (Modicon 440092); parameter PF; s16, access r.
-        Unit: %; x 10^ac_power_factor_sf (read with it).
+        Unit: %; scale x 10^ac_power_factor_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40092 ('I10X Inverter', offset 23).""")
     ac_power_factor_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -802,7 +802,7 @@ class _Registers:
     ac_lifetime_energy: ReadOnlyReg[float | None] = ReadOnlyReg("""AC Lifetime Energy production
 
         Address 0x9C9D (Modicon 440094); parameter WH; u32 (bytes on the wire: AB CD), access r.
-        Unit: Wh; x 10^ac_lifetime_energy_sf (read with it).
+        Unit: Wh; scale x 10^ac_lifetime_energy_sf (read with it).
         Not available: raw 0xFFFFFFFF reads as None.
         Manual: IntSF 'Complete Map' 40094-40095 ('I10X Inverter', offset 25).""")
     ac_lifetime_energy_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""AC Lifetime Energy production scale factor
@@ -813,7 +813,7 @@ class _Registers:
     dc_current: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Current value
 
         Address 0x9CA0 (Modicon 440097); parameter DCA; u16, access r.
-        Unit: A; x 10^dc_current_sf (read with it).
+        Unit: A; scale x 10^dc_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40097 ('I10X Inverter', offset 28).""")
     dc_current_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -824,7 +824,7 @@ class _Registers:
     dc_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Voltage value
 
         Address 0x9CA2 (Modicon 440099); parameter DCV; u16, access r.
-        Unit: V; x 10^dc_voltage_sf (read with it).
+        Unit: V; scale x 10^dc_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40099 ('I10X Inverter', offset 30).""")
     dc_voltage_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -835,7 +835,7 @@ class _Registers:
     dc_power: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Power value
 
         Address 0x9CA4 (Modicon 440101); parameter DCW; s16, access r.
-        Unit: W; x 10^dc_power_sf (read with it).
+        Unit: W; scale x 10^dc_power_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40101 ('I10X Inverter', offset 32).""")
     dc_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -846,25 +846,25 @@ class _Registers:
     temp_cabinet: ReadOnlyReg[float | None] = ReadOnlyReg("""Cabinet Temperature
 
         Address 0x9CA6 (Modicon 440103); parameter TmpCab; s16, access r.
-        Unit: °C; x 10^temp_sf (read with it).
+        Unit: °C; scale x 10^temp_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40103 ('I10X Inverter', offset 34).""")
     temp_heat_sink: ReadOnlyReg[float | None] = ReadOnlyReg("""Coolant or Heat Sink Temperature
 
         Address 0x9CA7 (Modicon 440104); parameter TmpSnk; s16, access r.
-        Unit: °C; x 10^temp_sf (read with it).
+        Unit: °C; scale x 10^temp_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40104 ('I10X Inverter', offset 35).""")
     temp_transformer: ReadOnlyReg[float | None] = ReadOnlyReg("""Transformer Temperature
 
         Address 0x9CA8 (Modicon 440105); parameter TmpTrns; s16, access r.
-        Unit: °C; x 10^temp_sf (read with it).
+        Unit: °C; scale x 10^temp_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40105 ('I10X Inverter', offset 36).""")
     temp_other: ReadOnlyReg[float | None] = ReadOnlyReg("""Other Temperature
 
         Address 0x9CA9 (Modicon 440106); parameter TmpOt; s16, access r.
-        Unit: °C; x 10^temp_sf (read with it).
+        Unit: °C; scale x 10^temp_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40106 ('I10X Inverter', offset 37).""")
     temp_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -928,7 +928,7 @@ class _Registers:
     rated_power: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous power output capability of the inverter.
 
         Address 0x9CBC (Modicon 440125); parameter WRtg; u16, access r.
-        Unit: W; x 10^rated_power_sf (read with it).
+        Unit: W; scale x 10^rated_power_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40125 ('I120 Nameplate', offset 4).""")
     rated_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -939,7 +939,7 @@ class _Registers:
     rated_apparent_power: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous Volt-Ampere capability of the inverter.
 
         Address 0x9CBE (Modicon 440127); parameter VARtg; u16, access r.
-        Unit: VA; x 10^rated_apparent_power_sf (read with it).
+        Unit: VA; scale x 10^rated_apparent_power_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40127 ('I120 Nameplate', offset 6).""")
     rated_apparent_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -950,25 +950,25 @@ class _Registers:
     rated_var_q1: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous VAR capability of the inverter in quadrant 1.
 
         Address 0x9CC0 (Modicon 440129); parameter VArRtgQ1; s16, access r.
-        Unit: var; x 10^rated_var_sf (read with it).
+        Unit: var; scale x 10^rated_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40129 ('I120 Nameplate', offset 8).""")
     rated_var_q2: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous VAR capability of the inverter in quadrant 2.
 
         Address 0x9CC1 (Modicon 440130); parameter VArRtgQ2; s16, access r.
-        Unit: var; x 10^rated_var_sf (read with it).
+        Unit: var; scale x 10^rated_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40130 ('I120 Nameplate', offset 9).""")
     rated_var_q3: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous VAR capability of the inverter in quadrant 3.
 
         Address 0x9CC2 (Modicon 440131); parameter VArRtgQ3; s16, access r.
-        Unit: var; x 10^rated_var_sf (read with it).
+        Unit: var; scale x 10^rated_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40131 ('I120 Nameplate', offset 10).""")
     rated_var_q4: ReadOnlyReg[float | None] = ReadOnlyReg("""Continuous VAR capability of the inverter in quadrant 4.
 
         Address 0x9CC3 (Modicon 440132); parameter VArRtgQ4; s16, access r.
-        Unit: var; x 10^rated_var_sf (read with it).
+        Unit: var; scale x 10^rated_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40132 ('I120 Nameplate', offset 11).""")
     rated_var_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -979,7 +979,7 @@ class _Registers:
     rated_current: ReadOnlyReg[float | None] = ReadOnlyReg("""Maximum RMS AC current level capability of the inverter.
 
         Address 0x9CC5 (Modicon 440134); parameter ARtg; u16, access r.
-        Unit: A; x 10^rated_current_sf (read with it).
+        Unit: A; scale x 10^rated_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40134 ('I120 Nameplate', offset 13).""")
     rated_current_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -990,25 +990,25 @@ class _Registers:
     rated_pf_q1: ReadOnlyReg[float | None] = ReadOnlyReg("""Minimum power factor capability of the inverter in quadrant 1.
 
         Address 0x9CC7 (Modicon 440136); parameter PFRtgQ1; s16, access r.
-        X 10^rated_pf_sf (read with it).
+        Scale x 10^rated_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40136 ('I120 Nameplate', offset 15).""")
     rated_pf_q2: ReadOnlyReg[float | None] = ReadOnlyReg("""Minimum power factor capability of the inverter in quadrant 2.
 
         Address 0x9CC8 (Modicon 440137); parameter PFRtgQ2; s16, access r.
-        X 10^rated_pf_sf (read with it).
+        Scale x 10^rated_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40137 ('I120 Nameplate', offset 16).""")
     rated_pf_q3: ReadOnlyReg[float | None] = ReadOnlyReg("""Minimum power factor capability of the inverter in quadrant 3.
 
         Address 0x9CC9 (Modicon 440138); parameter PFRtgQ3; s16, access r.
-        X 10^rated_pf_sf (read with it).
+        Scale x 10^rated_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40138 ('I120 Nameplate', offset 17).""")
     rated_pf_q4: ReadOnlyReg[float | None] = ReadOnlyReg("""Minimum power factor capability of the inverter in quadrant 4.
 
         Address 0x9CCA (Modicon 440139); parameter PFRtgQ4; s16, access r.
-        X 10^rated_pf_sf (read with it).
+        Scale x 10^rated_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40139 ('I120 Nameplate', offset 18).""")
     rated_pf_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -1019,7 +1019,7 @@ class _Registers:
     rated_storage_energy: ReadOnlyReg[float | None] = ReadOnlyReg("""Nominal energy rating of storage device.
 
         Address 0x9CCC (Modicon 440141); parameter WHRtg; u16, access r.
-        Unit: Wh; x 10^rated_storage_energy_sf (read with it).
+        Unit: Wh; scale x 10^rated_storage_energy_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40141 ('I120 Nameplate', offset 20).""")
     rated_storage_energy_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -1030,7 +1030,7 @@ class _Registers:
     rated_storage_ah: ReadOnlyReg[float | None] = ReadOnlyReg("""The useable capacity of the battery. Maximum charge minus minimum charge from a technology capability perspective (Amp-hour capacity rating).
 
         Address 0x9CCE (Modicon 440143); parameter AhrRtg; u16, access r.
-        Unit: Ah; x 10^rated_storage_ah_sf (read with it).
+        Unit: Ah; scale x 10^rated_storage_ah_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40143 ('I120 Nameplate', offset 22).""")
     rated_storage_ah_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for amp-hour rating.
@@ -1041,7 +1041,7 @@ class _Registers:
     max_charge_rate: ReadOnlyReg[float | None] = ReadOnlyReg("""Maximum rate of energy transfer into the storage device.
 
         Address 0x9CD0 (Modicon 440145); parameter MaxChaRte; u16, access r.
-        Unit: W; x 10^max_charge_rate_sf (read with it).
+        Unit: W; scale x 10^max_charge_rate_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40145 ('I120 Nameplate', offset 24).""")
     max_charge_rate_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -1052,7 +1052,7 @@ class _Registers:
     max_discharge_rate: ReadOnlyReg[float | None] = ReadOnlyReg("""Maximum rate of energy transfer out of the storage device.
 
         Address 0x9CD2 (Modicon 440147); parameter MaxDisChaRte; u16, access r.
-        Unit: W; x 10^max_discharge_rate_sf (read with it).
+        Unit: W; scale x 10^max_discharge_rate_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40147 ('I120 Nameplate', offset 26).""")
     max_discharge_rate_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor
@@ -1071,88 +1071,88 @@ class _Registers:
     max_power_setting: ReadWriteReg[float] = ReadWriteReg("""Setting for maximum power output. Default to I_WRtg.
 
         Address 0x9CD7 (Modicon 440152); parameter WMax; u16, access rw.
-        Unit: W; x 10^max_power_setting_sf (read with it).
+        Unit: W; scale x 10^max_power_setting_sf (read with it).
         Manual: IntSF 'Complete Map' 40152 ('I121 Basic', offset 3).""")
     reference_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""Voltage at the PCC.
 
         Address 0x9CD8 (Modicon 440153); parameter VRef; u16, access r.
-        Unit: V; x 10^reference_voltage_sf (read with it).
+        Unit: V; scale x 10^reference_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40153 ('I121 Basic', offset 4).""")
     reference_voltage_offset: ReadWriteReg[float] = ReadWriteReg("""Offset from PCC to inverter.
 
         Address 0x9CD9 (Modicon 440154); parameter VRefOfs; s16, access rw.
-        Unit: V; x 10^reference_voltage_offset_sf (read with it); range -20 .. 20 V.
+        Unit: V; scale x 10^reference_voltage_offset_sf (read with it); range -20 .. 20 V.
         Manual: IntSF 'Complete Map' 40154 ('I121 Basic', offset 5).""")
     max_voltage_setting: ReadWriteReg[float | None] = ReadWriteReg("""Setpoint for maximum voltage.
 
         Address 0x9CDA (Modicon 440155); parameter VMax; u16, access rw.
-        Unit: V; x 10^min_max_voltage_sf (read with it).
+        Unit: V; scale x 10^min_max_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40155 ('I121 Basic', offset 6).""")
     min_voltage_setting: ReadWriteReg[float | None] = ReadWriteReg("""Setpoint for minimum voltage.
 
         Address 0x9CDB (Modicon 440156); parameter VMin; u16, access rw.
-        Unit: V; x 10^min_max_voltage_sf (read with it).
+        Unit: V; scale x 10^min_max_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40156 ('I121 Basic', offset 7).""")
     max_apparent_power_setting: ReadWriteReg[float] = ReadWriteReg("""Setpoint for maximum apparent power. Default to I_VARtg.
 
         Address 0x9CDC (Modicon 440157); parameter VAMax; u16, access rw.
-        Unit: VA; x 10^max_apparent_power_setting_sf (read with it).
+        Unit: VA; scale x 10^max_apparent_power_setting_sf (read with it).
         Manual: IntSF 'Complete Map' 40157 ('I121 Basic', offset 8).""")
     max_var_q1: ReadOnlyReg[float | None] = ReadOnlyReg("""Setting for maximum reactive power in quadrant 1. Default to VArRtgQ1.
 
         Address 0x9CDD (Modicon 440158); parameter VARMaxQ1; s16, access r.
-        Unit: var; x 10^max_var_sf (read with it).
+        Unit: var; scale x 10^max_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40158 ('I121 Basic', offset 9).""")
     max_var_q2: ReadOnlyReg[float | None] = ReadOnlyReg("""Setting for maximum reactive power in quadrant 2. Default to VArRtgQ2.
 
         Address 0x9CDE (Modicon 440159); parameter VARMaxQ2; s16, access r.
-        Unit: var; x 10^max_var_sf (read with it).
+        Unit: var; scale x 10^max_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40159 ('I121 Basic', offset 10).""")
     max_var_q3: ReadOnlyReg[float | None] = ReadOnlyReg("""Setting for maximum reactive power in quadrant 3 Default to VArRtgQ3.
 
         Address 0x9CDF (Modicon 440160); parameter VARMaxQ3; s16, access r.
-        Unit: var; x 10^max_var_sf (read with it).
+        Unit: var; scale x 10^max_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40160 ('I121 Basic', offset 11).""")
     max_var_q4: ReadOnlyReg[float | None] = ReadOnlyReg("""Setting for maximum reactive power in quadrant 4 Default to VArRtgQ4.
 
         Address 0x9CE0 (Modicon 440161); parameter VARMaxQ4; s16, access r.
-        Unit: var; x 10^max_var_sf (read with it).
+        Unit: var; scale x 10^max_var_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40161 ('I121 Basic', offset 12).""")
     default_ramp_rate: ReadOnlyReg[float | None] = ReadOnlyReg("""Default ramp rate of change of active power due to command or internal action.
 
         Address 0x9CE1 (Modicon 440162); parameter WGra; u16, access r.
-        Unit: %/min; x 10^default_ramp_rate_sf (read with it).
+        Unit: %/min; scale x 10^default_ramp_rate_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40162 ('I121 Basic', offset 13).""")
     min_pf_q1: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for minimum power factor value in quadrant 1. Default to PFRtgQ1.
 
         Address 0x9CE2 (Modicon 440163); parameter PFMinQ1; s16, access r.
-        X 10^min_pf_sf (read with it).
+        Scale x 10^min_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40163 ('I121 Basic', offset 14).""")
     min_pf_q2: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for minimum power factor value in quadrant 2. Default to PFRtgQ2.
 
         Address 0x9CE3 (Modicon 440164); parameter PFMinQ2; s16, access r.
-        X 10^min_pf_sf (read with it).
+        Scale x 10^min_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40164 ('I121 Basic', offset 15).""")
     min_pf_q3: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for minimum power factor value in quadrant 3. Default to PFRtgQ3.
 
         Address 0x9CE4 (Modicon 440165); parameter PFMinQ3; s16, access r.
-        X 10^min_pf_sf (read with it).
+        Scale x 10^min_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40165 ('I121 Basic', offset 16).""")
     min_pf_q4: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for minimum power factor value in quadrant 4. Default to PFRtgQ4.
 
         Address 0x9CE5 (Modicon 440166); parameter PFMinQ4; s16, access r.
-        X 10^min_pf_sf (read with it).
+        Scale x 10^min_pf_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40166 ('I121 Basic', offset 17).""")
     var_action: ReadOnlyReg[int | None] = ReadOnlyReg("""VAR action on change between charging and discharging: 1=switch 2=maintain VAR characterization.
@@ -1168,13 +1168,13 @@ class _Registers:
     max_ramp_rate: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum ramp rate as percentage of nominal maximum ramp rate. This setting will limit the rate that watts delivery to the grid can increase or decrease in response to intermittent PV generation.
 
         Address 0x9CE8 (Modicon 440169); parameter MaxRmpRte; u16, access r.
-        Unit: %; x 10^max_ramp_rate_sf (read with it).
+        Unit: %; scale x 10^max_ramp_rate_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40169 ('I121 Basic', offset 20).""")
     ecp_nominal_frequency: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for nominal frequency at the ECP.
 
         Address 0x9CE9 (Modicon 440170); parameter ECPNomHz; u16, access r.
-        Unit: Hz; x 10^ecp_nominal_frequency_sf (read with it).
+        Unit: Hz; scale x 10^ecp_nominal_frequency_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40170 ('I121 Basic', offset 21).""")
     connected_phase: ReadOnlyReg[int | None] = ReadOnlyReg("""Identity of connected phase for single phase inverters. A=1 B=2 C=3.
@@ -1294,7 +1294,7 @@ class _Registers:
     var_available: ReadOnlyReg[float | None] = ReadOnlyReg("""Amount of VARs available without impacting watts output.
 
         Address 0x9D12 (Modicon 440211); parameter VArAval; s16, access r.
-        Unit: var; x 10^var_available_sf (read with it).
+        Unit: var; scale x 10^var_available_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40211 ('I122 Extended', offset 30).""")
     var_available_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for available VARs.
@@ -1305,7 +1305,7 @@ class _Registers:
     power_available: ReadOnlyReg[float | None] = ReadOnlyReg("""Amount of Watts available.
 
         Address 0x9D14 (Modicon 440213); parameter WAval; u16, access r.
-        Unit: W; x 10^power_available_sf (read with it).
+        Unit: W; scale x 10^power_available_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40213 ('I122 Extended', offset 32).""")
     power_available_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for available Watts.
@@ -1341,7 +1341,7 @@ class _Registers:
     isolation_resistance: ReadOnlyReg[float | None] = ReadOnlyReg("""Isolation resistance
 
         Address 0x9D21 (Modicon 440226); parameter Ris; u16, access r.
-        Unit: Ω; x 10^isolation_resistance_sf (read with it).
+        Unit: Ω; scale x 10^isolation_resistance_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40226 ('I122 Extended', offset 45).""")
     isolation_resistance_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for Isolation resistance
@@ -1376,7 +1376,7 @@ class _Registers:
     power_limit_pct: ReadWriteReg[float] = ReadWriteReg("""Set power output to specified level.
 
         Address 0x9D28 (Modicon 440233); parameter WMaxLimPct; u16, access rw.
-        Unit: %; x 10^power_limit_pct_sf (read with it); range 0 .. 100 %.
+        Unit: %; scale x 10^power_limit_pct_sf (read with it); range 0 .. 100 %.
         Manual: IntSF 'Complete Map' 40233 ('I123 Immediate', offset 6).""")
     power_limit_window_s: ReadWriteReg[int] = ReadWriteReg("""Time window for power limit change.
 
@@ -1403,7 +1403,7 @@ class _Registers:
     pf_setpoint: ReadWriteReg[float] = ReadWriteReg("""Set power factor to specific value - cosine of angle.
 
         Address 0x9D2D (Modicon 440238); parameter OutPFSet; s16, access rw.
-        X 10^pf_setpoint_sf (read with it).
+        Scale x 10^pf_setpoint_sf (read with it).
         Manual: IntSF 'Complete Map' 40238 ('I123 Immediate', offset 11).""")
     pf_window_s: ReadWriteReg[int] = ReadWriteReg("""Time window for power factor change.
 
@@ -1436,12 +1436,12 @@ class _Registers:
     var_pct_of_varmax: ReadWriteReg[float] = ReadWriteReg("""Reactive power in percent of I_VArMax.
 
         Address 0x9D33 (Modicon 440244); parameter VArMaxPct; s16, access rw.
-        Unit: %; x 10^var_pct_sf (read with it).
+        Unit: %; scale x 10^var_pct_sf (read with it).
         Manual: IntSF 'Complete Map' 40244 ('I123 Immediate', offset 17).""")
     var_pct_of_varaval: ReadOnlyReg[float | None] = ReadOnlyReg("""Reactive power in percent of I_VArAval.
 
         Address 0x9D34 (Modicon 440245); parameter VArAvalPct; s16, access r.
-        Unit: %; x 10^var_pct_sf (read with it).
+        Unit: %; scale x 10^var_pct_sf (read with it).
         Not available: raw -32768 reads as None.
         Manual: IntSF 'Complete Map' 40245 ('I123 Immediate', offset 18).""")
     var_window_s: ReadWriteReg[int] = ReadWriteReg("""Time window for VAR limit change.
@@ -1539,25 +1539,25 @@ class _Registers:
     string_1_current: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Current
 
         Address 0x9D50 (Modicon 440273); parameter 1_DCA; u16, access r.
-        Unit: A; x 10^mppt_current_sf (read with it).
+        Unit: A; scale x 10^mppt_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40273 ('I160 MultiMPPT', offset 20).""")
     string_1_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Voltage
 
         Address 0x9D51 (Modicon 440274); parameter 1_DCV; u16, access r.
-        Unit: V; x 10^mppt_voltage_sf (read with it).
+        Unit: V; scale x 10^mppt_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40274 ('I160 MultiMPPT', offset 21).""")
     string_1_power: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Power
 
         Address 0x9D52 (Modicon 440275); parameter 1_DCW; u16, access r.
-        Unit: W; x 10^mppt_power_sf (read with it).
+        Unit: W; scale x 10^mppt_power_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40275 ('I160 MultiMPPT', offset 22).""")
     string_1_lifetime_energy: ReadOnlyReg[float | None] = ReadOnlyReg("""Lifetime Energy
 
         Address 0x9D53 (Modicon 440276); parameter 1_DCWH; u32 (bytes on the wire: AB CD), access r.
-        Unit: Wh; x 10^mppt_energy_sf (read with it).
+        Unit: Wh; scale x 10^mppt_energy_sf (read with it).
         Not available: raw 0x0 reads as None.
         Manual: IntSF 'Complete Map' 40276-40277 ('I160 MultiMPPT', offset 23).""")
     string_1_timestamp: ReadOnlyReg[int | None] = ReadOnlyReg("""Timestamp
@@ -1593,25 +1593,25 @@ class _Registers:
     string_2_current: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Current
 
         Address 0x9D64 (Modicon 440293); parameter 2_DCA; u16, access r.
-        Unit: A; x 10^mppt_current_sf (read with it).
+        Unit: A; scale x 10^mppt_current_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40293 ('I160 MultiMPPT', offset 40).""")
     string_2_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Voltage
 
         Address 0x9D65 (Modicon 440294); parameter 2_DCV; u16, access r.
-        Unit: V; x 10^mppt_voltage_sf (read with it).
+        Unit: V; scale x 10^mppt_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40294 ('I160 MultiMPPT', offset 41).""")
     string_2_power: ReadOnlyReg[float | None] = ReadOnlyReg("""DC Power
 
         Address 0x9D66 (Modicon 440295); parameter 2_DCW; u16, access r.
-        Unit: W; x 10^mppt_power_sf (read with it).
+        Unit: W; scale x 10^mppt_power_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40295 ('I160 MultiMPPT', offset 42).""")
     string_2_lifetime_energy: ReadOnlyReg[float | None] = ReadOnlyReg("""Lifetime Energy
 
         Address 0x9D67 (Modicon 440296); parameter 2_DCWH; u32 (bytes on the wire: AB CD), access r.
-        Unit: Wh; x 10^mppt_energy_sf (read with it).
+        Unit: Wh; scale x 10^mppt_energy_sf (read with it).
         Not available: raw 0x0 reads as None.
         Manual: IntSF 'Complete Map' 40296-40297 ('I160 MultiMPPT', offset 43).""")
     string_2_timestamp: ReadOnlyReg[int | None] = ReadOnlyReg("""Timestamp
@@ -1647,19 +1647,19 @@ class _Registers:
     max_charge_power: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum charge. Additional Fronius description: Reference Value for maximum Charge and Discharge. Multiply this value by InWRte to define maximum charging and OutWRte to define maximum discharging. Every rate between this two limits is allowed. Note that InWRte and OutWRte can be negative to define ranges for charging and discharging only.
 
         Address 0x9D71 (Modicon 440306); parameter WchaMax; u16, access r.
-        Unit: W; x 10^max_charge_power_sf (read with it).
+        Unit: W; scale x 10^max_charge_power_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40306 ('IC124 Basic Storage Control', offset 3).""")
     max_charge_gradient: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum charging rate. Default is MaxChaRte.
 
         Address 0x9D72 (Modicon 440307); parameter WchaGra; u16, access r.
-        Unit: %/s; x 10^charge_gradient_sf (read with it).
+        Unit: %/s; scale x 10^charge_gradient_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40307 ('IC124 Basic Storage Control', offset 4).""")
     max_discharge_gradient: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum discharge rate. Default is MaxDisChaRte.
 
         Address 0x9D73 (Modicon 440308); parameter WdisChaGra; u16, access r.
-        Unit: %/s; x 10^charge_gradient_sf (read with it).
+        Unit: %/s; scale x 10^charge_gradient_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40308 ('IC124 Basic Storage Control', offset 5).""")
     storage_control_mode: ReadWriteReg[StorageControlMode] = ReadWriteReg("""Activate hold/discharge/charge storage control mode. Bitfield value. Additional Fronius description: Active hold/discharge/charge storage control mode. Set the charge field to enable charging and the discharge field to enable discharging. Bitfield value.
@@ -1669,30 +1669,30 @@ class _Registers:
     max_charge_va: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum charging VA.
 
         Address 0x9D75 (Modicon 440310); parameter VAChaMax; u16, access r.
-        Unit: VA; x 10^max_charge_va_sf (read with it).
+        Unit: VA; scale x 10^max_charge_va_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40310 ('IC124 Basic Storage Control', offset 7).""")
     min_reserve_pct: ReadWriteReg[float] = ReadWriteReg("""Setpoint for minimum reserve for storage as a percentage of the nominal maximum storage.
 
         Address 0x9D76 (Modicon 440311); parameter MinRsvPct; u16, access rw.
-        Unit: %; x 10^min_reserve_pct_sf (read with it).
+        Unit: %; scale x 10^min_reserve_pct_sf (read with it).
         Manual: IntSF 'Complete Map' 40311 ('IC124 Basic Storage Control', offset 8).""")
     state_of_charge: ReadOnlyReg[float | None] = ReadOnlyReg("""Currently available energy as a percent of the capacity rating.
 
         Address 0x9D77 (Modicon 440312); parameter ChaState; u16, access r.
-        Unit: %; x 10^state_of_charge_sf (read with it).
+        Unit: %; scale x 10^state_of_charge_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40312 ('IC124 Basic Storage Control', offset 9).""")
     storage_available_ah: ReadOnlyReg[float | None] = ReadOnlyReg("""State of charge (ChaState) minus storage reserve (MinRsvPct) times capacity rating (AhrRtg).
 
         Address 0x9D78 (Modicon 440313); parameter StorAval; u16, access r.
-        Unit: Ah; x 10^storage_available_ah_sf (read with it).
+        Unit: Ah; scale x 10^storage_available_ah_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40313 ('IC124 Basic Storage Control', offset 10).""")
     battery_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""Internal battery voltage.
 
         Address 0x9D79 (Modicon 440314); parameter InBatV; u16, access r.
-        Unit: V; x 10^battery_voltage_sf (read with it).
+        Unit: V; scale x 10^battery_voltage_sf (read with it).
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40314 ('IC124 Basic Storage Control', offset 11).""")
     charge_status: ReadOnlyReg[ChargeStatus | None] = ReadOnlyReg("""Charge status of storage device. Enumerated value.
@@ -1703,13 +1703,13 @@ class _Registers:
     discharge_rate_pct: ReadWriteReg[float] = ReadWriteReg("""Percent of max discharge rate. Additional Fronius description: Defines maximum Discharge rate. If not used than the default is 100 and wChaMax defines max. Discharge rate. See wChaMax for details.
 
         Address 0x9D7B (Modicon 440316); parameter OutWRte; s16, access rw.
-        Unit: %; x 10^rate_pct_sf (read with it); range -100 .. 100 %.
+        Unit: %; scale x 10^rate_pct_sf (read with it); range -100 .. 100 %.
         Default: 100.
         Manual: IntSF 'Complete Map' 40316 ('IC124 Basic Storage Control', offset 13).""")
     charge_rate_pct: ReadWriteReg[float] = ReadWriteReg("""Percent of max charging rate. Additional Fronius description: Defines maximum Charge rate. If not used than the default is 100 and wChaMax defines max. Charge rate. See wChaMax for details.
 
         Address 0x9D7C (Modicon 440317); parameter InWRte; s16, access rw.
-        Unit: %; x 10^rate_pct_sf (read with it); range -100 .. 100 %.
+        Unit: %; scale x 10^rate_pct_sf (read with it); range -100 .. 100 %.
         Default: 100.
         Manual: IntSF 'Complete Map' 40317 ('IC124 Basic Storage Control', offset 14).""")
     rate_window_s: ReadOnlyReg[int | None] = ReadOnlyReg("""Time window for charge/discharge rate change.
