@@ -79,6 +79,7 @@ def test_each_register_is_declared_once_and_bound_lazily() -> None:
     speed = drive.motor_speed
     assert isinstance(speed, ReadOnly) and drive.motor_speed is speed and vars(drive)["motor_speed"] is speed
     assert "Current motor speed" in (speed.__doc__ or "")
+    assert "Current motor speed" in pydoc.render_doc(speed, renderer=pydoc.plaintext)  # help(drive.motor_speed)
     assert list(drive.registers) == [r.name for r in Client.SPEC.registers]
 
 
