@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import importlib
 import pydoc
+import re
 import subprocess
 import sys
 import textwrap
@@ -58,9 +59,16 @@ def test_docstrings_carry_only_the_lines_that_apply() -> None:
 
     assert "Unit: r/min" in (Client.motor_speed.__doc__ or "")
     for name in MODELS:
-        source = (ROOT / "generated" / "drivemap_models" / name / "client.py").read_text(encoding="utf-8")
-        assert "reflect: unknown" not in source and "storage: unknown" not in source
+        package = importlib.import_module(f"drivemap_models.{name}")
+        for reg in package.SPEC.registers:
+            doc = (getattr(package.Client, reg.name).__doc__ or "").lower()
+            # unknown reflect/storage is said of what can be written, not of read-only registers
+            assert ("reflect: unknown" in doc) == (reg.writable and reg.reflect == "unknown"), reg.name
+            assert ("storage: unknown" in doc) == (reg.writable and reg.storage == "unknown"), reg.name
+            stated = re.search(r"range (—|-?[0-9.e+-]+) \.\. (—|-?[0-9.e+-]+)", doc) is not None
+            assert stated == (reg.min is not None or reg.max is not None), reg.name
     assert "reflect" not in (Meter.phase_1_voltage.__doc__ or "")
+    assert "Unit: none" not in (Meter.phase_1_voltage.__doc__ or "")
     shown = pydoc.render_doc(Client.motor_speed, renderer=pydoc.plaintext)
     assert "Current motor speed" in shown
 

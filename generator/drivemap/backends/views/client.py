@@ -133,13 +133,14 @@ def _units(reg: Register) -> str | None:
 
 
 def _state(reg: Register) -> str | None:
-    """Default, reflect and storage: only what the map states."""
+    """Default, reflect and storage: what the map states; when a write takes effect and whether it
+    persists are said of writable registers even when unknown (never guessed)."""
     parts = []
     if any(d is not None for d in reg.defaults):
         parts.append("default: " + ", ".join(_value(d) for d in reg.defaults))
-    if reg.reflect != "unknown":
+    if reg.reflect != "unknown" or reg.writable:
         parts.append(f"reflect: {reg.reflect}")
-    if reg.storage != "unknown":
+    if reg.storage != "unknown" or reg.writable:
         parts.append(f"storage: {reg.storage}")
     text = "; ".join(parts) + (f" (write delay {_num(reg.write_delay_ms)} ms)" if reg.write_delay_ms else "")
     return text[:1].upper() + text[1:] + "." if text else None
