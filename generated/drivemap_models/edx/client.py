@@ -387,15 +387,18 @@ class _Registers:
     operation_signal: ReadWriteReg[OperationSignal] = ReadWriteReg("""Operation Signal
 
         Address 0x00E6 (Modicon 40231); u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §4.1.""")
     frequency_command: ReadWriteReg[float] = ReadWriteReg("""Frequency Command
 
         Address 0x00E7 (Modicon 40232); u16, access rw.
         Unit: Hz; scale 0.01.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §4.1.""")
     remote_keypad_used: ReadWriteReg[int] = ReadWriteReg("""Remote Keypad Used
 
         Address 0x00E8 (Modicon 40233); u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §4.1.""")
     status: ReadOnlyReg[Status] = ReadOnlyReg("""Operation state (status bits)
 
@@ -462,446 +465,557 @@ class _Registers:
     f00: ReadWriteReg[int] = ReadWriteReg("""f00
 
         Address 0x0000 (Modicon 40001); parameter F00; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f01: ReadWriteReg[int] = ReadWriteReg("""f01
 
         Address 0x0001 (Modicon 40002); parameter F01; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f02: ReadWriteReg[int] = ReadWriteReg("""f02
 
         Address 0x0002 (Modicon 40003); parameter F02; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f03: ReadWriteReg[int] = ReadWriteReg("""f03
 
         Address 0x0003 (Modicon 40004); parameter F03; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f04: ReadWriteReg[int] = ReadWriteReg("""f04
 
         Address 0x0004 (Modicon 40005); parameter F04; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f05: ReadWriteReg[int] = ReadWriteReg("""f05
 
         Address 0x0005 (Modicon 40006); parameter F05; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f06: ReadWriteReg[int] = ReadWriteReg("""f06
 
         Address 0x0006 (Modicon 40007); parameter F06; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f07: ReadWriteReg[int] = ReadWriteReg("""f07
 
         Address 0x0008 (Modicon 40009); parameter F07; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f08: ReadWriteReg[int] = ReadWriteReg("""f08
 
         Address 0x0009 (Modicon 40010); parameter F08; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f09: ReadWriteReg[int] = ReadWriteReg("""f09
 
         Address 0x000A (Modicon 40011); parameter F09; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f10: ReadWriteReg[int] = ReadWriteReg("""f10
 
         Address 0x000B (Modicon 40012); parameter F10; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f11: ReadWriteReg[int] = ReadWriteReg("""f11
 
         Address 0x000E (Modicon 40015); parameter F11; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f12: ReadWriteReg[int] = ReadWriteReg("""f12
 
         Address 0x000F (Modicon 40016); parameter F12; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f13: ReadWriteReg[int] = ReadWriteReg("""f13
 
         Address 0x0010 (Modicon 40017); parameter F13; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f14: ReadWriteReg[int] = ReadWriteReg("""f14
 
         Address 0x0011 (Modicon 40018); parameter F14; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f15: ReadWriteReg[int] = ReadWriteReg("""f15
 
         Address 0x0012 (Modicon 40019); parameter F15; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f16: ReadWriteReg[int] = ReadWriteReg("""f16
 
         Address 0x0092 (Modicon 40147); parameter F16; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f17: ReadWriteReg[int] = ReadWriteReg("""f17
 
         Address 0x0013 (Modicon 40020); parameter F17; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f18: ReadWriteReg[int] = ReadWriteReg("""f18
 
         Address 0x0014 (Modicon 40021); parameter F18; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f19: ReadWriteReg[int] = ReadWriteReg("""f19
 
         Address 0x0076 (Modicon 40119); parameter F19; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f20: ReadWriteReg[int] = ReadWriteReg("""f20
 
         Address 0x0077 (Modicon 40120); parameter F20; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f21: ReadWriteReg[int] = ReadWriteReg("""f21
 
         Address 0x0015 (Modicon 40022); parameter F21; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f22: ReadWriteReg[int] = ReadWriteReg("""f22
 
         Address 0x0016 (Modicon 40023); parameter F22; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f23: ReadWriteReg[int] = ReadWriteReg("""f23
 
         Address 0x0017 (Modicon 40024); parameter F23; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f24: ReadWriteReg[int] = ReadWriteReg("""f24
 
         Address 0x009F (Modicon 40160); parameter F24; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f25: ReadWriteReg[int] = ReadWriteReg("""f25
 
         Address 0x00A0 (Modicon 40161); parameter F25; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f26: ReadWriteReg[int] = ReadWriteReg("""f26
 
         Address 0x0018 (Modicon 40025); parameter F26; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f27: ReadWriteReg[int] = ReadWriteReg("""f27
 
         Address 0x0019 (Modicon 40026); parameter F27; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f28: ReadWriteReg[int] = ReadWriteReg("""f28
 
         Address 0x001A (Modicon 40027); parameter F28; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f29: ReadWriteReg[int] = ReadWriteReg("""f29
 
         Address 0x001B (Modicon 40028); parameter F29; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f30: ReadWriteReg[int] = ReadWriteReg("""f30
 
         Address 0x001C (Modicon 40029); parameter F30; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f31: ReadWriteReg[int] = ReadWriteReg("""f31
 
         Address 0x001D (Modicon 40030); parameter F31; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f32: ReadWriteReg[int] = ReadWriteReg("""f32
 
         Address 0x001E (Modicon 40031); parameter F32; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f33: ReadWriteReg[int] = ReadWriteReg("""f33
 
         Address 0x001F (Modicon 40032); parameter F33; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f34: ReadWriteReg[int] = ReadWriteReg("""f34
 
         Address 0x0020 (Modicon 40033); parameter F34; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f35: ReadWriteReg[int] = ReadWriteReg("""f35
 
         Address 0x0021 (Modicon 40034); parameter F35; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f36: ReadWriteReg[int] = ReadWriteReg("""f36
 
         Address 0x0022 (Modicon 40035); parameter F36; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f37: ReadWriteReg[int] = ReadWriteReg("""f37
 
         Address 0x0023 (Modicon 40036); parameter F37; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f38: ReadWriteReg[int] = ReadWriteReg("""f38
 
         Address 0x0024 (Modicon 40037); parameter F38; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f39: ReadWriteReg[int] = ReadWriteReg("""f39
 
         Address 0x0025 (Modicon 40038); parameter F39; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f40: ReadWriteReg[int] = ReadWriteReg("""f40
 
         Address 0x0026 (Modicon 40039); parameter F40; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f41: ReadWriteReg[int] = ReadWriteReg("""f41
 
         Address 0x0027 (Modicon 40040); parameter F41; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f42: ReadWriteReg[int] = ReadWriteReg("""f42
 
         Address 0x0028 (Modicon 40041); parameter F42; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f43: ReadWriteReg[int] = ReadWriteReg("""f43
 
         Address 0x0095 (Modicon 40150); parameter F43; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f44: ReadWriteReg[int] = ReadWriteReg("""f44
 
         Address 0x0096 (Modicon 40151); parameter F44; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f45: ReadWriteReg[int] = ReadWriteReg("""f45
 
         Address 0x0099 (Modicon 40154); parameter F45; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f46: ReadWriteReg[int] = ReadWriteReg("""f46
 
         Address 0x0097 (Modicon 40152); parameter F46; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f47: ReadWriteReg[int] = ReadWriteReg("""f47
 
         Address 0x0098 (Modicon 40153); parameter F47; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f48: ReadWriteReg[int] = ReadWriteReg("""f48
 
         Address 0x00DC (Modicon 40221); parameter F48; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f49: ReadWriteReg[int] = ReadWriteReg("""f49
 
         Address 0x00DD (Modicon 40222); parameter F49; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f50: ReadWriteReg[int] = ReadWriteReg("""f50
 
         Address 0x00DF (Modicon 40224); parameter F50; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f51: ReadWriteReg[int] = ReadWriteReg("""f51
 
         Address 0x002A (Modicon 40043); parameter F51; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f52: ReadWriteReg[int] = ReadWriteReg("""f52
 
         Address 0x002B (Modicon 40044); parameter F52; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f53: ReadWriteReg[int] = ReadWriteReg("""f53
 
         Address 0x002C (Modicon 40045); parameter F53; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     f54: ReadWriteArrayReg[int] = ReadWriteArrayReg("""f54
 
         Address 0x002D (Modicon 40046), 3 elements, stride 1; parameter F54 (F54, F54, F54); u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c00: ReadWriteReg[int] = ReadWriteReg("""c00
 
         Address 0x0064 (Modicon 40101); parameter C00; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c01: ReadWriteReg[int] = ReadWriteReg("""c01
 
         Address 0x0065 (Modicon 40102); parameter C01; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c02: ReadWriteReg[int] = ReadWriteReg("""c02
 
         Address 0x0066 (Modicon 40103); parameter C02; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c03: ReadWriteReg[int] = ReadWriteReg("""c03
 
         Address 0x0067 (Modicon 40104); parameter C03; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c04: ReadWriteReg[int] = ReadWriteReg("""c04
 
         Address 0x0068 (Modicon 40105); parameter C04; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c05: ReadWriteReg[int] = ReadWriteReg("""c05
 
         Address 0x0069 (Modicon 40106); parameter C05; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c06: ReadWriteReg[int] = ReadWriteReg("""c06
 
         Address 0x006A (Modicon 40107); parameter C06; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c07: ReadWriteReg[int] = ReadWriteReg("""c07
 
         Address 0x006B (Modicon 40108); parameter C07; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c08: ReadWriteReg[int] = ReadWriteReg("""c08
 
         Address 0x006C (Modicon 40109); parameter C08; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c09: ReadWriteReg[int] = ReadWriteReg("""c09
 
         Address 0x006D (Modicon 40110); parameter C09; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c10: ReadWriteReg[int] = ReadWriteReg("""c10
 
         Address 0x006E (Modicon 40111); parameter C10; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c11: ReadWriteReg[int] = ReadWriteReg("""c11
 
         Address 0x006F (Modicon 40112); parameter C11; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c12: ReadWriteReg[int] = ReadWriteReg("""c12
 
         Address 0x0070 (Modicon 40113); parameter C12; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c13: ReadWriteReg[int] = ReadWriteReg("""c13
 
         Address 0x0071 (Modicon 40114); parameter C13; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c14: ReadWriteReg[int] = ReadWriteReg("""c14
 
         Address 0x009A (Modicon 40155); parameter C14; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c15: ReadWriteReg[int] = ReadWriteReg("""c15
 
         Address 0x0007 (Modicon 40008); parameter C15; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c16: ReadWriteReg[int] = ReadWriteReg("""c16
 
         Address 0x009E (Modicon 40159); parameter C16; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c17: ReadWriteReg[int] = ReadWriteReg("""c17
 
         Address 0x007A (Modicon 40123); parameter C17; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c18: ReadWriteReg[int] = ReadWriteReg("""c18
 
         Address 0x007B (Modicon 40124); parameter C18; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c19: ReadWriteReg[int] = ReadWriteReg("""c19
 
         Address 0x007C (Modicon 40125); parameter C19; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c20: ReadWriteReg[int] = ReadWriteReg("""c20
 
         Address 0x007D (Modicon 40126); parameter C20; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c21: ReadWriteReg[int] = ReadWriteReg("""c21
 
         Address 0x007E (Modicon 40127); parameter C21; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c22: ReadWriteReg[int] = ReadWriteReg("""c22
 
         Address 0x007F (Modicon 40128); parameter C22; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c23: ReadWriteReg[int] = ReadWriteReg("""c23
 
         Address 0x000C (Modicon 40013); parameter C23; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c24: ReadWriteReg[int] = ReadWriteReg("""c24
 
         Address 0x000D (Modicon 40014); parameter C24; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c25: ReadWriteReg[int] = ReadWriteReg("""c25
 
         Address 0x0029 (Modicon 40042); parameter C25; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c26: ReadWriteReg[int] = ReadWriteReg("""c26
 
         Address 0x0080 (Modicon 40129); parameter C26; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c27: ReadWriteReg[int] = ReadWriteReg("""c27
 
         Address 0x0081 (Modicon 40130); parameter C27; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c28: ReadWriteReg[int] = ReadWriteReg("""c28
 
         Address 0x0082 (Modicon 40131); parameter C28; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c29: ReadWriteReg[int] = ReadWriteReg("""c29
 
         Address 0x0083 (Modicon 40132); parameter C29; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c30: ReadWriteReg[int] = ReadWriteReg("""c30
 
         Address 0x008A (Modicon 40139); parameter C30; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c31: ReadWriteReg[int] = ReadWriteReg("""c31
 
         Address 0x008B (Modicon 40140); parameter C31; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c32: ReadWriteReg[int] = ReadWriteReg("""c32
 
         Address 0x008C (Modicon 40141); parameter C32; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c33: ReadWriteReg[int] = ReadWriteReg("""c33
 
         Address 0x008D (Modicon 40142); parameter C33; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c34: ReadWriteReg[int] = ReadWriteReg("""c34
 
         Address 0x008E (Modicon 40143); parameter C34; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c35: ReadWriteReg[int] = ReadWriteReg("""c35
 
         Address 0x008F (Modicon 40144); parameter C35; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c36: ReadWriteReg[int] = ReadWriteReg("""c36
 
         Address 0x0090 (Modicon 40145); parameter C36; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c37: ReadWriteReg[int] = ReadWriteReg("""c37
 
         Address 0x0091 (Modicon 40146); parameter C37; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c38: ReadWriteReg[int] = ReadWriteReg("""c38
 
         Address 0x0093 (Modicon 40148); parameter C38; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c39: ReadWriteReg[int] = ReadWriteReg("""c39
 
         Address 0x0094 (Modicon 40149); parameter C39; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c40: ReadWriteReg[int] = ReadWriteReg("""c40
 
         Address 0x0072 (Modicon 40115); parameter C40; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c41: ReadWriteReg[int] = ReadWriteReg("""c41
 
         Address 0x009D (Modicon 40158); parameter C41; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c42: ReadWriteReg[int] = ReadWriteReg("""c42
 
         Address 0x0073 (Modicon 40116); parameter C42; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c43: ReadWriteReg[int] = ReadWriteReg("""c43
 
         Address 0x0074 (Modicon 40117); parameter C43; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c44: ReadWriteReg[int] = ReadWriteReg("""c44
 
         Address 0x0075 (Modicon 40118); parameter C44; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c45: ReadWriteReg[int] = ReadWriteReg("""c45
 
         Address 0x0078 (Modicon 40121); parameter C45; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c46: ReadWriteReg[int] = ReadWriteReg("""c46
 
         Address 0x0079 (Modicon 40122); parameter C46; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c47: ReadWriteReg[int] = ReadWriteReg("""c47
 
         Address 0x0030 (Modicon 40049); parameter C47; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c48: ReadWriteReg[int] = ReadWriteReg("""c48
 
         Address 0x0084 (Modicon 40133); parameter C48; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c49: ReadWriteReg[int] = ReadWriteReg("""c49
 
         Address 0x0085 (Modicon 40134); parameter C49; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c50: ReadWriteReg[int] = ReadWriteReg("""c50
 
         Address 0x0086 (Modicon 40135); parameter C50; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c51: ReadWriteReg[int] = ReadWriteReg("""c51
 
         Address 0x0087 (Modicon 40136); parameter C51; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c52: ReadWriteReg[int] = ReadWriteReg("""c52
 
         Address 0x0088 (Modicon 40137); parameter C52; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c53: ReadWriteReg[int] = ReadWriteReg("""c53
 
         Address 0x0089 (Modicon 40138); parameter C53; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c54: ReadWriteReg[int] = ReadWriteReg("""c54
 
         Address 0x009B (Modicon 40156); parameter C54; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
     c55: ReadWriteReg[int] = ReadWriteReg("""c55
 
         Address 0x009C (Modicon 40157); parameter C55; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 004 §6.""")
 
 

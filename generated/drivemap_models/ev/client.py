@@ -355,21 +355,21 @@ class _Registers:
 
         Remote digital input (NET-IN) function of NET-X0..NET-X7, i.e. which input signal function bit i of net_in (1400h) performs.
         Address 0x0900 (Modicon 42305), 8 elements, stride 1; parameter 09-01 (09-01, 09-02, 09-03, 09-04, 09-05, 09-06, 09-07, 09-08); u16, access rw.
-        Default: 1, 2, 8, 6, 10, 11, 0, 0; reflect: configuration.
+        Default: 1, 2, 8, 6, 10, 11, 0, 0; reflect: configuration; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1, §4.1.""")
     comm_error_action: ReadWriteReg[CommErrorAction] = ReadWriteReg("""通訊異常保護行為
 
         Behaviour when a communication error occurs.
         Address 0x0909 (Modicon 42314); parameter 09-10; u16, access rw.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1.""")
     watch_data_select: ReadWriteReg[WatchDataPage] = ReadWriteReg("""WatchData 選擇
 
         Selects which monitor page (Dynamic Data) registers 0008h-000Fh show.
         Address 0x090A (Modicon 42315); parameter 09-11; u16, access rw.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1, §4.3.""")
     rs485_timeout: ReadWriteReg[int] = ReadWriteReg("""RS-485 通訊逾時
@@ -377,7 +377,7 @@ class _Registers:
         RS-485 communication timeout (Tb1): if no query arrives within this time the drive raises a communication timeout alarm. 0 = disabled (無效).
         Address 0x090B (Modicon 42316); parameter 09-12; u16, access rw.
         Unit: ms; range 0 .. 1000 ms.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1, §1.3.""")
     rs485_error_count: ReadWriteReg[int] = ReadWriteReg("""RS-485 通訊異常次數
@@ -385,6 +385,7 @@ class _Registers:
         The drive raises an alarm when RS-485 communication errors exceed this count (次).
         Address 0x090C (Modicon 42317); parameter 09-13; u16, access rw.
         Range 1 .. 10.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1.""")
     rs232_timeout: ReadWriteReg[int] = ReadWriteReg("""RS-232 通訊逾時
@@ -392,7 +393,7 @@ class _Registers:
         RS-232 communication timeout. 0 = disabled (無效).
         Address 0x090D (Modicon 42318); parameter 09-14; u16, access rw.
         Unit: ms; range 0 .. 10000 ms.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1.""")
     rs232_error_count: ReadWriteReg[int] = ReadWriteReg("""RS-232 通訊異常次數
@@ -400,13 +401,14 @@ class _Registers:
         The drive raises an alarm when RS-232 communication errors exceed this count (次).
         Address 0x090E (Modicon 42319); parameter 09-15; u16, access rw.
         Range 1 .. 10.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1.""")
     rs485_comm_settings: ReadWriteReg[Rs485CommSettings] = ReadWriteReg("""RS-485 通訊設定
 
         RS-485 signal and protocol settings (physical layer), a bit field.
         Address 0x090F (Modicon 42320); parameter 09-16; u16, access rw.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §1.1.""")
     net_in: ReadWriteReg[NetIn] = ReadWriteReg("""遠端數位輸入(NET-IN)指令
@@ -420,7 +422,7 @@ class _Registers:
 
         IO mode selection. SC mode uses START/STOP, CCW/CW; CC mode uses FWD, REV.
         Address 0x0200 (Modicon 40513); parameter 02-01; u16, access rw.
-        Default: 0; reflect: configuration.
+        Default: 0; reflect: configuration; storage: unknown.
         May be written by broadcast.
         Manual: 001 §4.1.""")
     alarm_reset: ReadWriteCommandReg[int] = ReadWriteCommandReg("""解除 Alarm (Alarm Reset)
@@ -665,35 +667,41 @@ class _Registers:
     param_01_01: ReadWriteReg[int] = ReadWriteReg("""Register 0100h, revealed only by the §2.2 exception example (a write of FFFFh answered with exception 04h). Its meaning, range and default are not in this document.
 
         Address 0x0100 (Modicon 40257); parameter 01-01; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §2.2 例外應答範例.""")
     operation_data_source: ReadWriteReg[int] = ReadWriteReg("""運轉資料來源(設定)
 
         Operation data source. Set it to 1 to use the digital operation data (§4.6); other values are not described in this document.
         Address 0x0202 (Modicon 40515); parameter 02-03; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 Appendix I 範例 2, RS-485 多台廣播控制.""")
     servo_on_mode: ReadWriteReg[int] = ReadWriteReg("""Servo-On 模式
 
         Servo-On mode. As far as this document says: with 1 or 2, and Servo-On (IO and command) OFF, the motor state is WAIT/INHIBIT (not excited); in that state the brake is released with 2 and, with 0 or 1, released while Free is ON and locked otherwise.
         Address 0x020D (Modicon 40526); parameter 02-14; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §4.3.""")
     always_on_input_1: ReadWriteReg[int] = ReadWriteReg("""Always ON Input 1
 
         Always ON Input 1. The broadcast setup sets it to 0 on slave 1 and to 10 on slave 2 (which then uses operation data No.1); the value meanings are not given in this document.
         Address 0x0606 (Modicon 41543); parameter 06-07; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 Appendix I RS-485 多台廣播控制.""")
     param_08_01: ReadWriteReg[int] = ReadWriteReg("""Parameter 08-01 (its name is not printed in this document). 2 = position control; 0 or 1 = not position control. Nothing more is said.
 
         Address 0x0800 (Modicon 42049); parameter 08-01; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §4.3.""")
     stop_holding_force: ReadWriteReg[StopHoldingForce] = ReadWriteReg("""停止時保持力
 
         Holding force at stop: 0 = Free, 1 = short-circuit brake, 2 = slight position keeping (Hall-sensor models).
         Address 0x080A (Modicon 42059); parameter 08-11; u16, access rw.
+        Reflect: unknown; storage: unknown.
         May be written by broadcast.
         Manual: 001 §4.3.""")
 

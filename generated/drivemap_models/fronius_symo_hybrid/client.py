@@ -578,11 +578,13 @@ class _Registers:
     f_delete_data: ReadWriteCommandReg[int] = ReadWriteCommandReg("""Delete stored ratings of the current inverter by writing 0xFFFF.
 
         Address 0x00D3 (Modicon 40212); parameter F_Delete_Data; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Command: writing 65535 executes it.
         Manual: IntSF 'Complete Map' 212 ('Fronius Register').""")
     f_store_data: ReadWriteCommandReg[int] = ReadWriteCommandReg("""Rating data of all inverters connected to the Fronius Datamanager are persistently stored by writing 0xFFFF.
 
         Address 0x00D4 (Modicon 40213); parameter F_Store_Data; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Command: writing 65535 executes it.
         Manual: IntSF 'Complete Map' 213 ('Fronius Register').""")
     f_active_state_code: ReadOnlyReg[int | None] = ReadOnlyReg("""Current active state code of inverter - Description can be found in inverter manual
@@ -593,17 +595,18 @@ class _Registers:
     f_reset_all_event_flags: ReadWriteCommandReg[int] = ReadWriteCommandReg("""Write 0xFFFF to reset all event flags and active state code.
 
         Address 0x00D6 (Modicon 40215); parameter F_Reset_All_Event_Flags; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Command: writing 65535 executes it.
         Manual: IntSF 'Complete Map' 215 ('Fronius Register').""")
     f_model_type: ReadWriteReg[ModelType] = ReadWriteReg("""Type of SunSpec models used for inverter and meter data. Write 1 or 2 and then immediately 6 to acknowledge setting.
 
         Address 0x00D7 (Modicon 40216); parameter F_ModelType; u16, access rw.
-        Default: 1.
+        Default: 1; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 216 ('Fronius Register').""")
     f_storage_restrictions_view_mode: ReadWriteReg[RestrictionsViewMode] = ReadWriteReg("""Type of Restrictions reported in BasicStorageControl Model (IC124). Local restrictions are those that are set by Modbus Interface. Global restrictions are those that are set system wide.
 
         Address 0x00D8 (Modicon 40217); parameter F_Storage_Restrictions_View_Mode; u16, access rw.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 217 ('Fronius Register').""")
     site_power: ReadOnlyReg[int | None] = ReadOnlyReg("""Total power (site sum) of all connected inverters.
 
@@ -1072,6 +1075,7 @@ class _Registers:
 
         Address 0x9CD7 (Modicon 440152); parameter WMax; u16, access rw.
         Unit: W; scale x 10^max_power_setting_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40152 ('I121 Basic', offset 3).""")
     reference_voltage: ReadOnlyReg[float | None] = ReadOnlyReg("""Voltage at the PCC.
 
@@ -1083,23 +1087,27 @@ class _Registers:
 
         Address 0x9CD9 (Modicon 440154); parameter VRefOfs; s16, access rw.
         Unit: V; scale x 10^reference_voltage_offset_sf (read with it); range -20 .. 20 V.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40154 ('I121 Basic', offset 5).""")
     max_voltage_setting: ReadWriteReg[float | None] = ReadWriteReg("""Setpoint for maximum voltage.
 
         Address 0x9CDA (Modicon 440155); parameter VMax; u16, access rw.
         Unit: V; scale x 10^min_max_voltage_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40155 ('I121 Basic', offset 6).""")
     min_voltage_setting: ReadWriteReg[float | None] = ReadWriteReg("""Setpoint for minimum voltage.
 
         Address 0x9CDB (Modicon 440156); parameter VMin; u16, access rw.
         Unit: V; scale x 10^min_max_voltage_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Not available: raw 0xFFFF reads as None.
         Manual: IntSF 'Complete Map' 40156 ('I121 Basic', offset 7).""")
     max_apparent_power_setting: ReadWriteReg[float] = ReadWriteReg("""Setpoint for maximum apparent power. Default to I_VARtg.
 
         Address 0x9CDC (Modicon 440157); parameter VAMax; u16, access rw.
         Unit: VA; scale x 10^max_apparent_power_setting_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40157 ('I121 Basic', offset 8).""")
     max_var_q1: ReadOnlyReg[float | None] = ReadOnlyReg("""Setting for maximum reactive power in quadrant 1. Default to VArRtgQ1.
 
@@ -1361,71 +1369,76 @@ class _Registers:
 
         Address 0x9D25 (Modicon 440230); parameter Conn_WinTms; u16, access rw.
         Unit: s; range 0 .. 300 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40230 ('I123 Immediate', offset 3).""")
     conn_revert_s: ReadWriteReg[int] = ReadWriteReg("""Timeout period for connect/disconnect.
 
         Address 0x9D26 (Modicon 440231); parameter Conn_RvrtTms; u16, access rw.
         Unit: s; range 0 .. 28800 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40231 ('I123 Immediate', offset 4).""")
     conn: ReadWriteReg[ConnControl] = ReadWriteReg("""Enumerated valued. Connection control.
 
         Address 0x9D27 (Modicon 440232); parameter Conn; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40232 ('I123 Immediate', offset 5).""")
     power_limit_pct: ReadWriteReg[float] = ReadWriteReg("""Set power output to specified level.
 
         Address 0x9D28 (Modicon 440233); parameter WMaxLimPct; u16, access rw.
         Unit: %; scale x 10^power_limit_pct_sf (read with it); range 0 .. 100 %.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40233 ('I123 Immediate', offset 6).""")
     power_limit_window_s: ReadWriteReg[int] = ReadWriteReg("""Time window for power limit change.
 
         Address 0x9D29 (Modicon 440234); parameter WMaxLimPct_WinTms; u16, access rw.
         Unit: s; range 0 .. 300 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40234 ('I123 Immediate', offset 7).""")
     power_limit_revert_s: ReadWriteReg[int] = ReadWriteReg("""Timeout period for power limit.
 
         Address 0x9D2A (Modicon 440235); parameter WMaxLimPct_RvrtTms; u16, access rw.
         Unit: s; range 0 .. 28800 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40235 ('I123 Immediate', offset 8).""")
     power_limit_ramp_s: ReadWriteReg[int] = ReadWriteReg("""Ramp time for moving from current setpoint to new setpoint.
 
         Address 0x9D2B (Modicon 440236); parameter WMaxLimPct_RmpTms; u16, access rw.
         Unit: s; range 0 .. 65534 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40236 ('I123 Immediate', offset 9).""")
     power_limit_enable: ReadWriteReg[EnableControl] = ReadWriteReg("""Enumerated valued. Throttle enable/disable control.
 
         Address 0x9D2C (Modicon 440237); parameter WMaxLim_Ena; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40237 ('I123 Immediate', offset 10).""")
     pf_setpoint: ReadWriteReg[float] = ReadWriteReg("""Set power factor to specific value - cosine of angle.
 
         Address 0x9D2D (Modicon 440238); parameter OutPFSet; s16, access rw.
         Scale x 10^pf_setpoint_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40238 ('I123 Immediate', offset 11).""")
     pf_window_s: ReadWriteReg[int] = ReadWriteReg("""Time window for power factor change.
 
         Address 0x9D2E (Modicon 440239); parameter OutPFSet_WinTms; u16, access rw.
         Unit: s; range 0 .. 300 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40239 ('I123 Immediate', offset 12).""")
     pf_revert_s: ReadWriteReg[int] = ReadWriteReg("""Timeout period for power factor.
 
         Address 0x9D2F (Modicon 440240); parameter OutPFSet_RvrtTms; u16, access rw.
         Unit: s; range 0 .. 28800 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40240 ('I123 Immediate', offset 13).""")
     pf_ramp_s: ReadWriteReg[int] = ReadWriteReg("""Ramp time for moving from current setpoint to new setpoint.
 
         Address 0x9D30 (Modicon 440241); parameter OutPFSet_RmpTms; u16, access rw.
         Unit: s; range 0 .. 65534 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40241 ('I123 Immediate', offset 14).""")
     pf_enable: ReadWriteReg[EnableControl] = ReadWriteReg("""Enumerated valued. Fixed power factor enable/disable control.
 
         Address 0x9D31 (Modicon 440242); parameter OutPFSet_Ena; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40242 ('I123 Immediate', offset 15).""")
     var_pct_of_wmax: ReadOnlyReg[int | None] = ReadOnlyReg("""Reactive power in percent of I_WMax.
 
@@ -1437,6 +1450,7 @@ class _Registers:
 
         Address 0x9D33 (Modicon 440244); parameter VArMaxPct; s16, access rw.
         Unit: %; scale x 10^var_pct_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40244 ('I123 Immediate', offset 17).""")
     var_pct_of_varaval: ReadOnlyReg[float | None] = ReadOnlyReg("""Reactive power in percent of I_VArAval.
 
@@ -1448,19 +1462,19 @@ class _Registers:
 
         Address 0x9D35 (Modicon 440246); parameter VArPct_WinTms; u16, access rw.
         Unit: s; range 0 .. 300 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40246 ('I123 Immediate', offset 19).""")
     var_revert_s: ReadWriteReg[int] = ReadWriteReg("""Timeout period for VAR limit.
 
         Address 0x9D36 (Modicon 440247); parameter VArPct_RvrtTms; u16, access rw.
         Unit: s; range 0 .. 28800 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40247 ('I123 Immediate', offset 20).""")
     var_ramp_s: ReadWriteReg[int] = ReadWriteReg("""Ramp time for moving from current setpoint to new setpoint.
 
         Address 0x9D37 (Modicon 440248); parameter VArPct_RmpTms; u16, access rw.
         Unit: s; range 0 .. 65534 s.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40248 ('I123 Immediate', offset 21).""")
     var_pct_mode: ReadOnlyReg[int | None] = ReadOnlyReg("""Enumerated value. VAR limit mode.
 
@@ -1470,6 +1484,7 @@ class _Registers:
     var_enable: ReadWriteReg[EnableControl] = ReadWriteReg("""Enumerated valued. Fixed VAR enable/disable control.
 
         Address 0x9D39 (Modicon 440250); parameter VArPct_Ena; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40250 ('I123 Immediate', offset 23).""")
     power_limit_pct_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for power output percent.
 
@@ -1665,6 +1680,7 @@ class _Registers:
     storage_control_mode: ReadWriteReg[StorageControlMode] = ReadWriteReg("""Activate hold/discharge/charge storage control mode. Bitfield value. Additional Fronius description: Active hold/discharge/charge storage control mode. Set the charge field to enable charging and the discharge field to enable discharging. Bitfield value.
 
         Address 0x9D74 (Modicon 440309); parameter StorCtl_Mod; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40309 ('IC124 Basic Storage Control', offset 6).""")
     max_charge_va: ReadOnlyReg[float | None] = ReadOnlyReg("""Setpoint for maximum charging VA.
 
@@ -1676,6 +1692,7 @@ class _Registers:
 
         Address 0x9D76 (Modicon 440311); parameter MinRsvPct; u16, access rw.
         Unit: %; scale x 10^min_reserve_pct_sf (read with it).
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40311 ('IC124 Basic Storage Control', offset 8).""")
     state_of_charge: ReadOnlyReg[float | None] = ReadOnlyReg("""Currently available energy as a percent of the capacity rating.
 
@@ -1704,13 +1721,13 @@ class _Registers:
 
         Address 0x9D7B (Modicon 440316); parameter OutWRte; s16, access rw.
         Unit: %; scale x 10^rate_pct_sf (read with it); range -100 .. 100 %.
-        Default: 100.
+        Default: 100; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40316 ('IC124 Basic Storage Control', offset 13).""")
     charge_rate_pct: ReadWriteReg[float] = ReadWriteReg("""Percent of max charging rate. Additional Fronius description: Defines maximum Charge rate. If not used than the default is 100 and wChaMax defines max. Charge rate. See wChaMax for details.
 
         Address 0x9D7C (Modicon 440317); parameter InWRte; s16, access rw.
         Unit: %; scale x 10^rate_pct_sf (read with it); range -100 .. 100 %.
-        Default: 100.
+        Default: 100; reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40317 ('IC124 Basic Storage Control', offset 14).""")
     rate_window_s: ReadOnlyReg[int | None] = ReadOnlyReg("""Time window for charge/discharge rate change.
 
@@ -1733,6 +1750,7 @@ class _Registers:
     grid_charging: ReadWriteReg[GridCharging] = ReadWriteReg("""Setpoint to enable/disable charging from grid
 
         Address 0x9D80 (Modicon 440321); parameter ChaGriSet; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: IntSF 'Complete Map' 40321 ('IC124 Basic Storage Control', offset 18).""")
     max_charge_power_sf: ReadOnlyReg[int | None] = ReadOnlyReg("""Scale factor for maximum charge.
 

@@ -615,60 +615,64 @@ class _Registers:
 
         Address 0x0002 (Modicon 40003); parameter 2; f32 (bytes on the wire: AB CD), access rw.
         Unit: min; range 0 .. 60 min.
-        Default: 60.
+        Default: 60; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.5 (40003, hex 00 02).""")
     system_type: ReadWriteReg[float] = ReadWriteReg("""System Type
 
         Address 0x000A (Modicon 40011); parameter 6; f32 (bytes on the wire: AB CD), access rw.
         Range 1 .. 3.
+        Reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.5 (40011, hex 00 0A).""")
     pulse1_width: ReadWriteReg[float] = ReadWriteReg("""Pulse1 Width
 
         Address 0x000C (Modicon 40013); parameter 7; f32 (bytes on the wire: AB CD), access rw.
         Unit: ms; range 60 .. 200 ms.
-        Default: 100.
+        Default: 100; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40013, hex printed 00 OC).""")
     password_lock: ReadWriteReg[float] = ReadWriteReg("""Password Lock
 
         Address 0x000E (Modicon 40015); parameter 8; f32 (bytes on the wire: AB CD), access rw.
+        Reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40015, hex 00 0E).""")
     network_parity_stop: ReadWriteReg[float] = ReadWriteReg("""Network Parity Stop
 
         Address 0x0012 (Modicon 40019); parameter 10; f32 (bytes on the wire: AB CD), access rw.
         Range 0 .. 3.
-        Default: 0; reflect: power_cycle.
+        Default: 0; reflect: power_cycle; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40019, hex 00 12).""")
     network_node: ReadWriteReg[float] = ReadWriteReg("""Network Node
 
         Address 0x0014 (Modicon 40021); parameter 11; f32 (bytes on the wire: AB CD), access rw.
         Range 1 .. 247.
-        Default: 1; reflect: power_cycle.
+        Default: 1; reflect: power_cycle; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40021, hex 00 14).""")
     pulse1_divisor1: ReadWriteReg[float] = ReadWriteReg("""Pulse1 Divisor1
 
         Address 0x0016 (Modicon 40023); parameter 12; f32 (bytes on the wire: AB CD), access rw.
         Range 0 .. 5.
+        Reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40023, hex 00 16).""")
     password: ReadWriteReg[float] = ReadWriteReg("""Password
 
         Address 0x0018 (Modicon 40025); parameter 13; f32 (bytes on the wire: AB CD), access rw.
-        Default: 0.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.6 (40025, hex 00 18).""")
     network_baud_rate: ReadWriteReg[float] = ReadWriteReg("""Network Baud Rate
 
         Address 0x001C (Modicon 40029); parameter 15; f32 (bytes on the wire: AB CD), access rw.
         Range 0 .. 4.
-        Default: 2.
+        Default: 2; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.7 (40029, hex 00 1C).""")
     pulse1_energy_type: ReadWriteReg[float] = ReadWriteReg("""Pulse 1 Energy Type
 
         Address 0x0056 (Modicon 40087); parameter 44; f32 (bytes on the wire: AB CD), access rw.
         Range 1 .. 8.
-        Default: 4.
+        Default: 4; reflect: unknown; storage: unknown.
         Manual: V1.8 §1.3.1 p.7 (40087, hex 00 56).""")
     reset: CommandReg[int] = CommandReg("""Reset
 
         Address 0xF010 (Modicon 461457); parameter 30729; u16, access w.
+        Reflect: unknown; storage: unknown.
         Command: writing 0 executes it.
         Manual: V1.8 §1.3.1 p.7 (461457, hex F0 10).""")
     serial_number: ReadOnlyReg[int] = ReadOnlyReg("""Serial number

@@ -178,15 +178,18 @@ class _Registers:
 
         Run/stop, direction, external fault, fault reset, jog, and remote multi-function inputs/outputs.
         Address 0x0101 (Modicon 40258); parameter P_257; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (指令 DATA).""")
     frequency_command: ReadWriteReg[float] = ReadWriteReg("""频率指令
 
         Address 0x0102 (Modicon 40259); parameter P_258; u16, access rw.
         Unit: Hz; scale 0.01.
+        Reflect: unknown; storage: unknown.
         Manual: 003 §保持暂存器的写入 [06H].""")
     torque_command: ReadWriteReg[int] = ReadWriteReg("""转矩指令 *1
 
         Address 0x0103 (Modicon 40260); parameter P_259; u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 003 §DATA 一览表 (指令 DATA).""")
     status: ReadOnlyReg[Status] = ReadOnlyReg("""运转状态 etc. (0120H bit field)
 
@@ -233,6 +236,7 @@ class _Registers:
     parameters: ReadWriteArrayReg[int] = ReadWriteArrayReg("""参数 P_0..P_255
 
         Address 0x0000 (Modicon 40001), 256 elements, stride 1; parameter P_0 (element i: P_0 … P_255); u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 003 §参数与暂存器编号对照表.""")
 
 

@@ -237,11 +237,13 @@ class _Registers:
 
         Function parameter at 0008H, written with 5000 (1388H) in the 06H example; its meaning is not given.
         Address 0x0008 (Modicon 40009); u16, access rw.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Example write 06H.""")
     control_command: WriteOnlyReg[ControlCommand] = WriteOnlyReg("""Communication control command
 
         Run / stop / jog / fault-reset command word.
         Address 0x1000 (Modicon 44097); u16, access w.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 1000H.""")
     inverter_state: ReadOnlyReg[InverterState] = ReadOnlyReg("""Inverter state
 
@@ -253,30 +255,35 @@ class _Registers:
         Communication setting, a relative value in percent. If it is set as the frequency source it is the percentage of the maximum frequency (P0.04); if it is set or fed back as PID it is the percentage of PID.
         Address 0x2000 (Modicon 48193); s16, access rw.
         Unit: %; scale 0.01; range -100 .. 100 %.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2000H.""")
     pid_setting: ReadWriteReg[float] = ReadWriteReg("""PID setting
 
         PID setting over communication.
         Address 0x2001 (Modicon 48194); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2001H.""")
     pid_feedback: ReadWriteReg[float] = ReadWriteReg("""PID feedback
 
         PID feedback over communication.
         Address 0x2002 (Modicon 48195); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2002H.""")
     torque_setting_value: ReadWriteReg[float] = ReadWriteReg("""Setting Value of Torque
 
         Torque setting over communication, in percent.
         Address 0x2003 (Modicon 48196); u16, access rw.
         Unit: %; scale 0.1; range 0 .. 100 %.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2003H.""")
     upper_limit_frequency_setting: ReadWriteReg[int] = ReadWriteReg("""Setting Value of upper limit frequency (0-Fmax)
 
         Upper limit frequency set over communication, 0 to Fmax.
         Address 0x2004 (Modicon 48197); u16, access rw.
         Range 0 .. —.
+        Reflect: unknown; storage: unknown.
         Manual: 002 §Communication control command table, 2004H.""")
     operating_frequency: ReadOnlyReg[int] = ReadOnlyReg("""Operating frequency
 
