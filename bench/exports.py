@@ -22,8 +22,8 @@ from common import ROOT, Row, Section
 from drivemap.backends.exporters.base import Options
 from drivemap.backends.exporters.esphome import EsphomeExporter
 from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.compiler import load_model
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import SERIAL  # what the maps leave open on their serial line
@@ -86,7 +86,7 @@ def run(quick: bool) -> Section:
     for name in sorted(p.stem for p in (ROOT / "maps").glob("*.yaml")):  # every map, the seeds and the new devices
         model = load_model(name)
         keys = targets(model)
-        plan = len(plan_reads(load_spec(model), keys))
+        plan = len(plan_reads(spec_from_model(model), keys))
         ha_entities, ha_reads = homeassistant(model)
         esp_entities, esp_reads, _ = esphome(model)
         sec.detail.append(f"| {name} | {len(keys)} | {plan} | {ha_entities} | {ha_reads} | {esp_entities} | {esp_reads} "

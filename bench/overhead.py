@@ -34,7 +34,7 @@ from servers import Child
 
 MODEL = "vfd1000"
 GOAL = 1.10
-#: Issue 18's goals where it sets its own (typed read of 8 contiguous registers, one element).
+#: Stricter goals for the two most common reads (typed read of 8 contiguous registers, one element).
 GOALS = {"read 8": 1.05, "read one": 1.03}
 
 

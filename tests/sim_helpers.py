@@ -11,8 +11,8 @@ from typing import Any
 
 from drivemap.backends.exporters.base import Options
 from drivemap.backends.exporters.pymodbus_sim import PymodbusSimExporter
-from drivemap.backends.python.inmemory import load_package
 from drivemap.model.nodes import Model
+from drivemap.model.spec import load_package
 from drivemap.runtime.sim.simulator import Simulator
 from tests.waits import free_port, wait_port
 

@@ -1,4 +1,4 @@
-"""Broadcast follows the map (issue 19.1): one rule for the same wording in the manuals.
+"""Broadcast follows the map (nothing surprising reaches a device): one rule for the same wording in the manuals.
 
 edx (004 §1.3), v2 (003 §2) and vfd1000 (002 §RTU frame format) only name address 0 as the
 broadcast address: their 06h/10h broadcast is null with the reason, and ``Client.broadcast`` refuses

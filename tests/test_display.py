@@ -92,8 +92,8 @@ def test_first_index_names_elements_as_the_manual_numbers_them(acme: Model) -> N
     assert reg.first_index == 1
     assert [reg.display_name(i) for i in range(reg.count)] == [f"preset_speed {n}" for n in (1, 2, 3, 4)]
     assert reg.element_name(0) == "preset_speed[0]"  # Python and the CLI still index from 0
-    from drivemap.backends.python.inmemory import load_spec
-    spec = load_spec(acme).register("preset_speed")
+    from drivemap.model.spec import spec_from_model
+    spec = spec_from_model(acme).register("preset_speed")
     assert [spec.display_name(i) for i in range(4)] == [reg.display_name(i) for i in range(4)]
     assert acme.register("frequency_command").display_name(0) == "frequency_command"
     rows = [r for r in parse("csv", render(acme, "csv")) if r["name"].startswith("preset_speed")]

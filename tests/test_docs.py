@@ -231,7 +231,7 @@ def test_every_register_appears_with_its_address(model_id: str, pages: dict[str,
 
 @pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_unlisted_addresses_are_not_called_reserved(model_id: str, pages: dict[str, Page], models: list[Model]) -> None:
-    """Issue 19.8: a range the manual never lists reads "not listed in the manual", not "reserved"."""
+    """Never guess: a range the manual never lists reads "not listed in the manual", not "reserved"."""
     m = by_name(models, model_id)
     section = pages[f"docs/{model_id}.md"].section("Reserved and unlisted addresses")
     header, *rows = section.tables[0]
@@ -413,7 +413,7 @@ LEAKS = re.compile(r"\bNone\b|\bnan\b|\bUndefined\b|\{\{|\}\}|\{%|%\}|\{#|#\}|\b
 @pytest.mark.parametrize("model_id", MODEL_IDS)
 def test_no_placeholder_or_none_leaks(model_id: str, outputs: dict[str, str], pages: dict[str, Page]) -> None:
     text = outputs[f"docs/{model_id}.md"]
-    # the docs say on purpose what a not-available value reads as in Python (issue 14: Optional -> None)
+    # the docs say on purpose what a not-available value reads as in Python (Optional -> None)
     text = text.replace("(the client reads None)", "")
     # text that comes from the map may legitimately say "None" (e.g. "Parity: None"): take it out first
     strings = sorted({_md(s) for s in _map_strings(ROOT / "maps" / f"{model_id}.yaml")}, key=len, reverse=True)

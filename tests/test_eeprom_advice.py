@@ -1,4 +1,4 @@
-"""ev's EEPROM operation data while the motor runs (issue 19.2): the manual only advises.
+"""ev's EEPROM operation data while the motor runs: the manual only advises, so nothing is refused.
 
 001 §4.6 NOTE: "while the motor runs, change operation data through the RAM addresses" — it never
 says the drive refuses an EEPROM write. So the simulator does not refuse by default (an opt-in

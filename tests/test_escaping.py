@@ -1,4 +1,4 @@
-"""One escaping path for map text (issue 21.2), proven over all of Unicode, lone surrogates included.
+"""One escaping path for map text (map text never becomes code or markup), proven over all of Unicode, lone surrogates included.
 
 Property tests (hypothesis) on :mod:`drivemap.backends.escape`, whose functions are the templates' ``py``,
 ``doc``, ``md`` and ``mdcomment`` filters:

@@ -1,4 +1,4 @@
-"""ev's communication-timeout alarm (Tb1, 09-12, 85h) in the simulator (issue 19.9).
+"""ev's communication-timeout alarm (Tb1, 09-12, 85h) in the simulator (the manual states it, so the simulator does it).
 
 001 §1.3 Tb1: when the interval between queries exceeds 09-12 RS-485 communication timeout, the
 drive raises a communication timeout alarm (initial value: no monitoring); 001 §4.5 records it as

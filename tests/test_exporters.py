@@ -17,10 +17,10 @@ import jinja2
 import pytest
 
 from drivemap.backends.exporters.homeassistant import jinja_literal
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.backends.views.integrations import comment_safe
 from drivemap.cli import main
 from drivemap.compiler import load_model
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import (
@@ -158,7 +158,7 @@ def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
     doc = parse("esphome", text)
     items = esp.items_of(doc)
     got = esp.ranges(items)
-    spec = load_spec(m)
+    spec = spec_from_model(m)
     for r in got:
         for item in r.sensors:
             words = item.offset if item.register_type in ("coil", "discrete_input") else item.offset // 2

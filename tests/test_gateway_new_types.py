@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.compiler import compile_map
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.runtime.sim.simulator import Simulator
 from tests.helpers_client import tcp_server
@@ -31,7 +31,7 @@ def broker(tmp_path: Path) -> Iterator[Broker]:
 
 @contextlib.contextmanager
 def allkinds_server() -> Iterator[tuple[Any, int]]:
-    sim = Simulator(load_spec(compile_map(ALLKINDS)), [1])
+    sim = Simulator(spec_from_model(compile_map(ALLKINDS)), [1])
     with ThreadedSimServer(sim, tcp=("127.0.0.1", 0)) as server:
         assert server.address is not None
         yield sim, server.address[1]

@@ -1,4 +1,4 @@
-"""Runtime misuse (issues 20.4-20.6, 21.4): every error a caller can cause is a drivemap error class,
+"""Runtime misuse (bad runtime input gets a clear typed error before anything is sent): every error a caller can cause is a drivemap error class,
 raised before anything is sent.
 
 * a flags register refuses bits its map does not define (``NetIn(0x8000)``);
@@ -27,6 +27,7 @@ from typing import Any
 
 import pytest
 
+from drivemap.runtime.client import ReadWriteCommand
 from drivemap.runtime.client.bus import AsyncBus, Bus
 from drivemap.runtime.errors import (
     DriveError,
@@ -56,7 +57,7 @@ def nothing_sent(drive: Any) -> Iterator[None]:
     assert (drive.stats.transactions, drive.stats.bytes_sent) == before, "a refused call reached the wire"
 
 
-# ----------------------------------------------------------------------------- 20.4 flags
+# --------------------------------------------------------------------------------- flags
 def test_flags_refuse_bits_the_map_does_not_define(ev_drive: tuple[Any, Any]) -> None:
     sim, drive = ev_drive
     for bad in (ev.NetIn(0x8000), ev.NetIn(0x0100) | ev.NetIn.X0, ev.NetIn(0xFF00)):
@@ -71,7 +72,7 @@ def test_flags_refuse_bits_the_map_does_not_define(ev_drive: tuple[Any, Any]) ->
     assert sim.get_raw("net_in") == 0x81
 
 
-# ----------------------------------------------------------------------------- 20.5 array index
+# --------------------------------------------------------------------------------- array index
 @pytest.mark.parametrize("index", [-1, -8, -9, 8, 100])
 def test_array_index_outside_0_to_count_minus_1(ev_drive: tuple[Any, Any], index: int) -> None:
     sim, drive = ev_drive
@@ -102,10 +103,10 @@ async def test_async_array_index() -> None:
                 await drive.digital_speed_ram[-1].write(5)
 
 
-# ----------------------------------------------------------------------------- 20.6 commands
+# --------------------------------------------------------------------------------- commands
 def test_command_register_is_written_only_with_its_command_value(ev_drive: tuple[Any, Any]) -> None:
     sim, drive = ev_drive
-    assert isinstance(drive.alarm_reset, ev.client.ReadWriteCommand)
+    assert isinstance(drive.alarm_reset, ReadWriteCommand)
     for value in (0, 2, 65535):
         with nothing_sent(drive), pytest.raises(ValueOutOfRange, match="only 1 may be written"):
             drive.alarm_reset.write(value)
@@ -146,7 +147,7 @@ async def test_async_command() -> None:
             assert drive.stats.by_function.get(0x06) == 1
 
 
-# ----------------------------------------------------------------------------- 21.4 untyped errors
+# --------------------------------------------------------------------------------- untyped errors
 @pytest.mark.parametrize("value", [10**400, -(10**400), 10**5000], ids=["1e400", "-1e400", "1e5000"])
 def test_huge_ints_are_out_of_range(ev_drive: tuple[Any, Any], value: int) -> None:
     _, drive = ev_drive

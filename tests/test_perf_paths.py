@@ -1,4 +1,4 @@
-"""The fast paths of issue 18 behave as the slow ones did: the sync serial receiver, snapshots
+"""The fast paths behave exactly as the general ones they shortcut: the sync serial receiver, snapshots
 built without a per-field ``__init__``, bit-field records built by ``@record``."""
 
 from __future__ import annotations

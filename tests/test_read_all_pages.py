@@ -1,4 +1,4 @@
-"""ev ``read_all()`` with the default page_policy "raise" (issue 19.9).
+"""ev ``read_all()`` with the default page_policy "raise" (a read must leave the drive on the page it found).
 
 ev's monitor addresses 0008h-000Fh show page 0 or 1 of the monitor data depending on 09-11
 watch_data_select (001 §1.1, §4.3). ``read_all()`` visits each page it needs and puts the selector

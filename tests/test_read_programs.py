@@ -1,4 +1,4 @@
-"""Read and write programs (issue 18, items 1-2): the fault-free path is compiled, everything else
+"""Read and write programs (clean reads must cost little more than the wire): the fault-free path is compiled, everything else
 is the general path, and the two give the same results.
 
 Each case runs twice against real servers: once with the generated client as it is (programs on)

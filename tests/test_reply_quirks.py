@@ -1,4 +1,4 @@
-"""vfd1000's 03H reply as printed (issue 19.3): a two-byte byte count, accepted by the client.
+"""vfd1000's 03H reply as the manual prints it: a two-byte byte count, accepted by the client.
 
 002 §Example read 03H prints the reply 01 03 00 04 00 00 00 00 43 07 (byte count 00H 04H, CRC right
 for those bytes). The map keeps the standard reading (erratum) but lists the quirk

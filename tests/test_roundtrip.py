@@ -19,7 +19,7 @@ answers the printed bytes.
 
 Besides the project's maps, the synthetic maps in ``tests/maps/`` (every construct of the map
 language, frames computed with pymodbus) run here too, through their generated package built in
-memory (:func:`drivemap.backends.python.inmemory.load_package`).
+memory (:func:`drivemap.model.spec.load_package`: built from the spec, nothing rendered).
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ from typing import Any
 
 import pytest
 
-from drivemap.backends.python.inmemory import load_package
 from drivemap.compiler import compile_map, map_paths
 from drivemap.frontend import frames
 from drivemap.model.nodes import Example, Model
+from drivemap.model.spec import load_package
 from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
 from drivemap.runtime.sim.serve import ThreadedSimServer

@@ -1,5 +1,5 @@
 """The sync serial receiver (:mod:`drivemap.runtime.client.serialrx`) reads the replies on the default path,
-with the stale-reply guard (:mod:`drivemap.runtime.client.staleguard`) on or automatic (issue 18.3).
+with the stale-reply guard (:mod:`drivemap.runtime.client.staleguard`) on or automatic.
 
 Every test checks :attr:`SerialReceiver.handled` (replies the receiver read itself, not through
 pymodbus's polling receive) besides the values and counters, for RTU and ASCII:

@@ -427,7 +427,7 @@ def test_reply_delay() -> None:
     assert sim_class("v2")(realistic_timing=True).reply_delay() == pytest.approx(0.010)
 
 
-# ---- every printed example, PDU level (the serial round trip is tests of issue 7) ---------------------
+# ---- every printed example, PDU level (the serial round trip is test_roundtrip.py) ---------------------
 def _examples() -> list[Any]:
     from drivemap.compiler import compile_map, map_paths
 

@@ -1,4 +1,4 @@
-"""Hostile frames against the simulator (issue 8, runtime): it never crashes, never answers a
+"""Hostile frames against the simulator (a device on an open bus sees anything): it never crashes, never answers a
 corrupt frame, and still answers a valid request afterwards.
 
 Two levels:

@@ -1,4 +1,4 @@
-"""``drivemap simulate`` as a process (issue 8, runtime): ``--state`` files survive a kill in the
+"""``drivemap simulate`` as a process: ``--state`` files survive a kill in the
 middle of a write, and the simulator listens only on loopback unless told otherwise.
 
 * A ``drivemap simulate ev --state FILE`` process is fed EEPROM writes as fast as the stock

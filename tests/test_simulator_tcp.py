@@ -1,4 +1,4 @@
-"""The simulator over Modbus TCP and its dialect (issues 20.7-20.9, 21.7), with raw sockets on 127.0.0.1.
+"""The simulator over Modbus TCP and its dialect (it must answer as the device does, byte for byte), with raw sockets on 127.0.0.1.
 
 * requests sent back to back (in one segment, more than pymodbus's 264-byte buffer, or byte by
   byte) are each answered, in order: a broadcast and an unknown function code before two reads
@@ -79,7 +79,7 @@ def ev_reply(sim: Any) -> bytes:
     return bytes([0x03, 0x02]) + sim.get_raw("motor_speed").to_bytes(2, "big")
 
 
-# ----------------------------------------------------------------------------- 20.7 back-to-back requests
+# --------------------------------------------------------------------------------- back-to-back requests
 def test_broadcast_and_unknown_function_do_not_swallow_later_replies() -> None:
     with tcp_server("ev", units=(1, 2)) as (sim, host, port), connect(host, port) as sock:
         illegal = sim.exception_code("illegal_function")
@@ -103,7 +103,7 @@ def test_many_requests_in_one_segment_and_byte_by_byte() -> None:
         assert read_frames(sock, 2, 1.0) == [(7, 1, ev_reply(sim)), (8, 1, ev_reply(sim))]
 
 
-# ----------------------------------------------------------------------------- 20.8 framing lost
+# --------------------------------------------------------------------------------- framing lost
 BAD_HEADERS = {
     "protocol_id": mbap(5, 1, READ, pid=7),
     "length_0": mbap(5, 1, READ, length=0),
@@ -143,7 +143,7 @@ def test_a_frame_announced_longer_than_it_is_never_leaves_the_client_waiting(the
             assert read_frames(fresh, 1, 1.0) == [(9, 1, ev_reply(sim))]
 
 
-# ----------------------------------------------------------------------------- 20.9 malformed PDUs
+# --------------------------------------------------------------------------------- malformed PDUs
 MALFORMED = {  # PDU, error case
     "03_extra_bytes": (bytes.fromhex("03 0002 0001 0000"), "bad_length"),
     "03_one_short": (bytes.fromhex("03 0002 00"), "bad_length"),
@@ -193,7 +193,7 @@ def test_ev_stays_silent_on_its_serial_line_for_a_bad_length() -> None:
             port.close()
 
 
-# ----------------------------------------------------------------------------- 21.7 dialect
+# --------------------------------------------------------------------------------- dialect
 @pytest.mark.parametrize("model", ["ev", "edx"])
 def test_function_codes_80_to_ff_get_the_illegal_function_code_over_tcp(model: str) -> None:
     with tcp_server(model) as (sim, host, port), connect(host, port) as sock:

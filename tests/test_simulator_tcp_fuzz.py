@@ -1,4 +1,4 @@
-"""10,000 hostile frames against the simulator over Modbus TCP (issue 20.8): no connection is ever wedged.
+"""10,000 hostile frames against the simulator over Modbus TCP (one bad peer must not stop the others): no connection is ever wedged.
 
 For every frame, on a connection of its own:
 

@@ -1,4 +1,4 @@
-"""Stale replies on a serial line (issue 20.10): a reply delivered twice by the line, or one whose first
+"""Stale replies on a serial line (a late reply must never be taken for the next one): a reply delivered twice by the line, or one whose first
 byte arrived before our request could have been answered, is dropped, counted in ``stats.stale`` and
 never taken for the answer; the client waits for the real one.
 

@@ -1,4 +1,4 @@
-"""``--state`` files are user data (issue 21.1): nothing in them is lost, a file that cannot be read
+"""``--state`` files are user data: nothing in them is lost, a file that cannot be read
 fully is refused with a located error and left byte-for-byte untouched, and writes are atomic.
 
 * units of the file that this run does not simulate, cells the model does not keep in EEPROM (or

@@ -1,11 +1,27 @@
-"""drivemap: a declarative register-map compiler for Modbus motor drives.
+"""drivemap: a declarative register-map compiler for Modbus motor drives and inverters.
 
-Layers, top to bottom (each imports only those below it; ``lint-imports`` checks it):
-:mod:`~drivemap.cli` -> :mod:`~drivemap.gateway`, :mod:`~drivemap.live` (applications) ->
-:mod:`~drivemap.build` -> :mod:`~drivemap.compiler` (the pipeline) -> :mod:`~drivemap.backends`
-(exporters, views, templates, output) -> :mod:`~drivemap.frontend` (load, schema, checks) ->
-:mod:`~drivemap.model` (the immutable model) -> :mod:`~drivemap.runtime` (what generated code
-imports: ``runtime.client`` and ``runtime.sim``). See ``docs/architecture.md``.
+The package is in layers; each imports only the layers below it (import-linter checks it)::
+
+    cli                      the ``drivemap`` command
+    gateway | live | onboard applications: MQTT/OPC UA gateway; read/write/watch/scan/verify at a drive;
+      | migrate              draft/import/probe (maps from manuals, definitions, devices); format migration
+    build                    a project's outputs (maps -> files), the simulator factory
+    compiler                 map path -> checked Model: the front end, then each exporter's validate hook
+    backends                 exporters (python, docs, json, homeassistant, esphome, pymodbus-sim, csv),
+                             their views and Jinja templates, rendering and the output writer
+    frontend                 project, load (YAML with line/column), schema, semantic checks, frames
+    model                    the immutable Model (nodes, build) and spec_from_model: Model -> DeviceSpec
+    runtime                  what generated and dynamic packages import: spec (DeviceSpec), names,
+                             client/ (bus, sans-I/O core, accessors, descriptors, programs, codecs)
+                             and sim/ (the simulator, its server, state file, CLI and behaviours)
+
+A map goes ``frontend -> model``; :func:`drivemap.model.spec.spec_from_model` gives the runtime's
+:class:`~drivemap.runtime.spec.DeviceSpec`, which the simulator, the live verbs, the gateway and the
+exporters use directly (nothing executes rendered text). ``drivemap build`` writes the same spec
+printed (``spec.py``), a typed client that declares each register once
+(:mod:`drivemap.runtime.client.declare`) and a few-line ``simulator.py``;
+:mod:`drivemap.runtime.client.dynamic` builds the equal client classes from a spec at run time.
+See ``docs/architecture.md``.
 """
 
 __version__ = "0.2.0"

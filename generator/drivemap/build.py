@@ -17,10 +17,10 @@ from drivemap.backends.exporters import available
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display
 from drivemap.model.nodes import Model
+from drivemap.model.spec import spec_from_model
 
 __all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "simulator_factory"]
 
@@ -131,7 +131,7 @@ def simulator_factory(model: Model, project: Project) -> Any:
     except ImportError as exc:
         where = Location(display(project.config or project.root), 1, 1)
         raise CompileError([Diagnostic(where, f"behaviours: cannot import {exc.name or exc}: {exc}")]) from None
-    spec = load_spec(model, options_for(project))
+    spec = spec_from_model(model)
 
     def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:
         return Simulator(spec, units, behaviour=behaviour_for(model.name), **kwargs)

@@ -18,15 +18,9 @@ Run it: ``drivemap simulate fronius_symo_hybrid --tcp 127.0.0.1:5020`` or
 ``python -m drivemap_models.fronius_symo_hybrid.simulator --tcp 127.0.0.1:5020``.
 """
 
-from __future__ import annotations
-
-import os
 import sys
-from collections.abc import Sequence
 
-from drivemap.runtime.sim import cli as simcli
-from drivemap.runtime.sim.behaviours import Behaviour, behaviour_for
-from drivemap.runtime.sim.simulator import Simulator as SimulatorBase
+from drivemap.runtime.sim.model import ModelSimulator, simulator_main
 
 from .spec import SPEC
 
@@ -35,43 +29,13 @@ __all__ = ["MODEL", "Simulator", "main"]
 MODEL = 'fronius_symo_hybrid'
 
 
-class Simulator(SimulatorBase):
-    """The fronius_symo_hybrid simulator: SPEC's register store and dialect, with the model's behaviour.
+class Simulator(ModelSimulator):
+    """The fronius_symo_hybrid simulator (see :class:`~drivemap.runtime.sim.model.ModelSimulator`)."""
 
-    ``units`` are the unit ids it answers (several drives on one bus); ``state_file`` keeps
-    EEPROM-class registers across restarts; ``realistic_timing`` delays replies like the device;
-    ``refuse_advised_while_running`` (off by default) also refuses, while running, writes the manual
-    only advises against (``running_advice``; the device is not known to refuse them);
-    ``reply_quirks`` answers in non-standard reply forms the map lists (none by default);
-    ``behaviour`` replaces the one registered for the model (entry point ``drivemap.behaviours``).
-    Presets: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
-    """
-
-    def __init__(
-        self,
-        units: Sequence[int] = (1,),
-        *,
-        state_file: str | os.PathLike[str] | None = None,
-        realistic_timing: bool = False,
-        behaviour: Behaviour | None = None,
-        refuse_advised_while_running: bool = False,
-        reply_quirks: Sequence[str] = (),
-    ) -> None:
-        super().__init__(
-            SPEC,
-            units,
-            behaviour=behaviour if behaviour is not None else behaviour_for(MODEL),
-            state_file=state_file,
-            realistic_timing=realistic_timing,
-            refuse_advised_while_running=refuse_advised_while_running,
-            reply_quirks=reply_quirks,
-        )
+    SPEC = SPEC
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Serve this simulator (same options as ``drivemap simulate``) until Ctrl-C."""
-    return simcli.main(MODEL, Simulator, argv)
-
+main = simulator_main(Simulator)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -53,9 +53,10 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='run_command',
             address=0x0101,
-            bits=(BitSpec('RUN', 0, 1, '运转指令 1: 运转 0: 停止', None), BitSpec('REVERSE', 1, 1, '反转指令 1: 反转 0: 正转', None), BitSpec('EXTERNAL_FAULT', 2, 1, '外部异常 1: 异常 (EFO)', None), BitSpec('FAULT_RESET', 3, 1, '异常复归 1: 复归指令', None), BitSpec('JOG', 4, 1, '寸动指令 1: 寸动指令', None), BitSpec('MULTI_INPUT_1', 5, 1, '多机能输入指令 1 1:“ON”(以 P_52 机能选择)', None), BitSpec('MULTI_INPUT_2', 6, 1, '多机能输入指令 2 1:“ON”(以 P_53 机能选择)', None), BitSpec('MULTI_INPUT_3', 7, 1, '多机能输入指令 3 1:“ON”(以 P_54 机能选择)', None), BitSpec('MULTI_INPUT_FWD', 8, 1, '多机能输入指令 FWD 1:“ON”(以 P_55 机能选择)*1', None), BitSpec('MULTI_INPUT_REV', 9, 1, '多机能输入指令 REV 1:“ON”(以 P_56 机能选择)*1', None), BitSpec('MULTI_INPUT_RES', 10, 1, '多机能输入指令 RES 1:“ON”(以 P_57 机能选择)*1', None), BitSpec('MULTI_OUTPUT_1', 12, 1, '多机能输出指令 1 1: R1A “ON” (以 P_75 机能选择)', None), BitSpec('MULTI_OUTPUT_2', 13, 1, '多机能输出指令 2 1: R2A “ON” (以 P_76 机能选择)', None),),
+            bits=(BitSpec('RUN', 0, 1, '运转指令 1: 运转 0: 停止'), BitSpec('REVERSE', 1, 1, '反转指令 1: 反转 0: 正转'), BitSpec('EXTERNAL_FAULT', 2, 1, '外部异常 1: 异常 (EFO)'), BitSpec('FAULT_RESET', 3, 1, '异常复归 1: 复归指令'), BitSpec('JOG', 4, 1, '寸动指令 1: 寸动指令'), BitSpec('MULTI_INPUT_1', 5, 1, '多机能输入指令 1 1:“ON”(以 P_52 机能选择)'), BitSpec('MULTI_INPUT_2', 6, 1, '多机能输入指令 2 1:“ON”(以 P_53 机能选择)'), BitSpec('MULTI_INPUT_3', 7, 1, '多机能输入指令 3 1:“ON”(以 P_54 机能选择)'), BitSpec('MULTI_INPUT_FWD', 8, 1, '多机能输入指令 FWD 1:“ON”(以 P_55 机能选择)*1'), BitSpec('MULTI_INPUT_REV', 9, 1, '多机能输入指令 REV 1:“ON”(以 P_56 机能选择)*1'), BitSpec('MULTI_INPUT_RES', 10, 1, '多机能输入指令 RES 1:“ON”(以 P_57 机能选择)*1'), BitSpec('MULTI_OUTPUT_1', 12, 1, '多机能输出指令 1 1: R1A “ON” (以 P_75 机能选择)'), BitSpec('MULTI_OUTPUT_2', 13, 1, '多机能输出指令 2 1: R2A “ON” (以 P_76 机能选择)'),),
             param='P_257',
             source='003 §DATA 一览表 (指令 DATA)',
+            bits_class='RunCommand',
         ),
         RegisterSpec(
             name='frequency_command',
@@ -75,9 +76,10 @@ SPEC = DeviceSpec(
             name='status',
             address=0x0120,
             access='r',
-            bits=(BitSpec('RUNNING', 0, 1, '运转状态 1: 运转中 0: 停止中', None), BitSpec('REVERSE', 1, 1, '转向状态 1: 反转 0: 正转', None), BitSpec('READY', 2, 1, '变频器运转准备状态 1: 准备完成 0: 未准备完成', None), BitSpec('FAULT', 3, 1, '异常 1: 异常', None), BitSpec('DATA_ERROR', 4, 1, 'DATA 设定错误 1: 错误', None),),
+            bits=(BitSpec('RUNNING', 0, 1, '运转状态 1: 运转中 0: 停止中'), BitSpec('REVERSE', 1, 1, '转向状态 1: 反转 0: 正转'), BitSpec('READY', 2, 1, '变频器运转准备状态 1: 准备完成 0: 未准备完成'), BitSpec('FAULT', 3, 1, '异常 1: 异常'), BitSpec('DATA_ERROR', 4, 1, 'DATA 设定错误 1: 错误'),),
             param='P_288',
             source='003 §DATA 一览表 (监视数据)',
+            bits_class='Status',
         ),
         RegisterSpec(
             name='frequency_command_monitor',
@@ -164,21 +166,14 @@ SPEC = DeviceSpec(
         ReservedSpec(start=0x0124, end=0x0126, readable=None),
         ReservedSpec(start=0x012E, end=0x012F, readable=None),
     ),
-    comm_errors=(
-    ),
     exception_policy=(
-        PolicySpec('illegal_function', 81),
-        PolicySpec('illegal_address', 82),
-        PolicySpec('illegal_quantity', 83),
-        PolicySpec('out_of_range', 84),
-        PolicySpec('read_only', 85),
-        PolicySpec('busy', 85),
-        PolicySpec('bad_length', 83),
+        PolicySpec('illegal_function', 0x51),
+        PolicySpec('illegal_address', 0x52),
+        PolicySpec('illegal_quantity', 0x53),
+        PolicySpec('out_of_range', 0x54),
+        PolicySpec('read_only', 0x55),
+        PolicySpec('busy', 0x55),
+        PolicySpec('bad_length', 0x53),
     ),
-    comm_error_policy=(
-    ),
-    comm_error_history=None,
-    configuration=None,
     max_frame_bytes=37,
-    fixed_units=(),
 )

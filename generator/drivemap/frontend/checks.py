@@ -16,7 +16,6 @@ from drivemap.frontend.checks_rules import check_rules
 from drivemap.frontend.load import Document, PathT
 from drivemap.model.nodes import camel, is_keyword
 
-STANDARD_EXCEPTIONS = frozenset({1, 2, 3, 4, 5, 6, 8, 10, 11})
 OPERATION_CODES = {"read": (1, 2, 3, 4), "write": (5, 6), "write_multiple": (15, 16), "loopback": (8,)}
 #: The table each function code addresses.
 FUNCTION_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input", 0x05: "coil", 0x06: "holding",

@@ -61,11 +61,6 @@ def parse(text: str, mode: str) -> Frame:
     return Frame("ascii", data[:-1], data[-1:], illegible)
 
 
-def to_wire(text: str, mode: str) -> bytes:
-    """Wire bytes of a legible printed frame."""
-    return parse(text, mode).wire()
-
-
 def export_form(text: str | None, mode: str) -> str | None:
     """The export contract's form: rtu hex without spaces; ascii the frame text."""
     if text is None:

@@ -1,7 +1,7 @@
 """The running gateway: packages in memory, one bus and one task per line, the MQTT and OPC UA sides.
 
 ``drivemap gateway CONFIG.yaml`` loads the configuration (:func:`drivemap.gateway.config.load_config`),
-builds each model's generated package in memory (:func:`drivemap.backends.python.inmemory.load_package`), one
+builds each model's client package from its spec (:func:`drivemap.model.spec.load_package`: no rendered code), one
 :class:`~drivemap.runtime.client.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
 and runs every :class:`~drivemap.gateway.lines.Line` in parallel with the MQTT bridge and the OPC UA
 server until SIGINT/SIGTERM.
@@ -13,11 +13,11 @@ import asyncio
 import logging
 from typing import Any
 
-from drivemap.backends.python.inmemory import load_package
 from drivemap.gateway.config import BusConfig, GatewayConfig
 from drivemap.gateway.device import Command, Device
 from drivemap.gateway.lines import Fanout, Line
 from drivemap.model.nodes import Model
+from drivemap.model.spec import load_package
 from drivemap.runtime.client.bus import AsyncBus
 
 log = logging.getLogger("drivemap.gateway")

@@ -86,7 +86,7 @@ def project_of(maps: Sequence[str] | None) -> Project:
 
 def load_target(name: str, project: Project | None = None) -> Target:
     """Compile ``name`` (model id or map path) and load its generated package in memory."""
-    from drivemap.backends.python.inmemory import load_package
+    from drivemap.model.spec import load_package
 
     model = compile_map(resolve_map(name, project or load_project()))
     return Target(model, load_package(model))

@@ -66,10 +66,6 @@ def failure_text(session: Session, exc: DriveError) -> str:
     return str(exc)
 
 
-def is_answer_failure(exc: Exception) -> bool:
-    return isinstance(exc, (DeviceException, DriveTimeout))
-
-
 # ---------------------------------------------------------------- every readable register alone
 
 

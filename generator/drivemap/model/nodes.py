@@ -16,6 +16,8 @@ from drivemap.model.family import IdentityCheck, Variant
 from drivemap.model.modicon import Table
 from drivemap.model.rules import Alignment, AllowedValue
 from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
+from drivemap.runtime.names import camel
+from drivemap.runtime.spec import BIT_TABLES, FLOAT_TYPES, READ_CODES, SIGNED_TYPES, TYPE_WORDS
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
@@ -26,18 +28,11 @@ Value = float | str | None
 
 #: Raw bounds of the integer types (the runtime's table) and of a bool in a bit table.
 TYPE_BOUNDS: dict[str, tuple[int, int]] = {**_INTEGER_BOUNDS, "bool": (0, 1)}
-#: Words (registers) of each fixed-size type; a string has ``length`` words; coils and discrete
-#: inputs are one bit each.
-TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
-                              "f64": 4}
+#: TYPE_WORDS, SIGNED_TYPES, FLOAT_TYPES, BIT_TABLES and READ_CODES are the runtime's tables
+#: (:mod:`drivemap.runtime.spec`), re-exported here.
 INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
-SIGNED_TYPES = frozenset({"s16", "s32", "s64"})
-FLOAT_TYPES = frozenset({"f32", "f64"})
 #: Largest finite magnitude of each float type.
 FLOAT_MAX: dict[str, float] = {"f32": 3.4028234663852886e38, "f64": 1.7976931348623157e308}
-BIT_TABLES = frozenset({"coil", "discrete"})
-#: The read function code of each table.
-READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
 
 
 def default_type(table: str) -> RegType:
@@ -68,11 +63,6 @@ def normalize_raw(rtype: str, table: str, length: int, value: int) -> int | None
     if rtype in SIGNED_TYPES and (1 << (bits - 1)) <= value < (1 << bits):
         return value - (1 << bits)
     return None
-
-
-def camel(name: str) -> str:
-    """``digital_speed_ram`` -> ``DigitalSpeedRam``."""
-    return "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
 
 
 def is_keyword(name: str) -> bool:
@@ -417,9 +407,6 @@ class Register:
     def modicon(self) -> str:
         """The Modicon number of the register (of element 0 for arrays)."""
         return modicon.number(self.table, self.address)
-
-    def element_modicon(self, index: int) -> str:
-        return modicon.number(self.table, self.element_address(index))
 
     @property
     def is_array(self) -> bool:

@@ -1,7 +1,8 @@
-"""Plain, frozen descriptions of a device that generated modules embed as literals.
+"""Plain, frozen descriptions of a device: what the client and simulator runtime read.
 
-Generated ``generated/<model>/spec.py`` builds one :class:`DeviceSpec`; the client and the
-simulator runtime read only these classes (never YAML at run time).
+The compiler makes one :class:`DeviceSpec` from a map (``drivemap.model.spec.spec_from_model``);
+generated ``generated/<model>/spec.py`` is that object printed. The runtime reads only these
+classes (never YAML at run time). The tables of type sizes and read codes here are the only ones.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ class RegisterSpec:
     name: str
     address: int
     type: str = "u16"
+    table: str = "holding"
     access: str = "rw"
     count: int = 1
     stride: int = 1
@@ -75,7 +77,6 @@ class RegisterSpec:
     source: str = ""
     #: the manual's advice for writes while the drive runs (the client warns; nothing is refused)
     running_advice: str | None = None
-    table: str = "holding"
     byte_order: str = "high_first"
     length: int = 1
     """Words of a string (1 for other types)."""
@@ -90,6 +91,8 @@ class RegisterSpec:
     precision: int | None = None
     #: the manual's number of element 0 of an array (names shown to people; Python indexes from 0)
     first_index: int = 0
+    bits_class: str | None = None
+    """The Python class of a bit-field value (an IntFlag or a record), when the register has bits."""
     words: int = field(init=False, compare=False, repr=False)
     signed: bool = field(init=False, compare=False, repr=False)
 
@@ -236,6 +239,23 @@ class IdentitySpec:
 
 
 @dataclass(frozen=True)
+class EnumMemberSpec:
+    value: int
+    name: str
+    label: str
+
+
+@dataclass(frozen=True)
+class EnumSpec:
+    """A named set of values of the map (the client's ``DriveEnum`` of the same name)."""
+
+    name: str
+    members: tuple[EnumMemberSpec, ...]
+    source: str = ""
+    notes: str | None = None
+
+
+@dataclass(frozen=True)
 class DeviceSpec:
     model: str
     title: str
@@ -267,6 +287,7 @@ class DeviceSpec:
     alignment: tuple[AlignmentSpec, ...] = ()
     #: registers and values that identify the device (runtime.client.identity); () when the map names none
     identity: tuple[IdentitySpec, ...] = ()
+    enums: tuple[EnumSpec, ...] = ()
     _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
 
     def valid_unit(self, unit: int) -> bool:

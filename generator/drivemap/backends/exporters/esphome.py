@@ -8,7 +8,7 @@ labels (HEXBYTES + ``map``) for read-only enums, ``binary_sensor`` with ``bitmas
 field of a one-word register (a multi-bit field, or any field of a multi-word register: a sensor with
 ``bitmask`` and the register's value_type, 0/1 for one bit: ESPHome's binary_sensor reads one word and
 would split the register's read), ``switch`` per command (assumed state, never
-polled). Issue 14: input registers are ``register_type: read``; a coil or discrete input is a
+polled). Every table and type of the map language: input registers are ``register_type: read``; a coil or discrete input is a
 ``binary_sensor`` (``coil``/``discrete_input``), a writable coil a ``switch`` that polls it (write-only:
 assumed state); f32 -> FP32(_R), u64/s64 -> U_QWORD/S_QWORD(_R); strings are a ``text_sensor``
 (``raw_encode: ANSI``); what ESPHome has no value_type for (f64, low byte first) is a ``text_sensor``
@@ -28,11 +28,11 @@ from typing import Any
 
 from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.esphome import Item, align
 from drivemap.model.nodes import Model, Register
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads
 
 __all__ = ["REGISTER_TYPES", "VALUE_TYPES", "EsphomeExporter"]
@@ -149,7 +149,7 @@ class _Build:
             self._point(point)
         keys = sorted({(p.reg.name, p.index) for p in readable
                        if any(i.polled and i.address == p.address and i.table == p.reg.table for i in self.items)})
-        plan = plan_reads(load_spec(model), keys) if keys else ()
+        plan = plan_reads(spec_from_model(model), keys) if keys else ()
         skips: dict[tuple[str, int], int] = {(p.reg.table, p.address): max(0, round(p.interval / self.base) - 1) for p in readable}
         if self.raw:
             self.notes.append("text_sensor with the wire bytes as hex (ESPHome has no value_type for them): "

@@ -8,7 +8,7 @@ elements fit one read are one sensor with ``virtual_count`` (one request for the
 Read-only registers are never writable; writable settings are sensors too (the modbus integration
 has no number entity; write them with the ``modbus.write_register`` action).
 
-Issue 14 types: f32/f64/u64/s64 -> float32/float64/uint64/int64, string -> string with ``count`` =
+Types beyond 16 bits: f32/f64/u64/s64 -> float32/float64/uint64/int64, string -> string with ``count`` =
 length; low-first words -> ``swap: word``, low-first bytes -> ``swap: byte`` (both: ``word_byte``);
 input registers -> ``input_type: input``; a coil or discrete input -> a modbus ``binary_sensor``
 (``input_type: coil``/``discrete_input``), a writable coil -> a ``switch`` with ``write_type: coil``

@@ -24,10 +24,10 @@ import struct
 from typing import Any
 
 from drivemap.backends.exporters.base import Exporter, Options
-from drivemap.backends.python.inmemory import load_spec
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.model.nodes import Model, Register
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.sim.simulator import Simulator
 from drivemap.runtime.sim.unit import wire_words
 
@@ -63,7 +63,7 @@ def section(reg: Register) -> str | None:
 def _image(model: Model, unit: int, pages: dict[str, int]) -> tuple[Any, dict[str, int]]:
     """The raw value of every element as drivemap's simulator starts (defaults, scale factors,
     not-available values), the shown page on each selector."""
-    spec = load_spec(model)
+    spec = spec_from_model(model)
     state = Simulator(spec, [unit]).unit(unit)
     raws = dict(state.values)
     raws.update(pages)

@@ -17,6 +17,8 @@ from drivemap.backends.python.names import FIXED_NAMES, exception_classes
 from drivemap.backends.python.names import bit_attribute as _attr
 from drivemap.backends.views.common import header
 from drivemap.model.nodes import Bit, Model, Register, camel
+from drivemap.model.spec import register_spec
+from drivemap.runtime.client.declare import REG_CLASSES, broadcast_kind_of, kind_of
 
 
 def _num(value: float | None) -> str:
@@ -84,9 +86,8 @@ class AccessorView:
     name: str
     type: str
     base: str
-    sync_class: str
-    async_class: str
-    codec: str
+    reg_class: str
+    broadcast_class: str
     doc: list[str]
     broadcast: bool
     readable: bool
@@ -102,10 +103,7 @@ def _type_text(reg: Register) -> str:
     return reg.type
 
 
-def _doc(model: Model, reg: Register) -> list[str]:
-    lines = [reg.label or reg.description or reg.name]
-    if reg.label and reg.description:
-        lines.append(reg.description)
+def _where(reg: Register) -> str:
     table = {"holding": "Address", "input": "Input register", "coil": "Coil", "discrete": "Discrete input"}[reg.table]
     where = f"{table} 0x{reg.address:04X} (Modicon {reg.modicon})"
     if reg.is_array:
@@ -116,22 +114,51 @@ def _doc(model: Model, reg: Register) -> list[str]:
         where += f" ({', '.join(reg.element_params)})"
     elif reg.element_param_format and reg.is_array:
         where += f" (element i: {reg.element_param(0)} … {reg.element_param(reg.count - 1)})"
-    lines.append(where + f"; {_type_text(reg)}, access {reg.access}.")
+    return where + f"; {_type_text(reg)}, access {reg.access}."
+
+
+def _units(reg: Register) -> str | None:
+    """Engineering unit, scaling and range: only the parts the map states."""
     unit = f" {reg.unit}" if reg.unit else ""
-    scale = f"scale {_num(reg.scale)}" + (f", offset {_num(reg.offset)}" if reg.offset else "")
-    if reg.scale_register:
-        scale += f" x 10^{reg.scale_register} (read with it)"
-    lines.append(f"Unit:{unit or ' none'}; {scale}; range {_num(reg.min)} .. {_num(reg.max)}{unit}.")
+    parts = [f"Unit:{unit}"] if unit else []
+    if reg.scale != 1 or reg.offset or reg.scale_register:
+        scale = f"scale {_num(reg.scale)}" if reg.scale != 1 or not reg.scale_register else "scale"
+        if reg.scale_register:
+            scale += f" x 10^{reg.scale_register} (read with it)"
+        parts.append(scale + (f", offset {_num(reg.offset)}" if reg.offset else ""))
+    if reg.min is not None or reg.max is not None:
+        parts.append(f"range {_num(reg.min)} .. {_num(reg.max)}{unit}")
+    text = "; ".join(parts)
+    return text[:1].upper() + text[1:] + "." if text else None
+
+
+def _state(reg: Register) -> str | None:
+    """Default, reflect and storage: what the map states; when a write takes effect and whether it
+    persists are said of writable registers even when unknown (never guessed)."""
+    parts = []
+    if any(d is not None for d in reg.defaults):
+        parts.append("default: " + ", ".join(_value(d) for d in reg.defaults))
+    if reg.reflect != "unknown" or reg.writable:
+        parts.append(f"reflect: {reg.reflect}")
+    if reg.storage != "unknown" or reg.writable:
+        parts.append(f"storage: {reg.storage}")
+    text = "; ".join(parts) + (f" (write delay {_num(reg.write_delay_ms)} ms)" if reg.write_delay_ms else "")
+    return text[:1].upper() + text[1:] + "." if text else None
+
+
+def _doc(model: Model, reg: Register) -> list[str]:
+    """The register's docstring: what it is, where, unit and range, state, source (only lines that apply)."""
+    lines = [reg.label or reg.description or reg.name]
+    if reg.label and reg.description:
+        lines.append(reg.description)
+    lines.append(_where(reg))
+    lines += [line for line in (_units(reg), _state(reg)) if line]
     if reg.values:
         lines.append("Allowed values: " + ", ".join(v.text() for v in reg.values)
                      + " (a write of any other raises NotAllowedValue before anything is sent).")
     if reg.not_available:
         shown = ", ".join(f"0x{v:X}" if v >= 0 else str(v) for v in reg.not_available)
         lines.append(f"Not available: raw {shown} reads as None.")
-    defaults = [d for d in reg.defaults]
-    dtext = ", ".join(_value(d) for d in defaults) if any(d is not None for d in defaults) else "—"
-    lines.append(f"Default: {dtext}; reflect: {reg.reflect}; storage: {reg.storage}"
-                 + (f" (write delay {_num(reg.write_delay_ms)} ms)" if reg.write_delay_ms else "") + ".")
     if reg.page:
         lines.append(f"Page: valid while {reg.page.selector} = {reg.page.value}.")
     if reg.command_value is not None:
@@ -143,46 +170,6 @@ def _doc(model: Model, reg: Register) -> list[str]:
                      "writing it then gives a RunningWriteWarning.")
     lines.append(f"Manual: {reg.source}.")
     return lines
-
-
-def _codec(model: Model, reg: Register) -> tuple[set[str], str]:
-    """(codec classes, constructor expression)."""
-    classes, expr = _plain_codec(reg)
-    if reg.optional:
-        return classes | {"OptionalCodec"}, f"OptionalCodec({expr})"
-    return classes, expr
-
-
-def _plain_codec(reg: Register) -> tuple[set[str], str]:
-    spec = f"SPEC.register({reg.name!r})"
-    kind = bits_kind(reg)
-    if reg.enum:
-        return {"EnumCodec"}, f"EnumCodec({spec}, {reg.enum})"
-    if kind == "flags":
-        return {"FlagCodec"}, f"FlagCodec({spec}, {base_type(reg)})"
-    if kind == "fields":
-        fields = ", ".join(
-            f"Field({_attr(b.name)!r}, {b.name!r}" + (f", {b.enum})" if b.enum else ")") for b in reg.bits
-        )
-        return {"FieldsCodec"}, f"FieldsCodec({spec}, {base_type(reg)}, ({fields},))"
-    if reg.type == "bool":
-        return {"BoolCodec"}, f"BoolCodec({spec})"
-    if reg.type == "string":
-        return {"StringCodec"}, f"StringCodec({spec})"
-    if reg.is_float:
-        return {"IeeeCodec"}, f"IeeeCodec({spec})"
-    if reg.scale_register:
-        return {"ScaledCodec"}, f"ScaledCodec({spec}, SPEC.register({reg.scale_register!r}))"
-    if reg.is_integer:
-        return {"IntCodec"}, f"IntCodec({spec})"
-    return {"FloatCodec"}, f"FloatCodec({spec})"
-
-
-def _access_class(reg: Register, asynchronous: bool) -> str:
-    base = {"r": "ReadOnly", "w": "WriteOnly", "rw": "ReadWrite"}[reg.access]
-    if reg.command_value is not None and not reg.is_array:  # .execute(); writes of other values refused
-        base = {"w": "Command", "rw": "ReadWriteCommand"}.get(reg.access, base)
-    return ("Async" if asynchronous else "") + base + ("Array" if reg.is_array else "")
 
 
 def _check_names(model: Model, names: list[tuple[str, str]]) -> None:
@@ -239,22 +226,19 @@ def _exceptions(model: Model) -> list[dict[str, str]]:
     return exceptions
 
 
-def _accessors(model: Model) -> tuple[list[AccessorView], list[dict[str, str]], set[str]]:
-    """(accessor views, codec variables, codec classes used)."""
+def _accessors(model: Model) -> list[AccessorView]:
     accessors: list[AccessorView] = []
-    codecs: list[dict[str, str]] = []
-    codec_classes: set[str] = set()
     for reg in model.registers:
-        classes, expr = _codec(model, reg)
-        codec_classes.update(classes)
-        var = f"_codec_{reg.name}"
-        codecs.append({"var": var, "name": reg.name, "expr": expr})
+        spec = register_spec(model, reg)
         accessors.append(AccessorView(
-            name=reg.name, type=value_type(reg), base=base_type(reg), sync_class=_access_class(reg, False),
-            async_class=_access_class(reg, True), codec=var, doc=_doc(model, reg),
-            broadcast=reg.broadcast and reg.writable, readable=reg.readable, is_array=reg.is_array,
+            name=reg.name, type=value_type(reg), base=base_type(reg),
+            reg_class=REG_CLASSES[kind_of(spec)].__name__,
+            broadcast_class={"w": "BroadcastReg", "cmd": "BroadcastCommandReg",
+                             "w[]": "BroadcastArrayReg"}[broadcast_kind_of(spec)],
+            doc=_doc(model, reg), broadcast=reg.broadcast and reg.writable, readable=reg.readable,
+            is_array=reg.is_array,
         ))
-    return accessors, codecs, codec_classes
+    return accessors
 
 
 #: Names every generated package exports besides its own classes.
@@ -276,23 +260,13 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     exceptions = _exceptions(model)
     _check_names(model, [(e["name"], "enum") for e in enums] + [(f["name"], "bit-field class") for f in flags]
                  + [(r["name"], "bit-field class") for r in records] + [(e["name"], "exception class") for e in exceptions])
-    accessors, codecs, codec_classes = _accessors(model)
-    if any(r["fields"] for r in records):
-        codec_classes.add("Field")
+    accessors = _accessors(model)
 
     # a broadcast client only where some register may be written by broadcast; else the runtime's
     # ClientBase.broadcast refuses with the map's reason (broadcast_refusal)
     has_broadcast = model.protocol.broadcast_address is not None and any(a.broadcast for a in accessors)
-    bcast = [a for a in accessors if a.broadcast] if has_broadcast else []
-    broadcast_sync = [(a, "WriteOnlyArray" if a.is_array else "Command" if "Command" in a.sync_class else "WriteOnly")
-                      for a in bcast]
-    broadcast_async = [(a, "AsyncWriteOnlyArray" if a.is_array else "AsyncCommand" if "Command" in a.sync_class
-                        else "AsyncWriteOnly") for a in bcast]
-
-    runtime_names = {"AsyncBus", "AsyncClientBase", "Bus", "ClientBase", "PagePolicy", "SnapshotBase"}
-    for a in accessors:
-        runtime_names.update({a.sync_class, a.async_class})
-    runtime_names.update(cls for _, cls in broadcast_sync + broadcast_async)
+    broadcast = [a for a in accessors if a.broadcast] if has_broadcast else []
+    declare_names = {a.reg_class for a in accessors} | {a.broadcast_class for a in broadcast} | {"codecs_for"}
 
     snapshot_fields = [
         {"name": a.name, "type": f"tuple[{a.base} | None, ...] | None" if a.is_array else f"{a.base} | None"}
@@ -312,15 +286,13 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "records": records,
         "exceptions": exceptions,
         "accessors": accessors,
-        "codecs": codecs,
-        "codec_imports": sorted(codec_classes | {"Codec"} | ({"DriveEnum"} if enums else set())),
-        "runtime_imports": sorted(runtime_names),
+        "value_classes": [e["name"] for e in enums] + [f["name"] for f in flags] + [r["name"] for r in records],
+        "declare_imports": sorted(declare_names, key=_isort_key),
+        "need_drive_enum": bool(enums),
         "need_enum": bool(flags),
-        "need_dataclasses": True,
         "has_broadcast": has_broadcast,
         "broadcast_address": model.protocol.broadcast_address,
-        "broadcast_sync": broadcast_sync,
-        "broadcast_async": broadcast_async,
+        "broadcast": broadcast,
         "snapshot_fields": snapshot_fields,
         "client_all": sorted(all_names, key=lambda n: (n.lower(), n)),
         "package_all": sorted(set(all_names) | PACKAGE_NAMES, key=lambda n: (n.lower(), n)),

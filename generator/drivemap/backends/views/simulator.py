@@ -1,4 +1,4 @@
-"""View of ``generated/<model>/simulator.py``: a thin Simulator bound to SPEC and the model's behaviour."""
+"""View of ``generated/<model>/simulator.py``: the dialect it documents; the class is the runtime's ModelSimulator bound to SPEC."""
 
 from __future__ import annotations
 
@@ -58,6 +58,5 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "broadcast_address": p.broadcast_address,
         "timing": timing,
         "eeprom": eeprom,
-        "default_unit": 1 if p.unit_min <= 1 <= p.unit_max else p.unit_min,
         "loopback": p.function(0x08) is not None,
     }

@@ -10,56 +10,39 @@ from pymodbus.pdu import ModbusPDU
 
 from drivemap.runtime.client import rawio
 from drivemap.runtime.client.accessors import (
+    AsyncCommand,
+    AsyncReadOnly,
+    AsyncReadOnlyArray,
     AsyncReadWrite,
+    AsyncReadWriteArray,
+    AsyncReadWriteCommand,
     AsyncWriteOnly,
+    AsyncWriteOnlyArray,
     Readable,
     _Array,
     encode_for_write,
 )
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal
-from drivemap.runtime.client.bus import AsyncBus, Stats
+from drivemap.runtime.client.bus import AsyncBus
 from drivemap.runtime.client.planner import Key, ReadRequest
-from drivemap.runtime.client.quirks import accept as accept_reply_quirks
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
-from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister
+from drivemap.runtime.errors import ReadOnlyRegister
 
 T = TypeVar("T")
 
 
-class AsyncClientBase(_Common[S]):
+class AsyncClientBase(_Common[S, AsyncBus]):
     """Asyncio client of one unit on an :class:`AsyncBus` (same API, awaited)."""
 
     _ASYNC = True
+    _ACCESSOR_CLASSES = {
+        "r": AsyncReadOnly, "w": AsyncWriteOnly, "rw": AsyncReadWrite, "cmd": AsyncCommand,
+        "rwcmd": AsyncReadWriteCommand, "r[]": AsyncReadOnlyArray, "w[]": AsyncWriteOnlyArray,
+        "rw[]": AsyncReadWriteArray,
+    }
 
-    def __init__(self, bus: AsyncBus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
-                 _owns_bus: bool = False) -> None:
-        spec = self.SPEC
-        if not _broadcast and not spec.valid_unit(unit):
-            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
-                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
-        self.bus = bus
-        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
-            accept_reply_quirks(bus.client, spec.reply_quirks)
-        self._owns_bus = _owns_bus
-        self._setup(unit, page_policy, _broadcast, bus.stats)
-
-    @classmethod
-    def tcp(cls, host: str, port: int = 502, unit: int = 1, *, timeout: float | None = None,
-            retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
-        return cls(AsyncBus.tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy,
-                   _owns_bus=True)
-
-    @classmethod
-    def rtu_over_tcp(cls, host: str, port: int, unit: int = 1, *, timeout: float | None = None,
-                     retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
-        return cls(AsyncBus.rtu_over_tcp(host, port, timeout=timeout, retries=retries), unit,
-                   page_policy=page_policy, _owns_bus=True)
-
-    @classmethod
-    def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
-               page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
-        bus = AsyncBus.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
-        return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
+    _BUS = AsyncBus
+    bus: AsyncBus
 
     @classmethod
     def broadcast(cls, bus: AsyncBus, *, page_policy: PagePolicy = "raise") -> AsyncClientBase[Any]:
@@ -68,16 +51,8 @@ class AsyncClientBase(_Common[S]):
         Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
         raise broadcast_refusal(cls.SPEC)
 
-    @property
-    def stats(self) -> Stats:
-        return self.bus.stats
-
     async def connect(self) -> None:
         await self.bus.connect()
-
-    def close(self) -> None:
-        if self._owns_bus:
-            self.bus.close()
 
     async def __aenter__(self) -> Self:
         await self.connect()

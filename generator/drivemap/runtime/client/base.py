@@ -9,18 +9,21 @@ from __future__ import annotations
 import dataclasses
 import enum
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any, ClassVar, Generic, TypeVar
+from typing import Any, ClassVar, Generic, Self, TypeVar
 
 from drivemap.runtime.client.accessors import Readable, SnapshotBase, _Array, _Element, encode_for_write
 from drivemap.runtime.client.bus import Stats
 from drivemap.runtime.client.codec import Codec, EnumCodec, FieldsCodec, FlagCodec, unwrap
+from drivemap.runtime.client.declare import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
+from drivemap.runtime.client.quirks import accept as accept_reply_quirks
 from drivemap.runtime.client.sansio import Core, Deferred, PagePolicy, spec_tables
 from drivemap.runtime.client.writes import element_writer
 from drivemap.runtime.errors import (
     DeviceException,
     DriveError,
+    InvalidValue,
     NotBroadcastable,
     UnknownRegister,
     UnsupportedFunction,
@@ -29,6 +32,8 @@ from drivemap.runtime.spec import DeviceSpec
 
 T = TypeVar("T")
 S = TypeVar("S", bound=SnapshotBase)
+#: The bus a client runs on (:class:`~.bus.Bus` or :class:`~.bus.AsyncBus`).
+B = TypeVar("B")
 _tables = spec_tables
 #: Read programs kept per client (distinct tuples of accessors passed to read()), and compiled per
 #: client class (distinct tuples of keys).
@@ -37,8 +42,9 @@ _MAX_PROGRAMS = 1024
 Program = Callable[..., Any]
 
 
-class _Common(Generic[S]):
-    """State and helpers shared by the sync and async client bases."""
+class _Common(Generic[S, B]):
+    """State, constructors and helpers shared by the sync and async client bases (written once for
+    both, the bus class aside: ``_BUS``)."""
 
     SPEC: ClassVar[DeviceSpec]
     SNAPSHOT: ClassVar[type[SnapshotBase]] = SnapshotBase
@@ -49,19 +55,74 @@ class _Common(Generic[S]):
     _table: ClassVar[dict[Key, tuple[Callable[[int], Any] | None, str | None, int]]]
     _defaults: ClassVar[dict[str, Any] | None]
 
+    #: The accessor class of each kind of register descriptor (:class:`~.declare.Reg`).
+    _ACCESSOR_CLASSES: ClassVar[Mapping[str, type[Any]]] = {}
+    _register_names: ClassVar[frozenset[str]]
+    _register_order: ClassVar[tuple[str, ...]]
+
     _core: Core
-    _accessors: dict[str, Any]
+    #: :class:`~.bus.Bus` or :class:`~.bus.AsyncBus`: what the constructors below open.
+    _BUS: ClassVar[Any]
+
+    def __init__(self, bus: B, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
+                 _owns_bus: bool = False) -> None:
+        spec = self.SPEC
+        if not _broadcast and not spec.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
+                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
+        self.bus = bus
+        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.reply_quirks)  # type: ignore[attr-defined]
+        self._owns_bus = _owns_bus
+        self._setup(unit, page_policy, _broadcast, bus.stats)  # type: ignore[attr-defined]
+
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, unit: int = 1, *, timeout: float | None = None,
+            retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        """A client with its own Modbus TCP connection."""
+        return cls(cls._BUS.tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy,
+                   _owns_bus=True)
+
+    @classmethod
+    def rtu_over_tcp(cls, host: str, port: int, unit: int = 1, *, timeout: float | None = None,
+                     retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
+        """A client behind a serial gateway that passes RTU frames over TCP."""
+        return cls(cls._BUS.rtu_over_tcp(host, port, timeout=timeout, retries=retries), unit,
+                   page_policy=page_policy, _owns_bus=True)
+
+    @classmethod
+    def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
+               page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
+        """A client with its own serial line (mode, baud rate, parity: the map's defaults unless overridden)."""
+        bus = cls._BUS.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
+        return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
+
+    @property
+    def stats(self) -> Stats:
+        """Counters of the bus (shared by every client on it), adaptive-read splits included."""
+        stats: Stats = self.bus.stats  # type: ignore[attr-defined]
+        return stats
+
+    def close(self) -> None:
+        """Close the bus if this client opened it."""
+        if self._owns_bus:
+            self.bus.close()  # type: ignore[attr-defined]
 
     def _setup(self, unit: int, page_policy: PagePolicy, broadcast: bool, stats: Stats | None = None) -> None:
         self._core = Core(self.SPEC, unit, self.EXCEPTIONS, page_policy, broadcast, stats)
-        self._accessors = {}
         #: read programs: the accessors of a read() -> the program that reads them (keys checked once)
         self._programs: dict[tuple[Readable, ...], Program] = {}
         self._all_program: Program | None = None
 
-    def _register_accessors(self) -> None:
-        """Called by generated ``__init__`` after the accessors are set: index them by name."""
-        self._accessors = {name: getattr(self, name) for name in self.CODECS if name in self.__dict__}
+    @classmethod
+    def _registers_declared(cls) -> frozenset[str]:
+        """The names of the registers this client class declares (its :class:`~.declare.Reg` descriptors)."""
+        names: frozenset[str] | None = cls.__dict__.get("_register_names")
+        if names is None:
+            found = {n for klass in cls.__mro__ for n, v in vars(klass).items() if isinstance(v, Reg)}
+            cls._register_order = tuple(r.name for r in cls.SPEC.registers if r.name in found)
+            names = cls._register_names = frozenset(found)
+        return names
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -128,15 +189,16 @@ class _Common(Generic[S]):
 
     @property
     def registers(self) -> Mapping[str, Any]:
-        """Accessor by register name."""
-        return dict(self._accessors)
+        """Accessor by register name (in the map's order)."""
+        self._registers_declared()
+        return {name: getattr(self, name) for name in self._register_order}
 
     def accessor(self, name: str) -> Any:
         """The accessor for ``"name"`` or ``"name[i]"``."""
         base, _, rest = name.partition("[")
-        acc = self._accessors.get(base)
-        if acc is None:
+        if base not in self._registers_declared():
             raise UnknownRegister(f"{self.SPEC.model} has no register {base!r}")
+        acc = getattr(self, base)
         if rest:
             if not isinstance(acc, _Array) or not rest.endswith("]") or not rest[:-1].isdigit():
                 raise UnknownRegister(f"{name!r} is not an element of an array register")

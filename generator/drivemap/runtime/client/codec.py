@@ -87,7 +87,6 @@ class Codec(Generic[T]):
     :meth:`decode_scaled` / :meth:`encode_scaled`. Every other codec has ``scale_key`` None.
     """
 
-    python_type: str = "object"
     scale_key: tuple[str, int] | None = None
 
     def __init__(self, spec: RegisterSpec) -> None:

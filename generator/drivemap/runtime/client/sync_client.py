@@ -48,49 +48,23 @@ from drivemap.runtime.client.async_client import AsyncClientBase
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal, broadcast_unit
 from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
 from drivemap.runtime.client.planner import Key, ReadRequest
-from drivemap.runtime.client.quirks import accept as accept_reply_quirks
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
-from drivemap.runtime.errors import DriveError, InvalidValue, PartialWrite, ReadOnlyRegister
+from drivemap.runtime.errors import DriveError, PartialWrite, ReadOnlyRegister
 
 T = TypeVar("T")
 _run = run
 
 
-class ClientBase(_Common[S]):
+class ClientBase(_Common[S, Bus]):
     """Synchronous client of one unit on a :class:`Bus`."""
 
-    def __init__(self, bus: Bus, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
-                 _owns_bus: bool = False) -> None:
-        spec = self.SPEC
-        if not _broadcast and not spec.valid_unit(unit):
-            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
-                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
-        self.bus = bus
-        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
-            accept_reply_quirks(bus.client, spec.reply_quirks)
-        self._owns_bus = _owns_bus
-        self._setup(unit, page_policy, _broadcast, bus.stats)
+    _ACCESSOR_CLASSES = {
+        "r": ReadOnly, "w": WriteOnly, "rw": ReadWrite, "cmd": Command, "rwcmd": ReadWriteCommand,
+        "r[]": ReadOnlyArray, "w[]": WriteOnlyArray, "rw[]": ReadWriteArray,
+    }
 
-    # constructors
-    @classmethod
-    def tcp(cls, host: str, port: int = 502, unit: int = 1, *, timeout: float | None = None,
-            retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
-        """A client with its own Modbus TCP connection."""
-        return cls(Bus.tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy, _owns_bus=True)
-
-    @classmethod
-    def rtu_over_tcp(cls, host: str, port: int, unit: int = 1, *, timeout: float | None = None,
-                     retries: int | None = None, page_policy: PagePolicy = "raise") -> Self:
-        """A client behind a serial gateway that passes RTU frames over TCP."""
-        return cls(Bus.rtu_over_tcp(host, port, timeout=timeout, retries=retries), unit, page_policy=page_policy,
-                   _owns_bus=True)
-
-    @classmethod
-    def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
-               page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
-        """A client with its own serial line (mode, baud rate, parity: the map's defaults unless overridden)."""
-        bus = Bus.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
-        return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
+    _BUS = Bus
+    bus: Bus
 
     @classmethod
     def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> ClientBase[Any]:
@@ -99,18 +73,8 @@ class ClientBase(_Common[S]):
         Without one it raises :func:`broadcast_refusal`: the map's reason why nothing may be broadcast."""
         raise broadcast_refusal(cls.SPEC)
 
-    @property
-    def stats(self) -> Stats:
-        """Counters of the bus (shared by every client on it), adaptive-read splits included."""
-        return self.bus.stats
-
     def connect(self) -> None:
         self.bus.connect()
-
-    def close(self) -> None:
-        """Close the bus if this client opened it."""
-        if self._owns_bus:
-            self.bus.close()
 
     def __enter__(self) -> Self:
         self.connect()

@@ -1,4 +1,5 @@
-"""Write programs: ``element.write(value)`` with its request prepared once per accessor (issue 18).
+"""Write programs: ``element.write(value)`` with its request prepared once per accessor (a single write is
+the common case; building its request anew each time cost more than the wire).
 
 A plain register (holding table, no scale-factor register, not a command, no page, no running
 advice, written by 06h when it is one word or by 10h when the map allows it) gets a writer that

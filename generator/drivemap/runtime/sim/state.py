@@ -4,7 +4,7 @@ Layout (JSON)::
 
     {"model": "ev", "version": 1, "units": {"1": {"digital_speed[0]": 1500, ...}, "2": {...}}}
 
-Rules (issue 21.1):
+Rules (a state file is user data: nothing in it is ever lost):
 
 * a file that cannot be read *fully* is refused with a located error (``path:line:col: error: ...``)
   and left untouched: not a regular file, too large, not UTF-8, not JSON, another model, another

@@ -1,9 +1,9 @@
-"""A compiled map as importable code without a build: the python exporter's text, run in memory.
+"""Tests only: a map's generated package as ``drivemap build`` would write it, rendered and run in memory.
 
-``drivemap simulate PATH`` (and every verb that talks to a device by a map path) uses these, so a
-map can be served or used the moment it validates. The code is exactly what ``drivemap build``
-writes (map text reaches it only through the templates' repr filters); it is registered under a
-private package name, ``drivemap_inmemory_<model>``, that no build writes.
+The tools themselves never run rendered text (they use ``drivemap.model.spec.spec_from_model`` and
+``drivemap.runtime.client.dynamic.client_package``); the tests use this to exercise the generated
+code of the synthetic maps in ``tests/maps`` without writing a package to disk. The modules are
+registered under ``drivemap_rendered_<model>``, a name no build writes.
 """
 
 from __future__ import annotations
@@ -22,14 +22,14 @@ _ORDER = ("spec", "client", "simulator")
 
 
 def _package_name(model: Model) -> str:
-    return f"drivemap_inmemory_{model.name}"
+    return f"drivemap_rendered_{model.name}"
 
 
 def load_package(model: Model, options: Options | None = None) -> types.ModuleType:
     """The generated package of ``model`` (``Client``, ``AsyncClient``, ``SPEC``, enums ...), in memory.
 
     Each call compiles afresh (a changed map gives a new package); the modules are registered in
-    ``sys.modules`` under ``drivemap_inmemory_<model>`` so that pickling, logging and relative
+    ``sys.modules`` under ``drivemap_rendered_<model>`` so that pickling, logging and relative
     imports work as in a built package.
     """
     files = PythonExporter().render(model, options or Options())
