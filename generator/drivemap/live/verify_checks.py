@@ -136,7 +136,7 @@ def shift_hint(session: Session, reg: Register, index: int) -> str:
     answering = []
     for delta in range(-SHIFT_PROBE, SHIFT_PROBE + 1):
         probe = address + delta
-        if delta == 0 or not 0 <= probe <= 0xFFFF or session.target.register_at(probe) is not None:
+        if delta == 0 or not 0 <= probe <= 0xFFFF or session.target.register_at(probe, reg.table) is not None:
             continue
         try:
             session.read_words(probe, reg.words, reg.table)
