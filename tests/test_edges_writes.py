@@ -127,3 +127,16 @@ def test_shortest_f32_text() -> None:
     assert repr(f32) == "230.1999969482422" and shortest_f32_text(f32) == "230.2"
     assert shortest_f32_text(0.5) == "0.5" and shortest_f32_text(float("nan")) == "nan"
     assert shortest_f32_text(1e300) == "1e+300"  # not an f32: as Python prints it
+
+
+def test_read_prints_f32_values_as_their_shortest_decimal() -> None:
+    with tcp_server("sdm630") as (sim, host, port):
+        sim.set("phase_1_voltage", 230.2)
+        table = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage")
+        as_json = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--json")
+        as_csv = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--csv")
+        watched = cli("watch", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--count", "1")
+    for proc in (table, as_json, as_csv, watched):
+        assert proc.returncode == 0, proc.stderr
+        assert "230.2" in proc.stdout and "230.1999" not in proc.stdout, proc.stdout
+    assert '"value": 230.2,' in as_json.stdout

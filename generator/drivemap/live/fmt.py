@@ -17,6 +17,7 @@ from rich.table import Table
 from drivemap.live.target import Target
 from drivemap.live.values import to_text
 from drivemap.model.nodes import Register
+from drivemap.runtime.client.steps import shortest_f32, shortest_f32_text
 from drivemap.runtime.errors import ScaleUnavailable
 
 COLUMNS = ("name", "value", "unit", "meaning", "raw", "address", "param")
@@ -39,9 +40,17 @@ class Row:
         return self.register.element_address(self.index)
 
     def value_text(self) -> str:
+        """The value as text; an f32 as the shortest decimal that reads back as the same f32 (230.2)."""
         if self.raw is None:
             return ""
-        return "n/a" if self.value is None else to_text(self.value)
+        if self.value is None:
+            return "n/a"
+        if self._is_f32():
+            return shortest_f32_text(self.value)
+        return to_text(self.value)
+
+    def _is_f32(self) -> bool:
+        return self.register.type == "f32" and type(self.value) is float
 
     def meaning(self, target: Target) -> str:
         if self.raw is None:
@@ -71,7 +80,8 @@ class Row:
 
     def json(self, target: Target) -> dict[str, Any]:
         return {
-            "name": self.name, "value": json_value(self.value) if self.raw is not None else None,
+            "name": self.name, "value": (shortest_f32(self.value) if self._is_f32() else json_value(self.value))
+            if self.raw is not None else None,
             "unit": self.register.unit, "meaning": self.meaning(target) or None, "raw": self.raw,
             "address": self.address, "table": self.register.table,
             "param": self.register.element_param(self.index),

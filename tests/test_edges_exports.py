@@ -1,0 +1,132 @@
+"""Exports the real tools read as drivemap reads the device: the write function the map allows,
+not-available values and padded strings Home Assistant honours, units and device classes it accepts."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import jinja2
+import pytest
+from exporter_helpers import MAPS, load, parse, render
+
+from drivemap.model.nodes import Model
+
+SINGLE = {"holding": 0x06, "coil": 0x05}
+MULTIPLE = {"holdings": 0x10, "coils": 0x0F}
+HA_WRITE_TYPES = {"holding": 0x06, "holdings": 0x10, "coil": 0x05, "coils": 0x0F}
+
+
+def _entities(doc: Any) -> list[dict[str, Any]]:
+    return [e for key in ("sensor", "number", "select", "switch", "binary_sensor", "text_sensor")
+            for e in doc.get(key, []) or []]
+
+
+@pytest.mark.parametrize("name", [*MAPS, "allkinds"])
+def test_home_assistant_switches_write_with_a_function_the_map_lists(name: str) -> None:
+    model = load(name)
+    doc = parse("homeassistant", render(model, "homeassistant"))
+    switches = doc["modbus"][0].get("switches", [])
+    for switch in switches:
+        code = HA_WRITE_TYPES[switch["write_type"]]
+        assert model.protocol.function(code) is not None, (name, switch["name"], switch["write_type"])
+
+
+@pytest.mark.parametrize("name", [*MAPS, "allkinds"])
+def test_esphome_writes_with_a_function_the_map_lists(name: str) -> None:
+    model = load(name)
+    doc = parse("esphome", render(model, "esphome"))
+    for entity in _entities(doc):
+        if entity.get("platform") != "modbus_controller":
+            continue
+        table = {"holding": "holding", "coil": "coil"}.get(entity.get("register_type", "holding"))
+        writes = entity.get("use_write_multiple") or "platform" in entity and _writable(entity)
+        if not writes or table is None:
+            continue
+        if entity.get("use_write_multiple"):
+            assert model.protocol.function(0x10 if table == "holding" else 0x0F) is not None, entity
+        elif entity.get("register_count", 1) == 1 and _one_word(model, entity):
+            assert model.protocol.function(SINGLE[table]) is not None, (name, entity["name"])
+
+
+def _writable(entity: dict[str, Any]) -> bool:
+    return "min_value" in entity or "optionsmap" in entity or "assumed_state" in entity or "write_lambda" in entity
+
+
+def _one_word(model: Model, entity: dict[str, Any]) -> bool:
+    return entity.get("value_type", "U_WORD") in ("U_WORD", "S_WORD")
+
+
+def test_sdm630_reset_is_written_by_10h() -> None:
+    model = load("sdm630")
+    assert model.protocol.function(0x06) is None and model.protocol.function(0x10) is not None
+    ha = parse("homeassistant", render(model, "homeassistant"))
+    reset = next(s for s in ha["modbus"][0]["switches"] if s["unique_id"] == "sdm630_reset")
+    assert reset["write_type"] == "holdings"
+    esphome = parse("esphome", render(model, "esphome"))
+    reset_switch = next(e for e in esphome["switch"] if e["name"].endswith("reset"))
+    assert reset_switch["use_write_multiple"] is True
+
+
+def _ha_env() -> jinja2.Environment:
+    env = jinja2.Environment(autoescape=False)
+    env.filters["regex_replace"] = lambda value, find="", replace="": re.sub(find, replace, value)
+    return env
+
+
+def test_not_available_zero_is_a_template_home_assistant_honours() -> None:
+    model = load("fronius_symo_hybrid")
+    zero = [r for r in model.registers if 0 in r.not_available and not r.is_float and r.readable]
+    assert zero, "fronius has counters where 0 means not available"
+    doc = parse("homeassistant", render(model, "homeassistant"))
+    sensors = doc["modbus"][0]["sensors"]
+    assert not [s for s in sensors if "nan_value" in s and not s["nan_value"]]  # HA ignores a falsy nan_value
+    templates = {t["unique_id"]: t for t in doc["template"][0]["sensor"]}
+    env = _ha_env()
+    for reg in zero:
+        uid = f"fronius_symo_hybrid_{reg.name}"
+        template = templates[uid]
+        raw_uid = f"sensor.{uid}_raw"
+        assert any(s["unique_id"] == f"{uid}_raw" for s in sensors)
+
+        def available(state: str, raw_uid: str = raw_uid, template: dict[str, Any] = template) -> str:
+            return env.from_string(template["availability"]).render(
+                states=lambda e: state, has_value=lambda e: True)
+
+        assert available("0") == "False" and available("0.0") == "False" and available("1234") == "True"
+
+
+def test_nul_padded_strings_are_stripped_for_home_assistant() -> None:
+    model = load("fronius_symo_hybrid")
+    doc = parse("homeassistant", render(model, "homeassistant"))
+    template = next(t for t in doc["template"][0]["sensor"] if t["unique_id"] == "fronius_symo_hybrid_manufacturer")
+    out = _ha_env().from_string(template["state"]).render(states=lambda e: "Fronius\x00\x00\x00 ",
+                                                          has_value=lambda e: True)
+    assert out == "Fronius"
+
+
+def test_units_and_device_classes_home_assistant_accepts() -> None:
+    ev = parse("homeassistant", render(load("ev"), "homeassistant"))
+    units = {s.get("unit_of_measurement") for s in ev["modbus"][0]["sensors"]}
+    assert "r/min" not in units and "rpm" in units
+    sdm = parse("homeassistant", render(load("sdm630"), "homeassistant"))
+    by_unit = {s.get("unit_of_measurement"): s for s in sdm["modbus"][0]["sensors"]}
+    assert "VAr" not in by_unit and by_unit["var"]["device_class"] == "reactive_power"
+    assert by_unit["VA"]["device_class"] == "apparent_power"
+    fronius = parse("homeassistant", render(load("fronius_symo_hybrid"), "homeassistant"))
+    entries = fronius["modbus"][0]["sensors"] + fronius["template"][0]["sensor"]
+    varh = [e for e in entries if e.get("unit_of_measurement") == "varh"]
+    assert varh and all(e["device_class"] == "reactive_energy" for e in varh)
+    vah = [e for e in entries if e.get("unit_of_measurement") == "VAh"]
+    assert vah and all("device_class" not in e and e["state_class"] == "total_increasing" for e in vah)
+    old = render(load("fronius_symo_hybrid"), "homeassistant", ha_version="2024.1")
+    assert "device_class: reactive_energy" not in old and "device_class: reactive_energy" in render(
+        load("fronius_symo_hybrid"), "homeassistant")  # older releases have no such class
+    esphome = parse("esphome", render(load("ev"), "esphome"))
+    assert "r/min" not in str(esphome) and "rpm" in str(esphome)
+
+
+def test_esphome_numbers_step_at_the_resolution() -> None:
+    doc = parse("esphome", render(load("ev"), "esphome"))
+    accel = next(n for n in doc["number"] if n["name"] == "ev digital_accel_time_0")
+    assert accel["step"] == 0.1 and accel["multiply"] == 10
