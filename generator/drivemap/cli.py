@@ -14,7 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from drivemap import __version__
 from drivemap.diagnostics import CompileError, Diagnostic, Location
@@ -204,7 +204,7 @@ def _exporter_parser(fmt: str, exporter: object) -> argparse.ArgumentParser:
     return own
 
 
-def _export_help(args: argparse.Namespace, exporters: dict[str, type]) -> int:
+def _export_help(args: argparse.Namespace, exporters: dict[str, Any]) -> int:
     """``drivemap export --help``; with ``--format X`` the options of that exporter too."""
     sys.stdout.write(args.help_parser.format_help())
     if args.format in exporters:
