@@ -136,6 +136,7 @@ def simulator_factory(model: Model, project: Project) -> Any:
     def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:
         return Simulator(spec, units, behaviour=behaviour_for(model.name), **kwargs)
 
+    factory.spec = spec  # type: ignore[attr-defined]  # presets are checked against it before the start
     return factory
 
 

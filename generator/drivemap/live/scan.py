@@ -5,7 +5,8 @@ defaults first) every unit id in ``--units`` gets one probe read; a unit that an
 (a reply or an exception) is there. On serial the scan stops at the first setting where a unit
 answers (devices on one line share its settings) unless ``--all-settings``. Each unit found is
 then read with every project map's planned requests (a read fingerprint: a map fits when every
-request is answered and every value lies within its enum and min/max; the maps have no
+request is answered and every value lies within its enum and min/max (a value that reads 0 where the map
+documents no power-up value is a note, "not set yet?", as in verify); the maps have no
 identity registers to ask). The number of probes is known in advance (progress bar, ETA), each
 probe waits at most ``--timeout``; Ctrl-C stops and prints what was found.
 """
@@ -286,3 +287,7 @@ def show(result: Scan, as_json: bool) -> None:
         bad = ", ".join(f"{fit.model} ({fit.answered}/{fit.requests} reads)" for fit in f.fits if not fit.fits)
         table.add_row(str(f.unit), f.link.line(), f.answer, good, bad or "-")
     out.print(table)
+    for f in result.found:  # why each map does not fit (the same reasons --json gives)
+        for fit in f.fits:
+            if not fit.fits:
+                out.print(f"unit {f.unit}: {fit.model} does not fit{fit.why() or ': no read answered'}", soft_wrap=True)

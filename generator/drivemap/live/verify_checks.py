@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from drivemap.live.fingerprint import value_problem
+from drivemap.live.fingerprint import unset_zero, value_problem
 from drivemap.live.session import Session
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.planner import Key, ReadRequest
@@ -97,7 +97,7 @@ def check_value(session: Session, reg: Register, index: int, raw: int, results: 
     if problem is None:
         ratio_note(session, reg, index, raw, results)
         return
-    unset = raw == 0 and reg.default_at(index) is None
+    unset = unset_zero(reg, index, raw)
     results.add(Finding("value", "note" if unset else "disagree", name, reg.element_address(index), reg.line,
                         _range_text(reg), problem,
                         "0 with no documented power-up value: not set yet?" if unset else

@@ -103,6 +103,33 @@ def unwire_words(reg: RegisterSpec, words: list[int]) -> int:
     return raw
 
 
+def start_raw(reg: RegisterSpec, factor: int | None = None) -> int:
+    """The raw value a register without a default starts at: 0 when the map allows its value (within
+    min..max, one of its enum values), else the lowest value it allows (min rounded up to a step, the
+    lowest enum value), else max. A device never reports a value its own map forbids at power-up."""
+    if reg.type in ("bool", "string") or reg.bit_table or reg.bits:
+        return 0
+    if _allowed(reg, 0, factor):
+        return 0
+    candidates = sorted(reg.enum_values) if reg.enum_values else []
+    if reg.min is not None:
+        raw = from_value(reg, reg.min, factor)
+        candidates += [raw, raw + 1]
+    if reg.max is not None:
+        candidates.append(from_value(reg, reg.max, factor))
+    return next((raw for raw in candidates if _allowed(reg, raw, factor)), 0)
+
+
+def _allowed(reg: RegisterSpec, raw: int, factor: int | None) -> bool:
+    value = to_value(reg, raw, factor)
+    if reg.enum_values and raw not in reg.enum_values:
+        return False
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return value is None and not reg.min and not reg.max
+    tol = 1e-9 * max(1.0, abs(value))
+    return (reg.min is None or value >= reg.min - tol) and (reg.max is None or value <= reg.max + tol)
+
+
 def _cell_names(reg: RegisterSpec) -> list[tuple[str, int]]:
     return [(reg.element_name(i), i) for i in range(reg.count)]
 
@@ -127,7 +154,7 @@ class Unit:
         for reg in regs:
             for name, index in _cell_names(reg):
                 default = reg.default_at(index)
-                raw = from_value(reg, default, self._factor(reg)) if default is not None else 0
+                raw = from_value(reg, default, self._factor(reg)) if default is not None else start_raw(reg, self._factor(reg))
                 self.values[name] = raw
                 if reg.reflect == "configuration":
                     self.applied[name] = raw
