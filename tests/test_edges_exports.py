@@ -130,3 +130,32 @@ def test_esphome_numbers_step_at_the_resolution() -> None:
     doc = parse("esphome", render(load("ev"), "esphome"))
     accel = next(n for n in doc["number"] if n["name"] == "ev digital_accel_time_0")
     assert accel["step"] == 0.1 and accel["multiply"] == 10
+
+
+@pytest.mark.parametrize("name", MAPS)
+def test_pymodbus_sim_export_is_the_simulators_start_up_image(name: str) -> None:
+    from helpers_client import simulator
+
+    from drivemap.runtime.sim.unit import wire_words
+
+    doc = parse("pymodbus-sim", render(load(name), "pymodbus-sim"))
+    device = doc["device_list"][name]
+    setup = device["setup"]
+    base = {"coil": 0, "discrete": setup["co size"], "input": setup["co size"] + setup["di size"],
+            "holding": setup["co size"] + setup["di size"] + setup["ir size"]}
+    words = {item["addr"]: item["value"] for item in device["uint16"]}
+    sim = simulator(name)  # the generated simulator: the model's behaviour ran its power-up
+    pages = doc["drivemap"]["pages"]
+    compared = 0
+    for reg in sim.spec.registers:
+        if reg.bit_table or reg.words != 1 or reg.page is not None and pages.get(reg.page.selector) != reg.page.value:
+            continue
+        for i in range(reg.count):
+            at = base[reg.table] + reg.element_address(i)
+            if at in words:
+                assert words[at] == wire_words(reg, sim.get_raw(reg.element_name(i)))[0], (reg.element_name(i), at)
+                compared += 1
+    assert compared > 0
+    if name == "ev":  # the RAM copies start as the EEPROM values (ev's power-up), not 0
+        ram = sim.spec.register("digital_speed_ram")
+        assert any(words[base["holding"] + ram.element_address(i)] for i in range(ram.count))
