@@ -233,6 +233,7 @@ class Simulator(Persistence):
             self._check_cell(name)
             for unit in self.units.values():
                 unit.set(name, value)
+                unit.unset.discard(name)
                 if name in unit.applied:
                     unit.applied[name] = unit.values[name]
         for unit in self.units.values():

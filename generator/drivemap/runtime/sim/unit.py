@@ -104,14 +104,16 @@ def unwire_words(reg: RegisterSpec, words: list[int]) -> int:
 
 
 def start_raw(reg: RegisterSpec, factor: int | None = None) -> int:
-    """The raw value a register without a default starts at: 0 when the map allows its value (within
-    min..max, one of its enum values), else the lowest value it allows (min rounded up to a step, the
-    lowest enum value), else max. A device never reports a value its own map forbids at power-up."""
-    if reg.type in ("bool", "string") or reg.bit_table or reg.bits:
+    """The raw value a register without a default starts at: 0 when its value lies in the map's
+    min..max, else the lowest value the range allows (min, rounded up to a step), else max. A device
+    does not report a value outside its own map's range at power-up. An enum register starts at 0
+    even when 0 is not one of its values (an empty history slot reads 0; picking a member would invent
+    a state the map does not give)."""
+    if reg.type in ("bool", "string") or reg.bit_table or reg.bits or (reg.min is None and reg.max is None):
         return 0
     if _allowed(reg, 0, factor):
         return 0
-    candidates = sorted(reg.enum_values) if reg.enum_values else []
+    candidates: list[int] = []
     if reg.min is not None:
         raw = from_value(reg, reg.min, factor)
         candidates += [raw, raw + 1]
@@ -122,8 +124,6 @@ def start_raw(reg: RegisterSpec, factor: int | None = None) -> int:
 
 def _allowed(reg: RegisterSpec, raw: int, factor: int | None) -> bool:
     value = to_value(reg, raw, factor)
-    if reg.enum_values and raw not in reg.enum_values:
-        return False
     if not isinstance(value, (int, float)) or isinstance(value, bool):
         return value is None and not reg.min and not reg.max
     tol = 1e-9 * max(1.0, abs(value))
@@ -150,11 +150,18 @@ class Unit:
         #: Free space for the behaviour (ramps, timers, edge detection).
         self.scratch: dict[str, Any] = {}
         self.injected: int | None = None
+        #: Cells that start without a map default, a saved or a preset value (at :func:`start_raw`): a
+        #: behaviour's power-up may fill them (ev: RAM copies loaded from EEPROM).
+        self.unset: set[str] = set()
         regs = sorted(sim.spec.registers, key=lambda r: r.scale_register is not None)  # factors first
         for reg in regs:
             for name, index in _cell_names(reg):
                 default = reg.default_at(index)
-                raw = from_value(reg, default, self._factor(reg)) if default is not None else start_raw(reg, self._factor(reg))
+                if default is None:
+                    raw = start_raw(reg, self._factor(reg))
+                    self.unset.add(name)
+                else:
+                    raw = from_value(reg, default, self._factor(reg))
                 self.values[name] = raw
                 if reg.reflect == "configuration":
                     self.applied[name] = raw
