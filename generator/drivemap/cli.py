@@ -174,7 +174,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         for name, cls in exporters.items():
             print(f"{name.ljust(width)}  {cls.help}")
         return 0
-    if args.model is None:
+    if not args.model:
         raise UsageError("drivemap export", "give MODEL or PATH (or --list)")
     if args.format not in exporters:
         raise UsageError("drivemap export", f"unknown format {args.format!r} (installed: {', '.join(exporters)})")
@@ -186,9 +186,22 @@ def cmd_export(args: argparse.Namespace) -> int:
     except UsageError as exc:
         raise UsageError(f"drivemap export --format {args.format}", str(exc).split(": error: ", 1)[-1] + hint) from None
     project = _project(args)
-    model = compile_map(resolve_map(args.model, project))
+    devices = [(compile_map(resolve_map(name, project)), unit) for name, unit in map(_device, args.model)]
     try:
-        files = export_files(exporter, model, project, values, args.output)
+        if len(devices) == 1:
+            model, unit = devices[0]
+            if unit is not None:
+                if values.get("unit") is not None:
+                    raise OptionError(f"the unit is given twice: {args.model[0]} and --unit {values['unit']}")
+                values["unit"] = unit
+            files = export_files(exporter, model, project, values, args.output)
+        elif not hasattr(exporter, "render_line"):
+            raise UsageError(f"drivemap export --format {args.format}", "several devices in one export: only "
+                             "--format homeassistant (one hub per line); export them one by one")
+        else:
+            from drivemap.build import options_for
+
+            files = exporter.render_line(devices, options_for(project, values))
     except OptionError as exc:
         raise UsageError(f"drivemap export --format {args.format}", str(exc) + hint) from None
     if args.output is None:
@@ -196,6 +209,14 @@ def cmd_export(args: argparse.Namespace) -> int:
             sys.stdout.write(text)
         return 0
     return _write_export(Path(args.output), files, exporter.multi_file, args.force)
+
+
+def _device(text: str) -> tuple[str, int | None]:
+    """``MODEL`` or ``MODEL:UNIT`` (a device on a line shared with others)."""
+    name, sep, unit = text.rpartition(":")
+    if sep and name and unit.isascii() and unit.isdigit():
+        return name, int(unit)
+    return text, None
 
 
 def _exporter_parser(fmt: str, exporter: object) -> argparse.ArgumentParser:
@@ -324,7 +345,9 @@ def parser() -> argparse.ArgumentParser:
     s = sub.add_parser("export", help="export a model with an exporter plugin (--list shows them)", add_help=False)
     s.add_argument("-h", "--help", action="store_true",
                    help="show this help; with --format NAME the options of that exporter too")
-    s.add_argument("model", nargs="?", metavar="MODEL|PATH")
+    s.add_argument("model", nargs="*", metavar="MODEL[:UNIT]",
+                   help="model id or map path; several MODEL:UNIT (ev:1 vfd1000:2) for devices sharing one line "
+                        "(--format homeassistant: one hub)")
     s.add_argument("--format", default="json", help="exporter name (default: json)")
     s.add_argument("-o", "--output", default=None, metavar="FILE|DIR", help="write here instead of stdout")
     s.add_argument("--force", action="store_true", help="replace an output file changed since drivemap wrote it")

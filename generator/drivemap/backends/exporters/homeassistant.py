@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from drivemap.backends.exporters._yaml import Hex, dump, header
@@ -133,6 +133,12 @@ class HomeAssistantExporter(Exporter):
                             help=f"write the key names of this Home Assistant release (default: {CURRENT[0]}.{CURRENT[1]})")
         iv.add_selection_arguments(parser)
         iv.add_serial_arguments(parser)
+
+    def render_line(self, devices: Sequence[tuple[Model, int | None]], options: Options) -> dict[str, str]:
+        """Several devices on one line: one hub (:mod:`.homeassistant_line`)."""
+        from drivemap.backends.exporters.homeassistant_line import render_line
+
+        return render_line(devices, options)
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
         values = options.values
