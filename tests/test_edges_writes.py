@@ -140,3 +140,16 @@ def test_read_prints_f32_values_as_their_shortest_decimal() -> None:
         assert proc.returncode == 0, proc.stderr
         assert "230.2" in proc.stdout and "230.1999" not in proc.stdout, proc.stdout
     assert '"value": 230.2,' in as_json.stdout
+
+
+def test_client_names_take_ascii_digits_only() -> None:
+    from drivemap.runtime.errors import UnknownRegister
+
+    ev = package("ev")
+    with tcp_server("ev") as (_sim, host, port):
+        with ev.Client.tcp(host, port, unit=1, timeout=2.0) as drive:
+            assert drive.accessor("digital_speed[3]") is drive.digital_speed[3]
+            with pytest.raises(UnknownRegister):
+                drive.accessor("digital_speed[\u0663]")
+    proc = cli("read", "ev", "--tcp", "127.0.0.1:\u0665\u0660\u0662", "motor_state")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr

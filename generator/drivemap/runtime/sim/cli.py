@@ -29,7 +29,7 @@ SimulatorFactory = Callable[..., Simulator]
 def parse_tcp(text: str) -> tuple[str, int]:
     """``HOST:PORT`` (``[::1]:5020`` for IPv6) -> (host, port)."""
     host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+    if not sep or not host or not (port.isascii() and port.isdigit()) or not 0 <= int(port) <= 65535:
         raise SimulatorError(f"--tcp wants HOST:PORT, not {text!r}")
     return host.strip("[]"), int(port)
 
