@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from drivemap.runtime.sim import cli as simcli
 from drivemap.runtime.sim.behaviours import Behaviour, behaviour_for
 from drivemap.runtime.sim.simulator import Simulator as SimulatorBase
+from drivemap.runtime.sim.simulator import SimValue
 
 from .spec import SPEC
 
@@ -45,8 +46,9 @@ class Simulator(SimulatorBase):
     ``refuse_advised_while_running`` (off by default) also refuses, while running, writes the manual
     only advises against (``running_advice``; the device is not known to refuse them);
     ``reply_quirks`` answers in non-standard reply forms the map lists (none by default);
-    ``behaviour`` replaces the one registered for the model (entry point ``drivemap.behaviours``).
-    Presets: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
+    ``behaviour`` replaces the one registered for the model (entry point ``drivemap.behaviours``);
+    ``presets`` are (cell name, engineering value) pairs the memory holds at power-up (every unit).
+    Presets later: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
     """
 
     def __init__(
@@ -58,6 +60,7 @@ class Simulator(SimulatorBase):
         behaviour: Behaviour | None = None,
         refuse_advised_while_running: bool = False,
         reply_quirks: Sequence[str] = (),
+        presets: Sequence[tuple[str, SimValue]] = (),
     ) -> None:
         super().__init__(
             SPEC,
@@ -67,6 +70,7 @@ class Simulator(SimulatorBase):
             realistic_timing=realistic_timing,
             refuse_advised_while_running=refuse_advised_while_running,
             reply_quirks=reply_quirks,
+            presets=presets,
         )
 
 
