@@ -108,3 +108,18 @@ def test_presets_are_the_power_up_state_the_behaviour_starts_from() -> None:
                     presets=[("digital_speed[0]", 1500), ("digital_speed_ram[1]", 700)])
     assert sim.get("digital_speed[0]") == 1500 and sim.get("digital_speed_ram[0]") == 1500  # loaded from EEPROM
     assert sim.get("digital_speed_ram[1]") == 700  # a preset RAM value is kept
+
+
+def test_a_generated_simulator_reads_json_values(tmp_path: Path) -> None:
+    from helpers_client import package
+
+    from drivemap.runtime.sim.presets import PresetError, from_file
+
+    spec = package("sdm630").SPEC
+    good = tmp_path / "v.json"
+    good.write_text('{"phase_1_voltage": 230.1,\n "system_type": 3}\n', encoding="utf-8")
+    assert from_file(spec, good) == [("phase_1_voltage", 230.1), ("system_type", 3)]
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"phase_1_voltage": 230.1,\n "system_type": 9}\n', encoding="utf-8")
+    with pytest.raises(PresetError, match=rf"{re.escape(str(bad))}:2:2: error: system_type: 9"):
+        from_file(spec, bad)

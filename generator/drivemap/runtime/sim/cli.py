@@ -72,7 +72,8 @@ def run(factory: SimulatorFactory, args: argparse.Namespace, prog: str = "drivem
 def presets_of(factory: SimulatorFactory, args: argparse.Namespace, prog: str) -> list[tuple[str, Any]]:
     """``--values FILE`` then ``--set NAME=VALUE`` (later ones win), checked against the map."""
     spec = getattr(factory, "spec", None) or factory([*(args.units or [1])][:1]).spec
-    out = from_file(spec, args.values) if getattr(args, "values", None) else []
+    reader = getattr(factory, "read_values", None)  # drivemap simulate: YAML too
+    out = from_file(spec, args.values, reader) if getattr(args, "values", None) else []
     texts = getattr(args, "presets", None) or []
     if texts:
         out += from_command_line(spec, texts, sys.argv[1:], prog, dict(out))
@@ -115,8 +116,8 @@ def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
                         help="start with this engineering value (repeatable; checked against the map): "
                              "--set phase_1_voltage=230.1 --set digital_speed[0]=1500")
     parser.add_argument("--values", metavar="FILE",
-                        help="start with the engineering values of this YAML/JSON file (NAME: VALUE per line; "
-                             "--set wins over it)")
+                        help="start with the engineering values of this file ({\"NAME\": VALUE, ...}; drivemap "
+                             "simulate reads YAML too; --set wins over it)")
 
 
 def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = None) -> int:

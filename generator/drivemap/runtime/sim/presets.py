@@ -8,7 +8,8 @@ type, an enum register takes one of its values, a bool ``true``/``false`` (``on`
 a register with a not-available value. Every problem is a located error
 (``<command line>:1:COL: error: ...`` or ``FILE:LINE:COL: error: ...``); nothing is served then.
 
-``--values FILE`` is a YAML (or JSON) mapping of cell names to values::
+``--values FILE`` is a mapping of cell names to values: JSON for a generated simulator
+(:func:`read_json`), YAML or JSON for ``drivemap simulate`` (which passes its YAML reader)::
 
     phase_1_voltage: 230.1
     digital_speed[0]: 1500
@@ -18,9 +19,11 @@ a register with a not-available value. Every problem is a located error
 from __future__ import annotations
 
 import difflib
+import json
 import math
+import re
 import shlex
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +32,7 @@ from drivemap.runtime.client.words import raw_bounds
 from drivemap.runtime.sim.unit import SimulatorError, SimValue, from_value, to_value
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 
-__all__ = ["Preset", "PresetError", "check", "from_command_line", "from_file"]
+__all__ = ["Entries", "Preset", "PresetError", "Reader", "check", "from_command_line", "from_file", "read_json"]
 
 #: (cell name, engineering value)
 Preset = tuple[str, SimValue]
@@ -157,44 +160,59 @@ def from_command_line(spec: DeviceSpec, texts: Sequence[str], argv: Sequence[str
     return out
 
 
-def from_file(spec: DeviceSpec, path: str | Path) -> list[Preset]:
-    """``--values FILE``: a YAML/JSON mapping of cell names to engineering values, checked; located errors."""
-    import yaml
+#: A file's entries: (cell name, value, line, column), in file order.
+Entries = list[tuple[str, Any, int, int]]
+#: Reads a values file into entries; raises :class:`PresetError` (located) when it cannot.
+Reader = Callable[[Path], Entries]
 
+
+def read_json(path: Path) -> Entries:
+    """A JSON object of cell names to values (what a generated simulator reads; ``drivemap simulate``
+    reads YAML too): each entry located at its key."""
     where = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise PresetError(f"{where}:1:1: error: cannot read values: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
         raise PresetError(f"{where}:1:1: error: cannot read values: not UTF-8 text") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
-        raise PresetError(f"{where}:{line}:{col}: error: not YAML or JSON: {getattr(exc, 'problem', exc)}") from None
-    if node is None:
-        return []
-    if not isinstance(node, yaml.MappingNode):
-        raise PresetError(f"{where}:{node.start_mark.line + 1}:{node.start_mark.column + 1}: error: "
-                          "expected a mapping of register names to values")
-    loader = yaml.SafeLoader("")
-    items = [(key, loader.construct_object(value, deep=True), key.start_mark) for key, value in node.value]
-    # scale-factor registers first: a scaled value is checked (and set) with the factor given with it
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PresetError(f"{where}:{exc.lineno}:{exc.colno}: error: not JSON: {exc.msg}") from None
+    if not isinstance(data, dict):
+        raise PresetError(f"{where}:1:1: error: expected an object of register names to values")
+    out: Entries = []
+    offset = 0
+    for name, value in data.items():
+        match = re.compile(re.escape(json.dumps(name)) + r"\s*:").search(text, offset)
+        at = match.start() if match else 0
+        offset = match.end() if match else offset
+        line = text.count("\n", 0, at) + 1
+        out.append((name, value, line, at - (text.rfind("\n", 0, at) + 1) + 1))
+    return out
+
+
+def from_file(spec: DeviceSpec, path: str | Path, reader: Reader | None = None) -> list[Preset]:
+    """``--values FILE``: cell names to engineering values, checked; every problem a located error.
+
+    Scale-factor registers are taken first, so a scaled value is checked (and set) with the factor
+    the same file gives."""
+    where = str(path)
+    items = (reader or read_json)(Path(path))
     factor_names = {reg.scale_register for reg in spec.registers if reg.scale_register}
-    items.sort(key=lambda item: str(item[0].value) not in factor_names)
+    items.sort(key=lambda item: str(item[0]) not in factor_names)
     out: list[Preset] = []
     errors: list[tuple[int, str]] = []
     known: dict[str, SimValue] = {}
-    for key, value, mark in items:
-        name = str(key.value)
+    for name, value, line, col in items:
         try:
-            checked = check(spec, name, value, known)
+            checked = check(spec, str(name), value, known)
         except ValueError as exc:
-            errors.append((mark.line, f"{where}:{mark.line + 1}:{mark.column + 1}: error: {exc}"))
+            errors.append((line, f"{where}:{line}:{col}: error: {exc}"))
             continue
-        known[name] = checked
-        out.append((name, checked))
+        known[str(name)] = checked
+        out.append((str(name), checked))
     if errors:
         raise PresetError("\n".join(text for _, text in sorted(errors)))
     return out
