@@ -29,7 +29,16 @@ from typing import Any, Generic, TypeVar
 
 from pymodbus.client.mixin import ModbusClientMixin
 
-from drivemap.runtime.client.steps import STEP_TOLERANCE, exact_raw, number_text, shortest_f32_text
+from drivemap.runtime.client.steps import (
+    STEP_TOLERANCE,
+    _fits,
+    _offset_text,
+    _short,
+    _unit,
+    exact_raw,
+    number_text,
+    shortest_f32_text,
+)
 from drivemap.runtime.client.words import (
     TYPE_BOUNDS,
     check_raw,
@@ -124,17 +133,6 @@ class Codec(Generic[T]):
             raise ValueOutOfRange(f"{spec.name}: {value} is above the maximum {spec.max}{_unit(spec)}")
 
 
-def _short(value: object) -> str:
-    """``value`` for a message: a huge int (``10**400``) is named by its size, never converted to text."""
-    if isinstance(value, int) and value.bit_length() > 96:
-        return f"an integer of {value.bit_length()} bits"
-    return repr(value)
-
-
-def _unit(spec: RegisterSpec) -> str:
-    return f" {spec.unit}" if spec.unit else ""
-
-
 class RawCodec(Codec[int]):
     """The raw value itself (``read_raw`` / ``write_raw``): only the type's bounds apply."""
 
@@ -195,17 +193,6 @@ class FloatCodec(Codec[float]):
         raw = exact_raw(self.spec, float(value), self.spec.scale, self.spec.offset, self._digits,
                         _offset_text(self.spec.offset))
         return _fits(self.spec, raw, value)
-
-
-def _offset_text(offset: float) -> str:
-    return f" from the offset {number_text(offset)}" if offset else ""
-
-
-def _fits(spec: RegisterSpec, raw: int, value: float) -> int:
-    lo, hi = raw_bounds(spec)
-    if not lo <= raw <= hi:
-        raise ValueOutOfRange(f"{spec.name}: {_short(value)}{_unit(spec)} is not representable ({spec.type} raw {_short(raw)})")
-    return raw
 
 
 def _number(spec: RegisterSpec, value: object) -> float:

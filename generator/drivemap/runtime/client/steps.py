@@ -17,7 +17,7 @@ import math
 import struct
 
 from drivemap.runtime.client.words import raw_bounds
-from drivemap.runtime.errors import InexactValue
+from drivemap.runtime.errors import InexactValue, ValueOutOfRange
 from drivemap.runtime.spec import RegisterSpec
 
 #: Relative tolerance when comparing a float against min/max (binary floats such as 0.1).
@@ -33,6 +33,25 @@ def _round_half_away(x: float) -> int:
 
 def _unit(spec: RegisterSpec) -> str:
     return f" {spec.unit}" if spec.unit else ""
+
+
+def _short(value: object) -> str:
+    """``value`` for a message: a huge int (``10**400``) is named by its size, never converted to text."""
+    if isinstance(value, int) and value.bit_length() > 96:
+        return f"an integer of {value.bit_length()} bits"
+    return repr(value)
+
+
+def _offset_text(offset: float) -> str:
+    return f" from the offset {number_text(offset)}" if offset else ""
+
+
+def _fits(spec: RegisterSpec, raw: int, value: float) -> int:
+    """``raw`` when it lies in the register type's bounds, else :class:`ValueOutOfRange`."""
+    lo, hi = raw_bounds(spec)
+    if not lo <= raw <= hi:
+        raise ValueOutOfRange(f"{spec.name}: {_short(value)}{_unit(spec)} is not representable ({spec.type} raw {_short(raw)})")
+    return raw
 
 
 def number_text(value: float) -> str:
