@@ -67,17 +67,16 @@ def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Pat
         if path.is_file():
             return path
         raise CompileError([Diagnostic(Location(display(path), 1, 1), "no such map file")])
-    out = notes if notes is not None else sys.stderr
     found = project.find_map(name)
     shipped = next((p for p in bundled_maps() if p.stem == name), None)
     if found is not None and shipped is not None and _differ(found, shipped):
-        print(Diagnostic(Location(display(found), 1, 1),
-                         f"the project's map of {name!r} differs from the map of the same id shipped with drivemap "
-                         f"({shipped}); using the project's", severity="warning").format(), file=out)
+        _say(notes, Diagnostic(Location(display(found), 1, 1),
+                               f"the project's map of {name!r} differs from the map of the same id shipped with "
+                               f"drivemap ({shipped}); using the project's", severity="warning").format())
     if found is None and shipped is not None:
         where = ", ".join(display(m) for m in project.maps)
-        print(f"drivemap: note: {name!r} is not a map of the project ({where}); using the map shipped with "
-              f"drivemap: {shipped}", file=out)
+        _say(notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using the map shipped with "
+                    f"drivemap: {shipped}")
         found = shipped
     if found is None:
         known = sorted({p.stem for p in project.map_files()})
@@ -85,6 +84,17 @@ def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Pat
         where = display(project.maps_folder() / f"{name}.yaml")
         raise CompileError([Diagnostic(Location(where, 1, 1), f"no map for model {name!r}{hint}")])
     return found
+
+
+_SAID: set[str] = set()
+
+
+def _say(notes: TextIO | None, text: str) -> None:
+    """Print a note about which map is used, once per process (a verb may resolve a model twice)."""
+    if notes is None and text in _SAID:
+        return
+    _SAID.add(text)
+    print(text, file=notes if notes is not None else sys.stderr)
 
 
 def _differ(a: Path, b: Path) -> bool:
