@@ -153,3 +153,13 @@ def test_client_names_take_ascii_digits_only() -> None:
                 drive.accessor("digital_speed[\u0663]")
     proc = cli("read", "ev", "--tcp", "127.0.0.1:\u0665\u0660\u0662", "motor_state")
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
+
+
+def test_large_raw_values_are_judged_at_the_floats_own_precision() -> None:
+    from drivemap.runtime.client.steps import exact_raw
+    from drivemap.runtime.spec import RegisterSpec
+
+    energy = RegisterSpec(name="energy", address=0, type="u64", scale=0.001)
+    assert abs(exact_raw(energy, 12345678901234.567, 0.001, 0, 3) - 12345678901234567) <= 2
+    with pytest.raises(InexactValue):
+        exact_raw(energy, 1.0005, 0.001, 0, 3)

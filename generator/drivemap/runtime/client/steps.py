@@ -4,7 +4,8 @@
 steps of the register's resolution (scale, offset, scale factor); a value between two steps is
 refused with :class:`~drivemap.runtime.errors.InexactValue` naming the nearest representable
 values. Binary floats cannot hold most decimals (12.3 / 0.1 is 122.99999999999999), so a value
-within :data:`STEP_TOLERANCE` steps of an integer raw value is that raw value.
+within :data:`STEP_TOLERANCE` steps of an integer raw value is that raw value (for raw values beyond
+about 10**9 steps, within the float's own precision, a few parts in 10**15).
 
 :func:`shortest_f32_text` prints an f32 reading as the shortest decimal that reads back as the same
 f32 (``230.2``, not ``230.1999969482422``): the one helper every printer (``drivemap read``, ``watch``,
@@ -74,7 +75,8 @@ def exact_raw(spec: RegisterSpec, value: float, step: float, offset: float, digi
     representable values (``digits``: decimals that show them exactly; ``why``: how the step comes about)."""
     exact = (value - offset) / step
     raw = _round_half_away(exact)
-    if abs(exact - raw) <= STEP_TOLERANCE:
+    # a float holds ~16 digits: beyond ~10**9 steps its own rounding error outgrows STEP_TOLERANCE
+    if abs(exact - raw) <= max(STEP_TOLERANCE, abs(exact) * 2.0 ** -50):
         return raw
     below = math.floor(exact)
     options = [(r, round(r * step + offset, digits)) for r in (below, below + 1)]
