@@ -123,3 +123,15 @@ def test_a_generated_simulator_reads_json_values(tmp_path: Path) -> None:
     bad.write_text('{"phase_1_voltage": 230.1,\n "system_type": 9}\n', encoding="utf-8")
     with pytest.raises(PresetError, match=rf"{re.escape(str(bad))}:2:2: error: system_type: 9"):
         from_file(spec, bad)
+
+
+def test_simulate_presets_take_enum_members_by_name(tmp_path: Path) -> None:
+    values = tmp_path / "v.yaml"
+    values.write_text("comm_error_action: net_io_clear\n", encoding="utf-8")
+    with simulate("ev", "--values", str(values), "--set", "net_x_input_function[2]=FREE") as port:
+        proc = cli("read", "ev", "--tcp", f"127.0.0.1:{port}", "comm_error_action", "net_x_input_function[2]", "--json")
+    assert proc.returncode == 0, proc.stderr
+    got = {r["name"]: r["value"] for r in json.loads(proc.stdout)["registers"]}
+    assert got == {"comm_error_action": "NET_IO_CLEAR", "net_x_input_function[2]": "FREE"}
+    bad = cli("simulate", "ev", "--tcp", "127.0.0.1:0", "--set", "comm_error_action=sometimes")
+    assert bad.returncode == 1 and "is not a value of CommErrorAction (ALARM, NET_IO_CLEAR" in bad.stderr, bad.stderr

@@ -73,10 +73,11 @@ def presets_of(factory: SimulatorFactory, args: argparse.Namespace, prog: str) -
     """``--values FILE`` then ``--set NAME=VALUE`` (later ones win), checked against the map."""
     spec = getattr(factory, "spec", None) or factory([*(args.units or [1])][:1]).spec
     reader = getattr(factory, "read_values", None)  # drivemap simulate: YAML too
-    out = from_file(spec, args.values, reader) if getattr(args, "values", None) else []
+    enums = getattr(factory, "enum_names", None)  # drivemap simulate: enum members by name
+    out = from_file(spec, args.values, reader, enums) if getattr(args, "values", None) else []
     texts = getattr(args, "presets", None) or []
     if texts:
-        out += from_command_line(spec, texts, sys.argv[1:], prog, dict(out))
+        out += from_command_line(spec, texts, sys.argv[1:], prog, dict(out), enums)
     return out
 
 

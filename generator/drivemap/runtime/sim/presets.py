@@ -32,7 +32,7 @@ from drivemap.runtime.client.words import raw_bounds
 from drivemap.runtime.sim.unit import SimulatorError, SimValue, from_value, to_value
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 
-__all__ = ["Entries", "Preset", "PresetError", "Reader", "check", "from_command_line", "from_file", "read_json"]
+__all__ = ["Entries", "EnumNames", "Preset", "PresetError", "Reader", "check", "from_command_line", "from_file", "read_json"]
 
 #: (cell name, engineering value)
 Preset = tuple[str, SimValue]
@@ -47,13 +47,25 @@ def _cells(spec: DeviceSpec) -> dict[str, RegisterSpec]:
     return {reg.element_name(i): reg for reg in spec.registers for i in range(reg.count)}
 
 
-def check(spec: DeviceSpec, name: str, value: Any, factors: Mapping[str, SimValue] | None = None) -> SimValue:
-    """The value of cell ``name`` checked against the map (ValueError with the reason)."""
+#: register name -> enum member name (upper case) -> value: lets a preset name an enum member
+EnumNames = Mapping[str, Mapping[str, int]]
+
+
+def check(spec: DeviceSpec, name: str, value: Any, factors: Mapping[str, SimValue] | None = None,
+          enums: EnumNames | None = None) -> SimValue:
+    """The value of cell ``name`` checked against the map (ValueError with the reason); an enum
+    register takes a member name (any case) when ``enums`` gives the names."""
     cells = _cells(spec)
     reg = cells.get(name)
     if reg is None:
         close = difflib.get_close_matches(name, list(cells), n=3)
         raise ValueError(f"{spec.model} has no register {name!r}" + (f" (did you mean {', '.join(close)}?)" if close else ""))
+    members = (enums or {}).get(reg.name)
+    if isinstance(value, str) and reg.enum_values and reg.type != "string":
+        if not members or value.strip().upper() not in members:
+            known = ", ".join(members) if members else ", ".join(str(v) for v in reg.enum_values)
+            raise ValueError(f"{name}: {value!r} is not a value of {reg.enum} ({known})")
+        value = members[value.strip().upper()]
     if value is None:
         if not reg.not_available:
             raise ValueError(f"{name}: null, but the map lists no not-available value for it")
@@ -132,11 +144,13 @@ def _text_value(reg: RegisterSpec | None, text: str) -> Any:
     try:
         return float(text)
     except ValueError:
+        if reg.enum_values:
+            return text  # a member name: check() looks it up
         raise ValueError(f"{text!r} is not a number") from None
 
 
 def from_command_line(spec: DeviceSpec, texts: Sequence[str], argv: Sequence[str], prog: str = "drivemap",
-                      factors: Mapping[str, SimValue] | None = None) -> list[Preset]:
+                      factors: Mapping[str, SimValue] | None = None, enums: EnumNames | None = None) -> list[Preset]:
     """``--set NAME=VALUE`` options, checked; errors located in the command line ``argv``."""
     out: list[Preset] = []
     errors: list[str] = []
@@ -148,7 +162,7 @@ def from_command_line(spec: DeviceSpec, texts: Sequence[str], argv: Sequence[str
         try:
             if not sep:
                 raise ValueError(f"{text!r}: write --set NAME=VALUE (e.g. --set digital_speed[0]=1500)")
-            value = check(spec, name, _text_value(cells.get(name), raw), known)
+            value = check(spec, name, _text_value(cells.get(name), raw), known, enums)
         except ValueError as exc:
             index = list(argv).index(text) if text in argv else len(argv)
             errors.append(f"<command line>:1:{_column(argv, index, prog)}: error: {exc}")
@@ -193,7 +207,8 @@ def read_json(path: Path) -> Entries:
     return out
 
 
-def from_file(spec: DeviceSpec, path: str | Path, reader: Reader | None = None) -> list[Preset]:
+def from_file(spec: DeviceSpec, path: str | Path, reader: Reader | None = None,
+              enums: EnumNames | None = None) -> list[Preset]:
     """``--values FILE``: cell names to engineering values, checked; every problem a located error.
 
     Scale-factor registers are taken first, so a scaled value is checked (and set) with the factor
@@ -207,7 +222,7 @@ def from_file(spec: DeviceSpec, path: str | Path, reader: Reader | None = None) 
     known: dict[str, SimValue] = {}
     for name, value, line, col in items:
         try:
-            checked = check(spec, str(name), value, known)
+            checked = check(spec, str(name), value, known, enums)
         except ValueError as exc:
             errors.append((line, f"{where}:{line}:{col}: error: {exc}"))
             continue
