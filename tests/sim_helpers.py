@@ -62,7 +62,7 @@ def serve_export(model: Model) -> Iterator[tuple[int, int]]:
 def read_back(model: Model, port: int, unit: int) -> tuple[dict[str, Any], dict[str, Any]]:
     """(what the generated client reads from the server at ``port``, what it reads from drivemap's
     own simulator of the same map) for every readable register on the served page, in one batched
-    read each."""
+    read each (both at power-up: the export is the image drivemap's simulator starts with)."""
     from drivemap.runtime.sim.serve import ThreadedSimServer
 
     package = load_package(model)
@@ -73,8 +73,11 @@ def read_back(model: Model, port: int, unit: int) -> tuple[dict[str, Any], dict[
             snap = client.read(*[client.accessor(n) for n in names])
             return {n: getattr(snap, n) for n in names}
 
+    from drivemap.runtime.sim.behaviours import behaviour_for
+
     got = read(port)
-    with ThreadedSimServer(Simulator(package.SPEC, [unit]), tcp=("127.0.0.1", 0)) as own:
+    own_sim = Simulator(package.SPEC, [unit], behaviour=behaviour_for(model.name))  # as `drivemap simulate` starts
+    with ThreadedSimServer(own_sim, tcp=("127.0.0.1", 0)) as own:
         assert own.address is not None
         expected = read(own.address[1])
     return got, expected

@@ -13,6 +13,7 @@ from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,
     DriveError,
+    InexactValue,
     InvalidValue,
     ReadOnlyRegister,
     UnknownRegister,
@@ -100,11 +101,15 @@ def test_write_only_register_and_scaling() -> None:
             with pytest.raises(WriteOnlyRegister):
                 drive.read_by_name("control_command")
             assert not hasattr(drive.control_command, "read")
-            # s16, scale 0.01: round to nearest raw step, negative values
-            drive.communication_setting.write(-12.345)
-            assert sim.get_raw("communication_setting") in (-1235, -1234 & 0xFFFF, 0xFFFF - 1234)
+            # s16, scale 0.01: a value between two steps is refused (never rounded); negative values
+            with pytest.raises(InexactValue):
+                drive.communication_setting.write(-12.345)
+            drive.communication_setting.write(-12.35)
+            assert sim.get_raw("communication_setting") in (-1235, 0x10000 - 1235)
             assert drive.communication_setting.read() == pytest.approx(-12.35)
-            drive.pid_setting.write(12.34)
+            with pytest.raises(InexactValue):
+                drive.pid_setting.write(12.34)
+            drive.pid_setting.write(12.3)
             assert drive.pid_setting.read_raw() == 123
 
 

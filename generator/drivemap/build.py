@@ -136,7 +136,39 @@ def simulator_factory(model: Model, project: Project) -> Any:
     def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:
         return Simulator(spec, units, behaviour=behaviour_for(model.name), **kwargs)
 
+    factory.spec = spec  # type: ignore[attr-defined]  # presets are checked against it before the start
+    factory.read_values = read_values_yaml  # type: ignore[attr-defined]  # --values FILE: YAML or JSON
+    factory.enum_names = {reg.name: {v.name.upper(): v.value for v in model.enum(reg.enum).values}  # type: ignore[attr-defined]
+                          for reg in model.registers if reg.enum is not None}
     return factory
+
+
+def read_values_yaml(path: Path) -> list[tuple[str, Any, int, int]]:
+    """``drivemap simulate --values FILE``: a YAML (or JSON) mapping of cell names to engineering
+    values, each entry located at its key (the checks are :func:`drivemap.runtime.sim.presets.from_file`'s)."""
+    import yaml
+
+    from drivemap.runtime.sim.presets import PresetError
+
+    where = str(path)
+    try:
+        node = yaml.compose(path.read_text(encoding="utf-8"), Loader=yaml.SafeLoader)
+    except OSError as exc:
+        raise PresetError(f"{where}:1:1: error: cannot read values: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise PresetError(f"{where}:1:1: error: cannot read values: not UTF-8 text") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+        raise PresetError(f"{where}:{line}:{col}: error: not YAML or JSON: {getattr(exc, 'problem', exc)}") from None
+    if node is None:
+        return []
+    if not isinstance(node, yaml.MappingNode):
+        raise PresetError(f"{where}:{node.start_mark.line + 1}:{node.start_mark.column + 1}: error: "
+                          "expected a mapping of register names to values")
+    loader = yaml.SafeLoader("")
+    return [(str(key.value), loader.construct_object(value, deep=True), key.start_mark.line + 1,
+             key.start_mark.column + 1) for key, value in node.value]
 
 
 def render_tree(models: Sequence[Model], options: Options | None = None) -> dict[str, str]:

@@ -14,7 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from drivemap import __version__
 from drivemap.diagnostics import CompileError, Diagnostic, Location
@@ -167,25 +167,43 @@ def cmd_export(args: argparse.Namespace) -> int:
     from drivemap.compiler import compile_map, resolve_map
 
     exporters = available()
+    if args.help:
+        return _export_help(args, exporters)
     if args.list:
         width = max(len(n) for n in exporters)
         for name, cls in exporters.items():
             print(f"{name.ljust(width)}  {cls.help}")
         return 0
-    if args.model is None:
+    if not args.model:
         raise UsageError("drivemap export", "give MODEL or PATH (or --list)")
     if args.format not in exporters:
         raise UsageError("drivemap export", f"unknown format {args.format!r} (installed: {', '.join(exporters)})")
     exporter = exporters[args.format]()
-    own = _Parser(prog=f"drivemap export MODEL --format {args.format}", add_help=False)
-    exporter.add_arguments(own)
-    values = vars(own.parse_args(args.rest))
-    project = _project(args)
-    model = compile_map(resolve_map(args.model, project))
+    own = _exporter_parser(args.format, exporter)
+    hint = f" (its options: drivemap export --format {args.format} --help)"
     try:
-        files = export_files(exporter, model, project, values, args.output)
+        values = vars(own.parse_args(args.rest))
+    except UsageError as exc:
+        raise UsageError(f"drivemap export --format {args.format}", str(exc).split(": error: ", 1)[-1] + hint) from None
+    project = _project(args)
+    devices = [(compile_map(resolve_map(name, project)), unit) for name, unit in map(_device, args.model)]
+    try:
+        if len(devices) == 1:
+            model, unit = devices[0]
+            if unit is not None:
+                if values.get("unit") is not None:
+                    raise OptionError(f"the unit is given twice: {args.model[0]} and --unit {values['unit']}")
+                values["unit"] = unit
+            files = export_files(exporter, model, project, values, args.output)
+        elif not hasattr(exporter, "render_line"):
+            raise UsageError(f"drivemap export --format {args.format}", "several devices in one export: only "
+                             "--format homeassistant (one hub per line); export them one by one")
+        else:
+            from drivemap.build import options_for
+
+            files = exporter.render_line(devices, options_for(project, values))
     except OptionError as exc:
-        raise UsageError(f"drivemap export --format {args.format}", str(exc)) from None
+        raise UsageError(f"drivemap export --format {args.format}", str(exc) + hint) from None
     if args.output is None:
         for _, text in sorted(files.items()):
             sys.stdout.write(text)
@@ -193,11 +211,45 @@ def cmd_export(args: argparse.Namespace) -> int:
     return _write_export(Path(args.output), files, exporter.multi_file, args.force)
 
 
+def _device(text: str) -> tuple[str, int | None]:
+    """``MODEL`` or ``MODEL:UNIT`` (a device on a line shared with others)."""
+    name, sep, unit = text.rpartition(":")
+    if sep and name and unit.isascii() and unit.isdigit():
+        return name, int(unit)
+    return text, None
+
+
+def _exporter_parser(fmt: str, exporter: object) -> argparse.ArgumentParser:
+    own = _Parser(prog=f"drivemap export MODEL --format {fmt}", add_help=False)
+    exporter.add_arguments(own)  # type: ignore[attr-defined]
+    return own
+
+
+def _export_help(args: argparse.Namespace, exporters: dict[str, Any]) -> int:
+    """``drivemap export --help``; with ``--format X`` the options of that exporter too."""
+    sys.stdout.write(args.help_parser.format_help())
+    if args.format in exporters:
+        own = _exporter_parser(args.format, exporters[args.format]())
+        options = own.format_help().partition("\n\n")[2].strip("\n")  # without the usage lines
+        print(f"\noptions of --format {args.format} ({exporters[args.format].help}):")
+        print(options.replace("options:\n", "", 1) if options else "  (none)")
+    else:
+        print(f"\nunknown format {args.format!r}; installed: {', '.join(exporters)}")
+    print("\n(each exporter has its own options: drivemap export --format NAME --help)")
+    return 0
+
+
 def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool) -> int:
     from drivemap.backends import output
 
-    root = target if multi else target.parent
-    change = output.plan(root, files if multi else {target.name: next(iter(files.values()))}, prune=False, force=force)
+    if not multi:  # one file: written alone, no manifest beside it
+        errors = output.write_single(target, next(iter(files.values())), force=force)
+        if errors:
+            return _report(errors)
+        print(f"wrote {display(target)}")
+        return 0
+    root = target
+    change = output.plan(root, files, prune=False, force=force)
     if change.errors:
         return _report(change.errors)
     output.write(change)
@@ -297,14 +349,18 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("model", nargs="?", metavar="MODEL|PATH")
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_examples)
-    s = sub.add_parser("export", help="export a model with an exporter plugin (--list shows them)")
-    s.add_argument("model", nargs="?", metavar="MODEL|PATH")
+    s = sub.add_parser("export", help="export a model with an exporter plugin (--list shows them)", add_help=False)
+    s.add_argument("-h", "--help", action="store_true",
+                   help="show this help; with --format NAME the options of that exporter too")
+    s.add_argument("model", nargs="*", metavar="MODEL[:UNIT]",
+                   help="model id or map path; several MODEL:UNIT (ev:1 vfd1000:2) for devices sharing one line "
+                        "(--format homeassistant: one hub)")
     s.add_argument("--format", default="json", help="exporter name (default: json)")
     s.add_argument("-o", "--output", default=None, metavar="FILE|DIR", help="write here instead of stdout")
     s.add_argument("--force", action="store_true", help="replace an output file changed since drivemap wrote it")
     s.add_argument("--list", action="store_true", help="list the installed exporters")
     _project_flags(s)
-    s.set_defaults(func=cmd_export)
+    s.set_defaults(func=cmd_export, help_parser=s)
     s = sub.add_parser("new", help="scaffold MODEL.yaml in the project's maps folder")
     s.add_argument("model")
     s.add_argument("--dir", default=None, help="folder for the new map (default: the project's maps folder)")

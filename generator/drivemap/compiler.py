@@ -8,10 +8,11 @@ and render nothing.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from drivemap.backends.export import export
 from drivemap.backends.exporters.base import Exporter
@@ -87,23 +88,54 @@ def looks_like_path(text: str) -> bool:
     return text.endswith((".yaml", ".yml")) or "/" in text or os.sep in text
 
 
-def resolve_map(name: str, project: Project) -> Path:
+def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Path:
     """The map of ``name``: a path to a map file, else the project's map of that model id, else
-    the seed map of that id shipped with drivemap."""
+    the seed map of that id shipped with drivemap.
+
+    Which file is used is said on ``notes`` (stderr by default) whenever it is not the project's: a
+    note for a shipped map, and a warning naming both when the project's map and a shipped map of
+    the same id differ (the project's wins), so a register name that is "not there" is never a mystery.
+    """
     if looks_like_path(name):
         path = Path(name)
         if path.is_file():
             return path
         raise CompileError([Diagnostic(Location(display(path), 1, 1), "no such map file")])
     found = project.find_map(name)
-    if found is None:
-        found = next((p for p in bundled_maps() if p.stem == name), None)
+    shipped = next((p for p in bundled_maps() if p.stem == name), None)
+    if found is not None and shipped is not None and _differ(found, shipped):
+        _say(notes, Diagnostic(Location(display(found), 1, 1),
+                               f"the project's map of {name!r} differs from the map of the same id shipped with "
+                               f"drivemap ({shipped}); using the project's", severity="warning").format())
+    if found is None and shipped is not None:
+        where = ", ".join(display(m) for m in project.maps)
+        _say(notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using the map shipped with "
+                    f"drivemap: {shipped}")
+        found = shipped
     if found is None:
         known = sorted({p.stem for p in project.map_files()})
         hint = f" (the project has: {', '.join(known)})" if known else " (the project has no maps)"
         where = display(project.maps_folder() / f"{name}.yaml")
         raise CompileError([Diagnostic(Location(where, 1, 1), f"no map for model {name!r}{hint}")])
     return found
+
+
+_SAID: set[str] = set()
+
+
+def _say(notes: TextIO | None, text: str) -> None:
+    """Print a note about which map is used, once per process (a verb may resolve a model twice)."""
+    if notes is None and text in _SAID:
+        return
+    _SAID.add(text)
+    print(text, file=notes if notes is not None else sys.stderr)
+
+
+def _differ(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() != b.resolve() and a.read_bytes() != b.read_bytes()
+    except OSError:
+        return True
 
 
 def load_model(name: str, project: Project | None = None) -> Model:

@@ -99,9 +99,12 @@ def _message(error: ValidationError) -> tuple[PathT, str, bool]:
         key = extra[0] if extra else "?"
         hint = f" (allowed: {', '.join(allowed)})" if allowed and len(allowed) <= 60 else ""
         return path + (key,), f"unknown key {key!r} in {where}{hint}", True
+    # a subschema whose description starts "Fix: " tells the map's author what to write and why
+    advice = sub.get("description")
+    why = f"; {advice[5:]}" if isinstance(advice, str) and advice.startswith("Fix: ") else ""
     if kind == "required":
         missing = error.message.split("'")[1] if "'" in error.message else "?"
-        return path, f"{where}: missing required key {missing!r}", False
+        return path, f"{where}: missing required key {missing!r}{why}", False
     if kind == "type":
         expected = value
         names = [str(_TYPE_NAMES.get(t, t)) for t in (expected if isinstance(expected, list) else [expected])]
@@ -110,7 +113,7 @@ def _message(error: ValidationError) -> tuple[PathT, str, bool]:
         options = ", ".join(repr(v) for v in value)
         return path, f"{where}: {short(inst)} is not one of {options}", False
     if kind == "const":
-        return path, f"{where}: must be {value!r}, got {short(inst)}", False
+        return path, f"{where}: must be {value!r}, got {short(inst)}{why}", False
     if kind == "pattern":
         return path, f"{where}: {short(inst)} does not match the pattern {value}", False
     if kind in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):

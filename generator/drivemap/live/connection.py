@@ -97,7 +97,7 @@ def _host_port(text: str, option: str, default_port: int | None) -> tuple[str, i
         if default_port is None:
             raise LiveError(EXIT_INPUT, f"{option} wants HOST:PORT, not {text!r}")
         return host, default_port
-    if not port.isdigit() or not 0 < int(port) <= 65535 or not host:
+    if not (port.isascii() and port.isdigit()) or not 0 < int(port) <= 65535 or not host:
         raise LiveError(EXIT_INPUT, f"{option} wants HOST:PORT, not {text!r}")
     return host, int(port)
 

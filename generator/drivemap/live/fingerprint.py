@@ -50,6 +50,12 @@ def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str,
     return None
 
 
+def unset_zero(reg: Register, index: int, raw: int) -> bool:
+    """A value outside the map's range that is 0 on a register with no documented power-up value:
+    "not set yet", a note (verify and scan alike), never a disagreement."""
+    return raw == 0 and reg.default_at(index) is None
+
+
 def _decoded_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int]) -> str | None:
     """Strings and bools fit as read; floats and scaled values are checked against min/max decoded."""
     from drivemap.live.fmt import decode
@@ -80,6 +86,8 @@ class Fit:
     problems: list[str] = field(default_factory=list)
     #: "identity" when the map's identity registers decided (they are read first), else "fingerprint"
     by: str = "fingerprint"
+    #: values outside the map's range that read 0 with no documented power-up value (see :func:`unset_zero`)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def fits(self) -> bool:
@@ -95,13 +103,20 @@ class Fit:
         if self.fits and self.by == "identity":
             return f"{self.model} fits by identity ({self.values} identity registers match)"
         if self.fits:
-            return f"{self.model} fits ({self.answered}/{self.requests} reads, {self.values} values in range)"
-        first = f": {self.problems[0]}" if self.problems else ""
-        return f"{self.model} does not ({self.answered}/{self.requests} reads answered{first})"
+            unset = f"; {len(self.notes)} read 0, not set yet?" if self.notes else ""
+            return f"{self.model} fits ({self.answered}/{self.requests} reads, {self.values} values in range{unset})"
+        return f"{self.model} does not ({self.answered}/{self.requests} reads answered{self.why()})"
+
+    def why(self) -> str:
+        """``: <the first problem> (+N more)``, or nothing."""
+        if not self.problems:
+            return ""
+        more = f" (+{len(self.problems) - 1} more)" if len(self.problems) > 1 else ""
+        return f": {self.problems[0]}{more}"
 
     def json(self) -> dict[str, Any]:
         return {"model": self.model, "fits": self.fits, "by": self.by, "requests": self.requests,
-                "answered": self.answered, "values": self.values, "problems": self.problems}
+                "answered": self.answered, "values": self.values, "problems": self.problems, "notes": self.notes}
 
 
 def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
@@ -155,7 +170,9 @@ def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
         fit.answered += 1
         for (name, index), raw in raws.items():
             fit.values += 1
-            problem = value_problem(target, target.model.register(name), raw, raws)
+            reg = target.model.register(name)
+            problem = value_problem(target, reg, raw, raws)
             if problem:
-                fit.problems.append(f"{target.model.register(name).element_name(index)}: {problem}")
+                (fit.notes if unset_zero(reg, index, raw) else fit.problems).append(
+                    f"{reg.element_name(index)}: {problem}")
     return fit

@@ -7,7 +7,8 @@ answers (devices on one line share its settings) unless ``--all-settings``. Each
 then read with every project map's planned requests (a read fingerprint: a map fits when every
 request is answered and every value lies within its enum and min/max), except that a map naming
 ``identity`` registers is judged by them first: they are read, and the map fits exactly when each
-holds the value the map states (such a fit ranks above every fingerprint). The number of probes is known in advance (progress bar, ETA), each
+holds the value the map states (such a fit ranks above every fingerprint); a value that reads 0 where
+the map documents no power-up value is a note, "not set yet?", as in verify. The number of probes is known in advance (progress bar, ETA), each
 probe waits at most ``--timeout``; Ctrl-C stops and prints what was found.
 """
 
@@ -287,3 +288,7 @@ def show(result: Scan, as_json: bool) -> None:
         bad = ", ".join(f"{fit.model} ({fit.answered}/{fit.requests} reads)" for fit in f.fits if not fit.fits)
         table.add_row(str(f.unit), f.link.line(), f.answer, good, bad or "-")
     out.print(table)
+    for f in result.found:  # why each map does not fit (the same reasons --json gives)
+        for fit in f.fits:
+            if not fit.fits:
+                out.print(f"unit {f.unit}: {fit.model} does not fit{fit.why() or ': no read answered'}", soft_wrap=True)

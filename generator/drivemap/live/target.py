@@ -70,9 +70,12 @@ class Target:
                 return self.line_of("protocol", "exceptions", i)
         return None
 
-    def register_at(self, address: int) -> tuple[Register, int] | None:
-        """The register cell (register, element index) that holds ``address``, if any."""
+    def register_at(self, address: int, table: str) -> tuple[Register, int] | None:
+        """The register cell (register, element index) of ``table`` that holds ``address``, if any
+        (the four tables have their own addresses: holding 0x0002 is not input 0x0002)."""
         for reg in self.model.registers:
+            if reg.table != table:
+                continue
             for i in range(reg.count):
                 start = reg.element_address(i)
                 if start <= address < start + reg.words:

@@ -5,7 +5,12 @@
 * bit flags: names joined by ``|`` (``net_in=X0|X2``), ``0`` for none, or a number;
 * bit fields with multi-bit parts: ``field:value`` pairs joined by ``,``
   (``rs485_comm_settings=parity:EVEN,stop_bits:0,data_bits:0``);
-* a whole array: values joined by ``,`` (``digital_speed=1500,1500,0,0,0,0,0,0``).
+* a whole array: values joined by ``,`` (``digital_speed=1500,1500,0,0,0,0,0,0``);
+* coils and flags: ``true``/``false``, ``on``/``off``, ``1``/``0`` (any case).
+
+Numbers are ASCII (``int(text, 0)`` and ``float`` would take other scripts' digits). A value
+between two steps of the register's resolution is refused with the nearest representable values;
+``round_values`` (``drivemap write --round``) sends the nearer one instead and says so.
 
 Every value is encoded with the register's codec (the generated client's), so range, type and
 enum checks are exactly the client's; any failure is a located error and nothing is sent.
@@ -25,20 +30,21 @@ from drivemap.diagnostics import CompileError
 from drivemap.live.target import Target, command_line_error, register_note
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.codec import (
+    BoolCodec,
     EnumCodec,
     FieldsCodec,
     FlagCodec,
-    FloatCodec,
-    IeeeCodec,
     IntCodec,
-    OptionalCodec,
-    ScaledCodec,
+    RawCodec,
     StringCodec,
+    number_text,
+    unwrap,
 )
 from drivemap.runtime.client.sansio import Deferred
-from drivemap.runtime.errors import DriveError
+from drivemap.runtime.errors import DriveError, InexactValue
 
-_NAME = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
+_NAME = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[([0-9]+)\])?$")
+_BOOLS = {"true": True, "on": True, "1": True, "false": False, "off": False, "0": False}
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,8 @@ class Assignment:
     #: (element name, index, raw, engineering value); the raw value of a register with a scale
     #: register is a :class:`Deferred`: the client reads the factor just before the write
     items: tuple[tuple[str, int, int | Deferred, Any], ...]
+    #: what ``--round`` changed: "NAME: asked X, sending Y"
+    rounded: tuple[str, ...] = ()
 
 
 def locate_error(token: str, message: str, target: Target | None = None, reg: Register | None = None,
@@ -63,13 +71,14 @@ def locate_error(token: str, message: str, target: Target | None = None, reg: Re
     return command_line_error(args, index, message, related)
 
 
-def parse_assignments(target: Target, texts: Sequence[str]) -> list[Assignment]:
-    """Every ``NAME=VALUE`` checked and encoded; all errors reported together, nothing sent."""
+def parse_assignments(target: Target, texts: Sequence[str], round_values: bool = False) -> list[Assignment]:
+    """Every ``NAME=VALUE`` checked and encoded, in the order given; all errors reported together,
+    nothing sent."""
     out: list[Assignment] = []
     errors: list[Any] = []
     for text in texts:
         try:
-            out.append(parse_assignment(target, text))
+            out.append(parse_assignment(target, text, round_values))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
     if errors:
@@ -77,7 +86,7 @@ def parse_assignments(target: Target, texts: Sequence[str]) -> list[Assignment]:
     return out
 
 
-def parse_assignment(target: Target, text: str) -> Assignment:
+def parse_assignment(target: Target, text: str, round_values: bool = False) -> Assignment:
     name, sep, value = text.partition("=")
     if not sep:
         raise locate_error(text, f"{text!r}: write NAME=VALUE (e.g. digital_speed[0]=1500)")
@@ -93,19 +102,34 @@ def parse_assignment(target: Target, text: str) -> Assignment:
         raise locate_error(text, f"{reg.name} has {reg.count} elements: give {reg.count} values joined by ',' "
                                  f"or one element as {reg.name}[i]=VALUE", target, reg)
     items = []
+    rounded: list[str] = []
     for i, part in zip(indexes, parts, strict=True):
         try:
             engineering = from_text(codec, part.strip())
             raw: int | Deferred
             if codec.scale_key is not None:  # checked now, scaled by the factor read at the write
                 codec.check(engineering)
-                raw = Deferred(engineering, codec)
+                raw = Deferred(engineering, codec, round_values)
             else:
-                raw = codec.encode(engineering)
+                raw, sent = _encode(codec, engineering, round_values)
+                if sent != engineering:
+                    rounded.append(f"{reg.element_name(i)}: asked {number_text(engineering)}, sending "
+                                   f"{number_text(sent)} (--round)")
+                    engineering = sent
         except (DriveError, ValueError) as exc:
             raise locate_error(text, f"{text}: {exc}", target, reg) from None
         items.append((reg.element_name(i), i, raw, engineering))
-    return Assignment(text, reg, tuple(items))
+    return Assignment(text, reg, tuple(items), tuple(rounded))
+
+
+def _encode(codec: Any, value: Any, round_values: bool) -> tuple[int, Any]:
+    """(raw, value sent): a value between two steps is refused, or with ``round_values`` the nearer step."""
+    try:
+        return codec.encode(value), value
+    except InexactValue as exc:
+        if not round_values or exc.rounded_raw is None:
+            raise
+        return codec.encode(exc.rounded), exc.rounded
 
 
 def lookup(target: Target, name: str, token: str) -> tuple[Register, int | None]:
@@ -134,6 +158,9 @@ def _similar(target: Target, name: str) -> str:
 
 def from_text(codec: Any, text: str) -> Any:
     """The engineering value of ``text`` for ``codec`` (ValueError with a message when it is not one)."""
+    codec = unwrap(codec)
+    if isinstance(codec, BoolCodec):
+        return parse_bool(text)
     if isinstance(codec, EnumCodec):
         return _member(codec.enum_type, text)
     if isinstance(codec, FlagCodec):
@@ -143,18 +170,27 @@ def from_text(codec: Any, text: str) -> Any:
     labelled = _labelled(codec, text)
     if labelled is not None:
         return labelled
+    if isinstance(codec, StringCodec):
+        return text
     if isinstance(codec, IntCodec):
         number = _number(text)
         if not float(number).is_integer():
             raise ValueError(f"{text!r} is not a whole number")
         return int(number)
-    if isinstance(codec, (FloatCodec, IeeeCodec, ScaledCodec)):
-        return float(_number(text))  # never truncated: the codec refuses what the register cannot hold
-    if isinstance(codec, StringCodec):
-        return text
-    if isinstance(codec, OptionalCodec):
-        return from_text(codec.inner, text)
-    return int(_number(text))
+    if isinstance(codec, RawCodec):
+        number = _number(text)
+        if not float(number).is_integer():
+            raise ValueError(f"{text!r} is not a whole number")
+        return int(number)
+    return float(_number(text))  # fractional scale, scale factor, f32/f64: never truncated to an int
+
+
+def parse_bool(text: str) -> bool:
+    """true/false, on/off, 1/0 in any case; anything else is a ValueError."""
+    value = _BOOLS.get(text.strip().lower())
+    if value is None:
+        raise ValueError(f"{text!r} is not a bool (write true/false, on/off or 1/0)")
+    return value
 
 
 def _labelled(codec: Any, text: str) -> float | str | None:
@@ -165,6 +201,8 @@ def _labelled(codec: Any, text: str) -> float | str | None:
 
 
 def _number(text: str) -> float:
+    if not text.isascii():
+        raise ValueError(f"{text!r} is not a number (write ASCII digits)")
     try:
         return int(text, 0)
     except ValueError:
@@ -175,12 +213,19 @@ def _number(text: str) -> float:
         raise ValueError(f"{text!r} is not a number") from None
 
 
+def _int(text: str) -> int:
+    """An ASCII integer (decimal, 0x.., 0b.., 0o..)."""
+    if not text.isascii():
+        raise ValueError(f"{text!r} is not a number (write ASCII digits)")
+    return int(text, 0)
+
+
 def _member(enum_type: type[enum.IntEnum], text: str) -> enum.IntEnum:
     by_name = {m.name.upper(): m for m in enum_type}
     if text.upper() in by_name:
         return by_name[text.upper()]
     try:
-        number = int(text, 0)
+        number = _int(text)
     except ValueError:
         raise ValueError(f"{text!r} is not a value of {enum_type.__name__} "
                          f"({', '.join(m.name for m in enum_type)})") from None
@@ -199,7 +244,7 @@ def _flags(flag_type: type[enum.IntFlag], text: str) -> enum.IntFlag:
             value |= names[part.upper()]
             continue
         try:
-            value |= flag_type(int(part, 0))
+            value |= flag_type(_int(part))
         except ValueError:
             raise ValueError(f"{part!r} is not a bit of {flag_type.__name__} ({'|'.join(names)})") from None
     known = 0
@@ -221,8 +266,13 @@ def _fields(codec: FieldsCodec[Any], text: str) -> Any:
         if field.enum_type is not None:
             given[field.attribute] = _member(field.enum_type, raw.strip())
         else:
-            number = int(_number(raw.strip()))
-            given[field.attribute] = bool(number) if _width(codec, field.bit) == 1 else number
+            if _width(codec, field.bit) == 1:
+                given[field.attribute] = parse_bool(raw)
+                continue
+            number = _number(raw.strip())
+            if not float(number).is_integer():
+                raise ValueError(f"{part!r}: {raw.strip()!r} is not a whole number")
+            given[field.attribute] = int(number)
     missing = [name for name in fields if name not in given]
     if missing:
         raise ValueError(f"give every field ({', '.join(f'{n}:VALUE' for n in fields)}); missing {', '.join(missing)}")

@@ -148,4 +148,12 @@ def summary(results: Results, md: object, js: object) -> None:
     notes = len(results.findings) - len(bad)
     verdict = "map and device agree" if not bad else f"{len(bad)} disagreements"
     out.print(f"{verdict}; {notes} notes; checked: {covered}")
+    not_written: dict[str, list[str]] = {}
+    for text in results.skipped:
+        name, sep, why = text.partition(": not written by --write-safe: ")
+        if sep:
+            not_written.setdefault(why, []).append(name)
+    for why, names in not_written.items():
+        shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+        out.print(f"--write-safe did not write {len(names)}: {why}: {shown}")
     out.print(f"report: {md} and {js}")

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from drivemap.live.fingerprint import value_problem
+from drivemap.live.fingerprint import unset_zero, value_problem
 from drivemap.live.session import Session
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.planner import Key, ReadRequest
@@ -93,7 +93,7 @@ def check_value(session: Session, reg: Register, index: int, raw: int, results: 
     if problem is None:
         ratio_note(session, reg, index, raw, results)
         return
-    unset = raw == 0 and reg.default_at(index) is None
+    unset = unset_zero(reg, index, raw)
     results.add(Finding("value", "note" if unset else "disagree", name, reg.element_address(index), reg.line,
                         _range_text(reg), problem,
                         "0 with no documented power-up value: not set yet?" if unset else
@@ -132,7 +132,7 @@ def shift_hint(session: Session, reg: Register, index: int) -> str:
     answering = []
     for delta in range(-SHIFT_PROBE, SHIFT_PROBE + 1):
         probe = address + delta
-        if delta == 0 or not 0 <= probe <= 0xFFFF or session.target.register_at(probe) is not None:
+        if delta == 0 or not 0 <= probe <= 0xFFFF or session.target.register_at(probe, reg.table) is not None:
             continue
         try:
             session.read_words(probe, reg.words, reg.table)

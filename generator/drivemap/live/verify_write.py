@@ -19,13 +19,39 @@ from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout
 
 
 def candidates(session: Session, cells: list[Cell], eeprom: bool, results: Results) -> list[Cell]:
+    """The cells --write-safe writes; every other writable cell is listed in ``results.skipped`` with why."""
     model = session.target.model
     selectors = {r.page.selector for r in model.registers if r.page is not None}
     config = model.protocol.configuration.register if model.protocol.configuration else None
-    storages = {"ram", "eeprom"} if eeprom else {"ram"}
-    return [(reg, i) for reg, i in cells
-            if reg.access == "rw" and reg.storage in storages and reg.command_value is None and not reg.bits
-            and reg.name not in selectors and reg.name != config and (reg.name, i) in results.alone]
+    out: list[Cell] = []
+    for reg, i in cells:
+        why = skip_reason(reg, eeprom, selectors, config, (reg.name, i) in results.alone)
+        if why is None:
+            out.append((reg, i))
+        elif reg.writable:
+            results.skipped.append(f"{reg.element_name(i)}: not written by --write-safe: {why}")
+    return out
+
+
+def skip_reason(reg: Register, eeprom: bool, selectors: set[str], config: str | None, read: bool) -> str | None:
+    """Why --write-safe does not write ``reg`` (None: it does)."""
+    if reg.access != "rw":
+        return "write-only (cannot be read back)"
+    if reg.command_value is not None:
+        return "a command register (writing it acts)"
+    if reg.name in selectors:
+        return "a page selector (writing it changes what other registers read)"
+    if reg.name == config:
+        return "the Configuration command"
+    if reg.bits:
+        return "a bit field (its bits may act)"
+    if reg.storage == "eeprom" and not eeprom:
+        return "stored in EEPROM (limited write cycles; --eeprom writes it too)"
+    if reg.storage not in ("ram", "eeprom"):
+        return f"storage {reg.storage} (only RAM registers, and EEPROM ones with --eeprom, are written)"
+    if not read:
+        return "its value was not read (nothing to restore)"
+    return None
 
 
 def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str, int]]:

@@ -8,6 +8,7 @@ after a power cycle), ``--apply`` sends the Configuration command where the map 
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 from typing import Any
 
@@ -35,8 +36,12 @@ REFLECT = {
 }
 STORAGE = {"eeprom": "EEPROM (kept at power-off)", "ram": "RAM (lost at power-off)",
            "volatile": "volatile", "unknown": "unknown"}
-FUNCTION_NAMES = {0x03: "read holding registers", 0x04: "read input registers",
-                  0x06: "write single register", 0x10: "write multiple registers"}
+FUNCTION_NAMES = {0x01: "read coils", 0x02: "read discrete inputs", 0x03: "read holding registers",
+                  0x04: "read input registers", 0x05: "write single coil", 0x06: "write single register",
+                  0x0F: "write multiple coils", 0x10: "write multiple registers"}
+#: The table a request's addresses are in, by function code.
+FUNCTION_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input", 0x05: "coil", 0x06: "holding",
+                   0x0F: "coil", 0x10: "holding"}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -47,7 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p.add_argument("model", metavar="MODEL|PATH")
     p.add_argument("assignments", nargs="*", metavar="NAME=VALUE")
     p.add_argument("--apply", action="store_true", help="send the map's Configuration command after the writes")
-    p.add_argument("--dry-run", action="store_true", help="print the frames; send nothing")
+    p.add_argument("--dry-run", action="store_true", help="print the frames, in the order they go out; send nothing")
+    p.add_argument("--round", action="store_true",
+                   help="round a value between two steps of the register's resolution to the nearer step "
+                        "(default: refuse it and name the nearest values); says what it sends")
     p.add_argument("--no-read-back", action="store_true", help="do not read written registers back")
     p.add_argument("--switch-pages", action="store_true", help="write page selectors as needed")
     add_connection_arguments(p)
@@ -61,7 +69,13 @@ def cmd_write(args: argparse.Namespace) -> int:
     texts = positionals(args, "assignments")
     if not texts:
         raise LiveError(EXIT_INPUT, "give at least one NAME=VALUE")
-    assignments = parse_assignments(target, texts)
+    assignments = parse_assignments(target, texts, args.round)
+    for a in assignments:
+        for note in a.rounded:
+            print(f"drivemap write: note: {note}", file=sys.stderr)
+    if args.round and any(isinstance(raw, Deferred) for a in assignments for _, _, raw, _ in a.items):
+        print("drivemap write: note: --round: values scaled by a factor register are rounded to the factor read "
+              "at the write; the read back shows what was sent", file=sys.stderr)
     if args.apply and target.model.protocol.configuration is None:
         raise LiveError(EXIT_INPUT, f"--apply: {target.model.name}'s map has no Configuration command")
     items = [((a.register.name, index), raw) for a in assignments for _, index, raw, _ in a.items]
@@ -168,13 +182,19 @@ def frame_text(frame: bytes, link: Link) -> str:
 
 
 def describe_request(target: Target, pdu: ModbusPDU) -> str:
+    """``write multiple registers (10h) at 0x0002, 2 words: demand_period``: the names resolved in the
+    table the function code addresses."""
     code = pdu.function_code
     address = getattr(pdu, "address", 0)
-    words = list(getattr(pdu, "registers", []) or [])
+    table = FUNCTION_TABLES.get(code, "holding")
+    bits = table in ("coil", "discrete")
+    items = list(getattr(pdu, "bits", []) or []) if bits else list(getattr(pdu, "registers", []) or [])
+    count = len(items) or getattr(pdu, "count", 0)
     names = []
-    for offset in range(len(words)):
-        hit = target.register_at(address + offset)
+    for offset in range(count):
+        hit = target.register_at(address + offset, table)
         if hit is not None and hit[0].element_address(hit[1]) == address + offset:
             names.append(hit[0].element_name(hit[1]))
     what = FUNCTION_NAMES.get(code, "request")
-    return f"{what} ({code:02X}h) at 0x{address:04X}, {len(words)} word{'s' if len(words) != 1 else ''}: {', '.join(names)}"
+    unit = "coil" if bits else "word"
+    return f"{what} ({code:02X}h) at 0x{address:04X}, {count} {unit}{'s' if count != 1 else ''}: {', '.join(names)}"

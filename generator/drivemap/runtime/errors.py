@@ -37,6 +37,20 @@ class MisalignedRequest(DriveError, ValueError):
     quantity the device refuses, or part of a multi-word value."""
 
 
+class InexactValue(ValueOutOfRange):
+    """The value lies between two steps of the register's resolution (its scale, offset or scale
+    factor): it is refused, never rounded. ``nearest`` holds the representable values either side
+    (within the register's range), ``rounded`` the nearer one (half away from zero) or None, and
+    ``rounded_raw`` its raw value: what an explicit rounding (``drivemap write --round``) sends."""
+
+    def __init__(self, message: str, nearest: tuple[float, ...] = (), rounded: float | None = None,
+                 rounded_raw: int | None = None) -> None:
+        super().__init__(message)
+        self.nearest = nearest
+        self.rounded = rounded
+        self.rounded_raw = rounded_raw
+
+
 class InvalidArgument(DriveError, ValueError):
     """An argument that is none of the values the call accepts (e.g. ``page_policy``, a serial setting)."""
 
@@ -108,7 +122,7 @@ class ScaleUnavailable(DriveError):
 class PartialWrite(DriveError):
     """A write that needed several requests stopped part-way: what was and was not written.
 
-    Element names (``"digital_speed[3]"``), in address order:
+    Element names (``"digital_speed[3]"``), in the order written:
 
     * ``written``: confirmed by the device's reply (or sent, for a broadcast);
     * ``maybe_written``: in the request that got no valid reply (timeout, transport error): the
@@ -166,6 +180,7 @@ __all__ = [
     "DriveTimeout",
     "IdentityMismatch",
     "IndexOutOfRange",
+    "InexactValue",
     "InvalidArgument",
     "InvalidValue",
     "MisalignedRequest",

@@ -178,6 +178,8 @@ class _Build:
                 "register_type": REGISTER_TYPES[point.reg.table], "address": Hex(point.address)}
 
     def _add(self, platform: str, point: iv.Point, config: dict[str, Any], polled: bool = True) -> None:
+        if platform in ("switch", "number", "select") and needs_write_multiple(self.model, point.reg):
+            config["use_write_multiple"] = True  # the map lists no single write (06h / 05h) for it
         self.items.append(Item(platform, config, point.address, point.reg.words, polled, table=point.reg.table))
 
     def _point(self, point: iv.Point) -> None:
@@ -273,8 +275,8 @@ class _Build:
         if reg.name in self.factors:
             config["id"] = self.factors[reg.name]
         if reg.unit and not reg.enum and not reg.bits:
-            config["unit_of_measurement"] = text(reg.unit)
-            device_class, state_class = iv.DEVICE_CLASSES.get(reg.unit, (None, None))
+            config["unit_of_measurement"] = text(iv.unit_for(reg.unit))
+            device_class, state_class = iv.DEVICE_CLASSES.get(iv.unit_for(reg.unit), (None, None))
             if device_class:
                 config["device_class"] = device_class
             if state_class:
@@ -310,12 +312,16 @@ class _Build:
         if reg.name in self.factors:
             config["id"] = self.factors[reg.name]
         if reg.unit:
-            config["unit_of_measurement"] = text(reg.unit)
+            config["unit_of_measurement"] = text(iv.unit_for(reg.unit))
         self._add("number", point, config)
         return True
 
     def _switches(self, point: iv.Point, name: str) -> None:
         reg = point.reg
+        if reg.words > 1:  # an ESPHome switch writes one register; the device takes this one only whole
+            self.notes.append(f"not exported: {point.cell.name} is a {reg.words}-register command "
+                              "(an ESPHome switch writes one register)")
+            return
         commands = [(name, reg.command_value or 0)] if point.is_command else \
             [(f"{name} {v.name}", v.value) for v in self.model.enum(reg.enum or "").values]
         for label, value in commands:
@@ -329,6 +335,15 @@ class _Build:
                   "id": f"gap_{prefix}{address:04x}", "internal": True, "register_type": REGISTER_TYPES[table],
                   "address": Hex(address), "value_type": "U_WORD", "register_count": words}
         return Item("sensor", config, address, words, True, filler=True, table=table)
+
+
+def needs_write_multiple(model: Model, reg: Register) -> bool:
+    """True when the map lists no single write for ``reg`` (06h for a one-word register, 05h for a
+    coil) but the multiple one (10h / 0Fh): ESPHome then needs ``use_write_multiple: true``."""
+    has = model.protocol.function
+    if reg.table == "coil":
+        return has(0x05) is None and has(0x0F) is not None
+    return reg.table == "holding" and reg.words == 1 and has(0x06) is None and has(0x10) is not None
 
 
 def _options(labels: tuple[tuple[int, str], ...]) -> dict[str, int]:

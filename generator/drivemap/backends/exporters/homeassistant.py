@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from drivemap.backends.exporters._yaml import Hex, dump, header
@@ -135,6 +135,12 @@ class HomeAssistantExporter(Exporter):
         iv.add_selection_arguments(parser)
         iv.add_serial_arguments(parser)
 
+    def render_line(self, devices: Sequence[tuple[Model, int | None]], options: Options) -> dict[str, str]:
+        """Several devices on one line: one hub (:mod:`.homeassistant_line`)."""
+        from drivemap.backends.exporters.homeassistant_line import render_line
+
+        return render_line(devices, options)
+
     def render(self, model: Model, options: Options) -> dict[str, str]:
         values = options.values
         version = _version(values.get("ha_version"))
@@ -216,12 +222,8 @@ class _Build:
             if reg.bit_table:
                 self._bit(point)
                 continue
-            if point.is_command:
-                self.switches.append(self._switch(point, point.key, reg.command_value or 0))
-                continue
-            if reg.enum and not reg.readable and point.writable:
-                for item in self.model.enum(reg.enum).values:
-                    self.switches.append(self._switch(point, f"{point.key} {item.name}", item.value))
+            if point.is_command or (reg.enum and not reg.readable and point.writable):
+                self._switches(point)
                 continue
             if not reg.readable:
                 self.notes.append(f"not exported: {point.cell.name} is write-only (use the modbus.write_register action)")
@@ -259,7 +261,11 @@ class _Build:
         entry: dict[str, Any] = {"name": name, "unique_id": slug(name), "address": Hex(point.address),
                                  self.keys["device_address"]: self.sel.unit}
         if point.writable:
-            entry.update({"write_type": "coil", "command_on": 1, "command_off": 0})
+            kind = write_type(self.model, reg)
+            if kind is None:
+                self.notes.append(f"not exported as a switch: {point.cell.name} (the map lists no coil write)")
+                return
+            entry.update({"write_type": kind, "command_on": 1, "command_off": 0})
             if reg.readable:
                 entry["verify"] = {"input_type": "coil"}
             self.switches.append(entry)
@@ -280,7 +286,7 @@ class _Build:
 
     def _sensor(self, point: iv.Point, virtual: int) -> dict[str, Any]:
         reg = point.reg
-        name = self.entity_name(point) + (" raw" if reg.scale_register else "")
+        name = self.entity_name(point) + (" raw" if needs_template(reg) else "")
         entry: dict[str, Any] = {
             "name": name,
             "unique_id": slug(name),
@@ -298,13 +304,9 @@ class _Build:
             entry[self.keys["virtual_count"]] = virtual
         if reg.type == "string":
             entry["scan_interval"] = point.interval
+            self._template(point, name, 0)
             return entry
-        if reg.not_available and not reg.is_float:
-            # the integration compares the decoded value (signed for s16/s32/s64) with one value
-            entry["nan_value"] = reg.not_available[0]
-            if len(reg.not_available) > 1:
-                self.notes.append(f"{point.cell.name}: the integration takes one nan_value; not available as well: "
-                                  + ", ".join(hex(v) for v in reg.not_available[1:]))
+        self._nan(point, entry)
         if reg.scale != 1:
             entry["scale"] = _number(reg.scale)
         if reg.offset:
@@ -313,35 +315,75 @@ class _Build:
         places = shown or 0
         if shown is not None and (places or reg.precision is not None):
             entry["precision"] = places
-        if reg.scale_register:
-            self._scaled(point, name, places)
+        if needs_template(reg):
+            self._template(point, name, places)
         elif reg.unit and not reg.enum and not reg.bits:
-            entry.update(_unit_keys(reg.unit))
+            entry.update(_unit_keys(reg.unit, _version(self.values.get("ha_version"))))
         entry["scan_interval"] = point.interval
         return entry
 
-    def _scaled(self, point: iv.Point, raw_name: str, places: int) -> None:
-        """The template sensor of a register with a scale register: raw x 10^factor."""
+    def _nan(self, point: iv.Point, entry: dict[str, Any]) -> None:
+        """``nan_value``: the integration ignores a falsy one (it tests ``if self._nan_value``), so 0
+        is handled by the template sensor (:meth:`_template`) and the first other value goes here."""
         reg = point.reg
-        factor = self.model.register(reg.scale_register or "")
-        raw_id, sf_id = f"sensor.{slug(raw_name)}", f"sensor.{slug(f'{self.sel.prefix} {factor.name}')}"
-        state = (f"{{% set sf = states('{sf_id}') | int %}}{{% set v = states('{raw_id}') | float %}}"
-                 f"{{{{ (v * 10 ** sf) | round({places} - sf if sf < 0 else {places}) }}}}")
+        if not reg.not_available or reg.is_float:
+            return
+        # the integration compares the decoded value (signed for s16/s32/s64) with one value
+        others = [v for v in reg.not_available if v != 0]
+        if others:
+            entry["nan_value"] = others[0]
+        if len(others) > 1:
+            self.notes.append(f"{point.cell.name}: the integration takes one nan_value; not available as well: "
+                              + ", ".join(hex(v) for v in others[1:]))
+
+    def _template(self, point: iv.Point, raw_name: str, places: int) -> None:
+        """The template sensor over a '<name> raw' modbus sensor: a string without its NUL/space
+        padding; a scale register's raw x 10^factor; unavailable while the raw value is 0 when 0
+        means not available (a nan_value of 0 is ignored by the integration)."""
+        reg = point.reg
+        raw_id = f"sensor.{slug(raw_name)}"
+        available = [f"has_value('{raw_id}')"]
+        if reg.type == "string":
+            state = f"{{{{ states('{raw_id}') | regex_replace('[\\x00 ]+$', '') }}}}"
+        elif reg.scale_register:
+            factor = self.model.register(reg.scale_register)
+            sf_id = f"sensor.{slug(f'{self.sel.prefix} {factor.name}')}"
+            available.append(f"has_value('{sf_id}')")
+            state = (f"{{% set sf = states('{sf_id}') | int %}}{{% set v = states('{raw_id}') | float %}}"
+                     f"{{{{ (v * 10 ** sf) | round({places} - sf if sf < 0 else {places}) }}}}")
+        else:
+            state = f"{{{{ states('{raw_id}') }}}}"
+        if 0 in reg.not_available and not reg.is_float:
+            available.append(f"(states('{raw_id}') | float(0)) != {_number(reg.offset)}")
         entry: dict[str, Any] = {"name": self.entity_name(point), "unique_id": slug(self.entity_name(point)),
-                                 "state": state,
-                                 "availability": f"{{{{ has_value('{raw_id}') and has_value('{sf_id}') }}}}"}
-        if reg.unit and not reg.enum and not reg.bits:
-            entry.update(_unit_keys(reg.unit))
+                                 "state": state, "availability": f"{{{{ {' and '.join(available)} }}}}"}
+        if reg.unit and not reg.enum and not reg.bits and reg.type != "string":
+            entry.update(_unit_keys(reg.unit, _version(self.values.get("ha_version"))))
         self.templates_sensor.append(entry)
 
-    def _switch(self, point: iv.Point, key: str, value: int) -> dict[str, Any]:
+    def _switches(self, point: iv.Point) -> None:
+        """A command: one switch; a write-only enum: one switch per value (written by the function the map allows)."""
+        reg = point.reg
+        kind = write_type(self.model, reg)
+        if kind is None or reg.words > 1:
+            self.notes.append(f"not exported as a switch: {point.cell.name} ("
+                              + ("a switch writes one register" if reg.words > 1 else "the map lists no register write")
+                              + "; use the modbus.write_register action)")
+            return
+        if point.is_command:
+            self.switches.append(self._switch(point, point.key, reg.command_value or 0, kind))
+            return
+        for item in self.model.enum(reg.enum or "").values:
+            self.switches.append(self._switch(point, f"{point.key} {item.name}", item.value, kind))
+
+    def _switch(self, point: iv.Point, key: str, value: int, kind: str) -> dict[str, Any]:
         # command_off repeats the command: turning the switch off never writes a value the map does not document
         return {
             "name": f"{self.sel.prefix} {key}",
             "unique_id": slug(f"{self.sel.prefix} {key}"),
             "address": Hex(point.address),
             self.keys["device_address"]: self.sel.unit,
-            "write_type": "holding",
+            "write_type": kind,
             "command_on": value,
             "command_off": value,
         }
@@ -398,9 +440,33 @@ class _Build:
                                               "availability": available})
 
 
-def _unit_keys(unit: str) -> dict[str, Any]:
+def needs_template(reg: Register) -> bool:
+    """A register the modbus sensor cannot show as drivemap reads it: a string (padded with NULs), a
+    scale register (x 10^factor), 0 meaning not available (``nan_value: 0`` is ignored)."""
+    return reg.type == "string" or bool(reg.scale_register) or (0 in reg.not_available and not reg.is_float)
+
+
+def write_type(model: Model, reg: Register) -> str | None:
+    """The switch's ``write_type``: the single write (05h ``coil``, 06h ``holding``) when the map lists
+    it, else the multiple write (0Fh ``coils``, 10h ``holdings``), else None (the map lists neither)."""
+    has = model.protocol.function
+    if reg.table == "coil":
+        return "coil" if has(0x05) else "coils" if has(0x0F) else None
+    if reg.words == 1 and has(0x06):
+        return "holding"
+    return "holdings" if has(0x10) else None
+
+
+#: Device classes and the first release that has them (older ones reject the entity).
+DEVICE_CLASS_SINCE = {"reactive_energy": (2025, 6)}
+
+
+def _unit_keys(unit: str, version: tuple[int, int] = CURRENT) -> dict[str, Any]:
+    unit = iv.unit_for(unit)
     out: dict[str, Any] = {"unit_of_measurement": unit}
     device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, None))
+    if device_class and version < DEVICE_CLASS_SINCE.get(device_class, OLDEST):
+        device_class = None
     if device_class:
         out["device_class"] = device_class
     if state_class:

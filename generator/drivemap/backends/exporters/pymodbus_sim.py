@@ -6,8 +6,11 @@ on a page selector), the readable reserved words as 0, and refuses every other a
 exception 02h, as a device would. pymodbus's simulator knows one address space: paged registers are
 served for one page (``--page``), and writing a page selector does not switch pages there.
 
-The values are those drivemap's simulator starts with (defaults, scale factors, not-available
-values). Tables: coils and discrete inputs go in ``bits`` cells (16 per cell), input and holding
+The values are the image drivemap's simulator starts with: defaults (a value the map allows where
+it gives none), scale factors, not-available values, and then the model's behaviour's power-up (ev:
+the RAM copies loaded from EEPROM), exactly what ``drivemap simulate`` serves before any request.
+What the export cannot carry is the behaviour itself (ramps, the status bits a write changes,
+pages switching): pymodbus's simulator serves the start-up image as a fixed store. Tables: coils and discrete inputs go in ``bits`` cells (16 per cell), input and holding
 registers in register cells, each table's block after the blocks before it (co, di, ir, hr: the
 simulator's layout with "shared blocks": false, so the addresses here are offset by the sizes of
 the blocks before). The simulator's ``int16`` section stores float bytes (pymodbus 3.16), so signed
@@ -62,9 +65,11 @@ def section(reg: Register) -> str | None:
 
 def _image(model: Model, unit: int, pages: dict[str, int]) -> tuple[Any, dict[str, int]]:
     """The raw value of every element as drivemap's simulator starts (defaults, scale factors,
-    not-available values), the shown page on each selector."""
+    not-available values, the behaviour's power-up), the shown page on each selector."""
+    from drivemap.runtime.sim.behaviours import behaviour_for
+
     spec = spec_from_model(model)
-    state = Simulator(spec, [unit]).unit(unit)
+    state = Simulator(spec, [unit], behaviour=behaviour_for(model.name)).unit(unit)
     raws = dict(state.values)
     raws.update(pages)
     return spec, raws

@@ -23,6 +23,7 @@ from drivemap.runtime.spec import RegisterSpec
 
 __all__ = [
     "DEVICE_CLASSES",
+    "UNIT_SPELLING",
     "Point",
     "Selection",
     "SerialSettings",
@@ -32,6 +33,7 @@ __all__ = [
     "select",
     "serial_settings",
     "tcp_endpoint",
+    "unit_for",
 ]
 
 #: unit -> (device_class, state_class) where the unit says it (Home Assistant and ESPHome share the names).
@@ -43,7 +45,14 @@ DEVICE_CLASSES: dict[str, tuple[str | None, str | None]] = {
     "W": ("power", "measurement"),
     "kW": ("power", "measurement"),
     "VA": ("apparent_power", "measurement"),
+    "kVA": ("apparent_power", "measurement"),
     "var": ("reactive_power", "measurement"),
+    "kvar": ("reactive_power", "measurement"),
+    "varh": ("reactive_energy", "total_increasing"),
+    "kvarh": ("reactive_energy", "total_increasing"),
+    "VAh": (None, "total_increasing"),  # no apparent-energy device class (Home Assistant, ESPHome)
+    "kVAh": (None, "total_increasing"),
+    "rpm": (None, "measurement"),
     "Wh": ("energy", "total_increasing"),
     "kWh": ("energy", "total_increasing"),
     "Hz": ("frequency", "measurement"),
@@ -52,6 +61,16 @@ DEVICE_CLASSES: dict[str, tuple[str | None, str | None]] = {
     "s": ("duration", "measurement"),
     "ms": ("duration", "measurement"),
 }
+
+#: A map's unit -> the spelling Home Assistant and ESPHome use (their device classes accept only it).
+UNIT_SPELLING: dict[str, str] = {"r/min": "rpm", "RPM": "rpm", "VAr": "var", "kVAr": "kvar", "VAr h": "varh",
+                                 "VArh": "varh", "kVArh": "kvarh"}
+
+
+def unit_for(unit: str) -> str:
+    """The unit as Home Assistant and ESPHome spell it (``r/min`` -> ``rpm``, ``VAr`` -> ``var``)."""
+    return UNIT_SPELLING.get(unit, unit)
+
 
 DEFAULT_SCAN_S = 15
 DEFAULT_SETTINGS_S = 300

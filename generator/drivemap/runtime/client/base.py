@@ -200,7 +200,8 @@ class _Common(Generic[S, B]):
             raise UnknownRegister(f"{self.SPEC.model} has no register {base!r}")
         acc = getattr(self, base)
         if rest:
-            if not isinstance(acc, _Array) or not rest.endswith("]") or not rest[:-1].isdigit():
+            digits = rest[:-1]
+            if not isinstance(acc, _Array) or not rest.endswith("]") or not (digits.isascii() and digits.isdigit()):
                 raise UnknownRegister(f"{name!r} is not an element of an array register")
             index = int(rest[:-1])
             if not 0 <= index < len(acc):

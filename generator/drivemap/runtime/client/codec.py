@@ -8,8 +8,13 @@ number, 0/1 for a coil. :func:`raw_to_words` is its inverse.
 Raw -> value: engineering = raw * scale + offset (the map's rule; times 10**factor for a
 register with a scale-factor register). Encoding rounds to the nearest raw step (half away from
 zero) and then requires the raw value to fit the register type: a value is *representable* when
-its rounded raw value lies in the type's bounds (u16 0..65535, s16 -32768..32767, u32, s32, u64,
-s64). The map's ``min``/``max`` (engineering units) are checked first. Floats and strings are
+its raw value lies in the type's bounds (u16 0..65535, s16 -32768..32767, u32, s32, u64,
+s64) and it is a whole number of steps of the register's resolution: (value - offset) / scale
+(times 10**-factor) must be an integer. Binary floats cannot hold most decimals (12.3 / 0.1 is
+122.99999999999999), so a value within :data:`STEP_TOLERANCE` of a step (one millionth of a
+step) of an integer raw value is that raw value; any other value is refused with
+:class:`~drivemap.runtime.errors.InexactValue`, which names the nearest representable values
+(never rounded silently). The map's ``min``/``max`` (engineering units) are checked first. Floats and strings are
 converted with pymodbus's own ``convert_to_registers`` / ``convert_from_registers``.
 """
 
@@ -25,6 +30,16 @@ from typing import Any, Generic, TypeVar
 from pymodbus.client.mixin import ModbusClientMixin
 
 from drivemap.runtime.client.display import allowed_text, check_values, display_text, register_text
+from drivemap.runtime.client.steps import (
+    STEP_TOLERANCE,
+    _fits,
+    _offset_text,
+    _short,
+    _unit,
+    exact_raw,
+    number_text,
+    shortest_f32_text,
+)
 from drivemap.runtime.client.words import (
     TYPE_BOUNDS,
     check_raw,
@@ -75,10 +90,6 @@ def _digits(scale: float) -> int:
     return min(12, len(text.split(".")[1].rstrip("0")))
 
 
-def _round_half_away(x: float) -> int:
-    return int(math.floor(x + 0.5)) if x >= 0 else -int(math.floor(-x + 0.5))
-
-
 class Codec(Generic[T]):
     """Converts one register's raw value to its Python value ``T`` and back.
 
@@ -123,17 +134,6 @@ class Codec(Generic[T]):
         check_values(spec, value)
 
 
-def _short(value: object) -> str:
-    """``value`` for a message: a huge int (``10**400``) is named by its size, never converted to text."""
-    if isinstance(value, int) and value.bit_length() > 96:
-        return f"an integer of {value.bit_length()} bits"
-    return repr(value)
-
-
-def _unit(spec: RegisterSpec) -> str:
-    return f" {spec.unit}" if spec.unit else ""
-
-
 class RawCodec(Codec[int]):
     """The raw value itself (``read_raw`` / ``write_raw``): only the type's bounds apply."""
 
@@ -164,8 +164,8 @@ class IntCodec(Codec[int]):
         self._check_range(value)
         scale, offset = int(self.spec.scale), int(self.spec.offset)
         raw, rest = divmod(value - offset, scale)
-        if rest * 2 >= scale:  # round half away from zero (scale > 0)
-            raw += 1
+        if rest:  # between two steps: refused with the nearest values (exact integer arithmetic)
+            exact_raw(self.spec, value, scale, offset, 0, _offset_text(offset))
         return _fits(self.spec, raw, value)
 
 
@@ -191,15 +191,9 @@ class FloatCodec(Codec[float]):
         if not finite:
             raise ValueOutOfRange(f"{self.spec.name}: {_short(value)} is not finite")
         self._check_range(float(value))
-        raw = _round_half_away((value - self.spec.offset) / self.spec.scale)
+        raw = exact_raw(self.spec, float(value), self.spec.scale, self.spec.offset, self._digits,
+                        _offset_text(self.spec.offset))
         return _fits(self.spec, raw, value)
-
-
-def _fits(spec: RegisterSpec, raw: int, value: float) -> int:
-    lo, hi = raw_bounds(spec)
-    if not lo <= raw <= hi:
-        raise ValueOutOfRange(f"{spec.name}: {_short(value)}{_unit(spec)} is not representable ({spec.type} raw {_short(raw)})")
-    return raw
 
 
 def _number(spec: RegisterSpec, value: object) -> float:
@@ -328,7 +322,9 @@ class ScaledCodec(Codec[float]):
     def encode_scaled(self, value: float, factor: int | None) -> int:
         self.check(value)
         exponent = self.factor(factor)
-        raw = _round_half_away((float(value) - self.spec.offset) / self.spec.scale / 10.0 ** exponent)
+        digits = max(0, -exponent) + self._digits
+        why = f" (scale {number_text(self.spec.scale)} x 10^{exponent}: {self.factor_spec.name} reads {exponent})"
+        raw = exact_raw(self.spec, float(value), self.spec.scale * 10.0 ** exponent, self.spec.offset, digits, why)
         return _fits(self.spec, raw, value)
 
 
@@ -484,6 +480,7 @@ class FieldsCodec(Codec[D]):
 __all__ = [
     "BoolCodec",
     "Codec",
+    "STEP_TOLERANCE",
     "DriveEnum",
     "EnumCodec",
     "Field",
@@ -501,10 +498,13 @@ __all__ = [
     "check_raw",
     "check_values",
     "display_text",
+    "exact_raw",
     "join_words",
+    "number_text",
     "raw_bounds",
     "raw_to_words",
     "register_text",
+    "shortest_f32_text",
     "split_words",
     "unwrap",
     "words_to_raw",

@@ -56,6 +56,7 @@ from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,
     DriveError,
+    InexactValue,
     InvalidArgument,
     InvalidValue,
     NotBroadcastable,
@@ -89,6 +90,17 @@ class Deferred:
 
     value: Any
     codec: Codec[Any]
+    #: round a value between two steps to the nearer (an explicit request); else it is refused
+    round: bool = False
+
+    def encode(self, factor: int | None) -> int:
+        """The raw value given the scale factor's raw value."""
+        try:
+            return self.codec.encode_scaled(self.value, factor)
+        except InexactValue as exc:
+            if not self.round or exc.rounded_raw is None:
+                raise
+            return exc.rounded_raw
 
 
 RawItem = tuple[Key, "int | Deferred"]
@@ -361,7 +373,7 @@ class Core:
         for key, item in items:
             if isinstance(item, Deferred):
                 scale = item.codec.scale_key
-                out.append((key, item.codec.encode_scaled(item.value, None if scale is None else factors.get(scale))))
+                out.append((key, item.encode(None if scale is None else factors.get(scale))))
             else:
                 out.append((key, item))
         return out
@@ -369,7 +381,8 @@ class Core:
     def write_raw(self, items: Sequence[RawItem]) -> Op[None]:
         """Write raw values, contiguous runs in one multiple-write request where the map allows it.
 
-        Requests go out in address order and stop at the first failure. When the write needed
+        Requests go out in the order the items are given (a drive may need "set the frequency, then
+        run"; an item joins the previous request only when it continues it) and stop at the first failure. When the write needed
         several requests, that failure is raised as :class:`PartialWrite` (written / unconfirmed /
         not written elements); a single request raises its own error (all or nothing).
         """
@@ -425,13 +438,14 @@ class Core:
         return t.write_limits.get(table, 0)
 
     def _groups(self, items: Sequence[tuple[Key, int]]) -> list[list[tuple[RegisterSpec, Key, list[int]]]]:
-        """Items in address order, contiguous runs of one table and page within the write limit together."""
+        """Items in the order given; an item that continues the previous one (same table and page, the
+        next address, within the write limit) joins its request."""
         regs = [(reg, key, raw_to_words(reg, raw)) for key, raw in items for reg in (self.check_write(key),)]
         for (key, raw), (reg, _, _) in zip(items, regs, strict=True):
             if reg.command_value is not None and raw != reg.command_value:
                 raise self.not_the_command(reg, key, raw)
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
-        for item in sorted(regs, key=lambda r: (r[0].table, r[0].element_address(r[1][1]))):
+        for item in regs:
             reg, key, words = item
             if groups:
                 last_reg, last_key, _ = groups[-1][-1]

@@ -132,7 +132,8 @@ class ClientBase(_Common[S, Bus]):
         return general, fallback
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
-        """Write several registers; contiguous ones go out in one 10h request where the map allows it.
+        """Write several registers in the order given; one that continues the previous one goes out in the
+        same 10h request where the map allows it.
 
         If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
         self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])

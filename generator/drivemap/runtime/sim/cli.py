@@ -16,6 +16,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from drivemap.runtime.sim.presets import PresetError, from_command_line, from_file
 from drivemap.runtime.sim.serve import SimServer
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError, StateFileError
 
@@ -28,7 +29,7 @@ SimulatorFactory = Callable[..., Simulator]
 def parse_tcp(text: str) -> tuple[str, int]:
     """``HOST:PORT`` (``[::1]:5020`` for IPv6) -> (host, port)."""
     host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+    if not sep or not host or not (port.isascii() and port.isdigit()) or not 0 <= int(port) <= 65535:
         raise SimulatorError(f"--tcp wants HOST:PORT, not {text!r}")
     return host.strip("[]"), int(port)
 
@@ -37,7 +38,7 @@ def serve_cli(args: argparse.Namespace) -> int:
     """``drivemap simulate``: serve until Ctrl-C / SIGTERM, then exit 0 (1 on an error, located when it can be)."""
     try:
         return run(args.factory, args)
-    except StateFileError as exc:  # already located: path:line:col: error: ...
+    except (StateFileError, PresetError) as exc:  # already located: path:line:col: error: ...
         print(exc, file=sys.stderr)
         return 1
     except (SimulatorError, RuntimeError, OSError) as exc:
@@ -45,9 +46,12 @@ def serve_cli(args: argparse.Namespace) -> int:
         return 1
 
 
-def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
+def run(factory: SimulatorFactory, args: argparse.Namespace, prog: str = "drivemap") -> int:
     """Build the simulator from parsed options and serve it in the foreground."""
     kwargs: dict[str, Any] = {"state_file": args.state, "realistic_timing": args.realistic_timing}
+    presets = presets_of(factory, args, prog)
+    if presets:
+        kwargs["presets"] = presets
     if getattr(args, "refuse_advised_while_running", False):
         kwargs["refuse_advised_while_running"] = True
     if getattr(args, "reply_quirks", None):
@@ -63,6 +67,18 @@ def run(factory: SimulatorFactory, args: argparse.Namespace) -> int:
     )
     asyncio.run(_serve_until_signal(server))
     return 0
+
+
+def presets_of(factory: SimulatorFactory, args: argparse.Namespace, prog: str) -> list[tuple[str, Any]]:
+    """``--values FILE`` then ``--set NAME=VALUE`` (later ones win), checked against the map."""
+    spec = getattr(factory, "spec", None) or factory([*(args.units or [1])][:1]).spec
+    reader = getattr(factory, "read_values", None)  # drivemap simulate: YAML too
+    enums = getattr(factory, "enum_names", None)  # drivemap simulate: enum members by name
+    out = from_file(spec, args.values, reader, enums) if getattr(args, "values", None) else []
+    texts = getattr(args, "presets", None) or []
+    if texts:
+        out += from_command_line(spec, texts, sys.argv[1:], prog, dict(out), enums)
+    return out
 
 
 async def _serve_until_signal(server: SimServer) -> None:
@@ -97,6 +113,12 @@ def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
     parser.add_argument("--reply-quirk", action="append", dest="reply_quirks", metavar="QUIRK",
                         help="answer in a non-standard reply form the map lists (e.g. two_byte_byte_count)")
     parser.add_argument("--allow-remote", action="store_true", help="allow binding to a non-loopback address")
+    parser.add_argument("--set", action="append", dest="presets", metavar="NAME=VALUE",
+                        help="start with this engineering value (repeatable; checked against the map): "
+                             "--set phase_1_voltage=230.1 --set digital_speed[0]=1500")
+    parser.add_argument("--values", metavar="FILE",
+                        help="start with the engineering values of this file ({\"NAME\": VALUE, ...}; drivemap "
+                             "simulate reads YAML too; --set wins over it)")
 
 
 def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = None) -> int:
@@ -107,8 +129,8 @@ def main(model: str, factory: SimulatorFactory, argv: Sequence[str] | None = Non
     args = parser.parse_args(argv)
     args.model = model
     try:
-        return run(factory, args)
-    except StateFileError as exc:
+        return run(factory, args, prog=f"python -m {module}")
+    except (StateFileError, PresetError) as exc:
         print(exc, file=sys.stderr)
         return 1
     except (SimulatorError, RuntimeError, OSError) as exc:

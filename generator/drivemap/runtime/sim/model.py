@@ -13,7 +13,7 @@ from typing import ClassVar, Protocol
 
 from drivemap.runtime.sim import cli as simcli
 from drivemap.runtime.sim.behaviours import Behaviour, behaviour_for
-from drivemap.runtime.sim.simulator import Simulator
+from drivemap.runtime.sim.simulator import Simulator, SimValue
 from drivemap.runtime.spec import DeviceSpec
 
 __all__ = ["ModelSimulator", "SimulatorMain", "default_unit", "simulator_main"]
@@ -28,8 +28,9 @@ class ModelSimulator(Simulator):
     default) also refuses, while running, writes the manual only advises against
     (``running_advice``; the device is not known to refuse them); ``reply_quirks`` answers in
     non-standard reply forms the map lists (none by default); ``behaviour`` replaces the one
-    registered for the model (entry point ``drivemap.behaviours``).
-    Presets: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
+    registered for the model (entry point ``drivemap.behaviours``); ``presets`` are (cell name,
+    engineering value) pairs the memory holds at power-up (every unit).
+    Presets later: ``set(name, value, unit=None)`` / ``set_raw``; one-shot exceptions: ``inject_exception(code)``.
     """
 
     SPEC: ClassVar[DeviceSpec]
@@ -43,6 +44,7 @@ class ModelSimulator(Simulator):
         behaviour: Behaviour | None = None,
         refuse_advised_while_running: bool = False,
         reply_quirks: Sequence[str] = (),
+        presets: Sequence[tuple[str, SimValue]] = (),
     ) -> None:
         spec = self.SPEC
         super().__init__(
@@ -53,6 +55,7 @@ class ModelSimulator(Simulator):
             realistic_timing=realistic_timing,
             refuse_advised_while_running=refuse_advised_while_running,
             reply_quirks=reply_quirks,
+            presets=presets,
         )
 
 

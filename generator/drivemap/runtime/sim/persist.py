@@ -65,3 +65,4 @@ class Persistence:
             unit = self.units.get(uid)
             if unit is not None:
                 unit.values.update(cells)
+                unit.unset.difference_update(cells)

@@ -174,8 +174,10 @@ class Simulator(Persistence):
         realistic_timing: bool = False,
         refuse_advised_while_running: bool = False,
         reply_quirks: Sequence[str] = (),
+        presets: Sequence[tuple[str, SimValue]] = (),
     ) -> None:
-        """``refuse_advised_while_running``: also answer ``busy`` to writes the manual only advises
+        """``presets``: (cell name, engineering value) the memory holds at power-up, on every unit
+        (after the state file, before the behaviour's start-up). ``refuse_advised_while_running``: also answer ``busy`` to writes the manual only advises
         against while running (``running_advice``); off by default, since the manual does not say
         the device refuses them (the client warns instead). ``reply_quirks``: answer in these
         non-standard forms of the map's ``reply_quirks`` (e.g. ``two_byte_byte_count``, as a
@@ -230,6 +232,13 @@ class Simulator(Persistence):
         self._state: simstate.StateFile | None = None
         if self.state_file is not None:
             self._load_state(self.state_file)
+        for name, value in presets:
+            self._check_cell(name)
+            for unit in self.units.values():
+                unit.set(name, value)
+                unit.unset.discard(name)
+                if name in unit.applied:
+                    unit.applied[name] = unit.values[name]
         for unit in self.units.values():
             self.behaviour.on_start(unit)
         self._dirty = False

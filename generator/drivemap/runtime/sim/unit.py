@@ -103,6 +103,33 @@ def unwire_words(reg: RegisterSpec, words: list[int]) -> int:
     return raw
 
 
+def start_raw(reg: RegisterSpec, factor: int | None = None) -> int:
+    """The raw value a register without a default starts at: 0 when its value lies in the map's
+    min..max, else the lowest value the range allows (min, rounded up to a step), else max. A device
+    does not report a value outside its own map's range at power-up. An enum register starts at 0
+    even when 0 is not one of its values (an empty history slot reads 0; picking a member would invent
+    a state the map does not give)."""
+    if reg.type in ("bool", "string") or reg.bit_table or reg.bits or (reg.min is None and reg.max is None):
+        return 0
+    if _allowed(reg, 0, factor):
+        return 0
+    candidates: list[int] = []
+    if reg.min is not None:
+        raw = from_value(reg, reg.min, factor)
+        candidates += [raw, raw + 1]
+    if reg.max is not None:
+        candidates.append(from_value(reg, reg.max, factor))
+    return next((raw for raw in candidates if _allowed(reg, raw, factor)), 0)
+
+
+def _allowed(reg: RegisterSpec, raw: int, factor: int | None) -> bool:
+    value = to_value(reg, raw, factor)
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return value is None and not reg.min and not reg.max
+    tol = 1e-9 * max(1.0, abs(value))
+    return (reg.min is None or value >= reg.min - tol) and (reg.max is None or value <= reg.max + tol)
+
+
 def _cell_names(reg: RegisterSpec) -> list[tuple[str, int]]:
     return [(reg.element_name(i), i) for i in range(reg.count)]
 
@@ -123,11 +150,18 @@ class Unit:
         #: Free space for the behaviour (ramps, timers, edge detection).
         self.scratch: dict[str, Any] = {}
         self.injected: int | None = None
+        #: Cells that start without a map default, a saved or a preset value (at :func:`start_raw`): a
+        #: behaviour's power-up may fill them (ev: RAM copies loaded from EEPROM).
+        self.unset: set[str] = set()
         regs = sorted(sim.spec.registers, key=lambda r: r.scale_register is not None)  # factors first
         for reg in regs:
             for name, index in _cell_names(reg):
                 default = reg.default_at(index)
-                raw = from_value(reg, default, self._factor(reg)) if default is not None else 0
+                if default is None:
+                    raw = start_raw(reg, self._factor(reg))
+                    self.unset.add(name)
+                else:
+                    raw = from_value(reg, default, self._factor(reg))
                 self.values[name] = raw
                 if reg.reflect == "configuration":
                     self.applied[name] = raw

@@ -67,7 +67,7 @@ class Ev(Behaviour):
         for base in _TWINS:
             ram = f"{base}_ram"
             for i in range(min(_count(unit, base), _count(unit, ram))):
-                if unit.raw(f"{ram}[{i}]") == 0:
+                if f"{ram}[{i}]" in unit.unset:  # no default, saved or preset value: loaded from EEPROM
                     unit.set_raw(f"{ram}[{i}]", unit.raw(f"{base}[{i}]"))
         unit.scratch["speed"] = float(unit.raw("motor_speed")) if unit.has("motor_speed") else 0.0
         unit.scratch["functions"] = set()

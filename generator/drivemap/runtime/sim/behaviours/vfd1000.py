@@ -31,7 +31,7 @@ class Vfd1000(Behaviour):
     ramp_raw_per_s = 10000.0
 
     def on_start(self, unit: Unit) -> None:
-        if unit.has("inverter_state") and unit.raw("inverter_state") == 0:
+        if unit.has("inverter_state") and "inverter_state" in unit.unset:
             unit.set_raw("inverter_state", STANDBY)
         self._follow_setting(unit)
         if unit.has("operating_frequency"):
