@@ -33,7 +33,7 @@ buses:
       - {{name: pump1, model: vfd1000, unit: 1, writable: [communication_setting, control_command, parameter_0008]}}
       - {{name: conveyor, model: ev, unit: 2, writable: [net_in, digital_speed, alarm_reset, rs485_timeout]}}
       - {{name: meter, model: sdm630, unit: 3, writable: [demand_period]}}
-      - {{name: io, map: {ALLKINDS}, unit: 4, writable: [run]}}
+      - {{name: io, map: {ALLKINDS}, unit: 4, writable: [run, setpoint]}}
 """)
 
 
@@ -69,10 +69,11 @@ def test_values_between_steps_are_refused_not_rounded(devices: dict[str, Device]
 
 
 def test_f32_takes_what_a_single_holds(devices: dict[str, Device]) -> None:
-    meter = devices["meter"]
-    assert meter.command("demand_period", "15").raw is not None
-    assert meter.command("demand_period", "30.2").raw is not None  # the f32 nearest 30.2 prints as 30.2
-    assert "not representable as f32" in str(refused(meter, "demand_period", "30.123456789"))
+    io = devices["io"]  # setpoint: an f32 without a value set
+    assert io.command("setpoint", "15").raw is not None
+    assert io.command("setpoint", "30.2").raw is not None  # the f32 nearest 30.2 prints as 30.2
+    assert "not representable as f32" in str(refused(io, "setpoint", "30.123456789"))
+    assert "not one of the allowed values" in str(refused(devices["meter"], "demand_period", "30.2"))  # a value set
     assert shortest_f32(230.1999969482422) == 230.2
 
 
