@@ -130,7 +130,7 @@ buses:
             await until(lambda: sub.text("drivemap/acme/carrier_frequency") == "8.00", what="precision 2")
             await until(lambda: sub.text("drivemap/acme/frequency_command") == "12.3", what="precision 1")
             await until(lambda: sub.text("drivemap/acme/line_voltage") == "230.2", what="shortest f32")
-            state = {"carrier_frequency": 8.0, "frequency_command": 12.3, "line_voltage": 230.2}
+            state = {"carrier_frequency": 8.0, "frequency_command": 12.34, "line_voltage": 230.2}  # whole values
             await until(lambda: json.loads(sub.text("drivemap/acme/state") or "{}") == state, what="state")
             assert not [p for p in sub.messages("drivemap/acme/frequency_command") if p != b"12.3"]
 

@@ -1,14 +1,13 @@
 """One drive behind the gateway: its generated async client, what it publishes and the commands it takes.
 
-Values leave in engineering units as JSON values: numbers as the codec decodes them (a value scaled by
-a scale register with the factor read with it), shown as the runtime shows them
-(:func:`drivemap.runtime.client.display.register_text`: the map's ``precision`` when it gives one,
-else the shortest text of an unscaled f32; a value topic carries that text, ``4.00`` at precision
-2, and JSON carries the number it reads as), strings as text, coils and bools as true/false, a
-not-available value as null, enum registers
-as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``), bit-field
-registers as an object of their fields (single bits true/false, enumerated fields by name, wider
-fields as integers), arrays as lists of those.
+Values leave in engineering units as JSON values: numbers whole, as the codec decodes them (a value
+scaled by a scale register with the factor read with it; an unscaled f32 as the shortest decimal of
+the same f32), strings as text, coils and bools as true/false, a not-available value as null, enum
+registers as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``),
+bit-field registers as an object of their fields (single bits true/false, enumerated fields by name,
+wider fields as integers), arrays as lists of those. A value topic shows a number as the runtime
+shows it (:func:`drivemap.runtime.client.display.register_text`: ``4.00`` at the map's precision 2);
+precision is for people, JSON and OPC UA carry the value whole.
 
 Commands are parsed and checked here, before they are queued: the register must exist, be
 writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
@@ -45,7 +44,7 @@ from drivemap.gateway.payload import (
 from drivemap.gateway.valuesets import set_value
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
-from drivemap.runtime.client.display import register_text
+from drivemap.runtime.client.display import display_text, register_text
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
@@ -117,7 +116,8 @@ class Device:
         if isinstance(value, enum.Enum):
             return value.name
         if isinstance(value, float) and math.isfinite(value):
-            return float(register_text(self.package.SPEC.register(reg.name), value))
+            spec = self.package.SPEC.register(reg.name)  # the value whole: precision is for the text only
+            return float(display_text(value, single=spec.type == "f32" and spec.scale == 1 and spec.offset == 0))
         return value
 
     def value_text(self, name: str, value: Any) -> str | None:
