@@ -76,7 +76,7 @@ def test_controls_only_for_listed_registers(messages: dict[str, dict[str, Any]])
 def test_link_settings_are_not_controls_through_a_group(messages: dict[str, dict[str, Any]]) -> None:
     for name in ("network_node", "network_baud_rate", "network_parity_stop", "password", "password_lock"):
         assert not [t for t in messages if t.endswith(f"drivemap_plant_meter/{name}") and not t.startswith("sensor/")]
-    assert "number/drivemap_plant_meter/demand_period" in messages  # the group opened what is not a link setting
+    assert "select/drivemap_plant_meter/demand_period" in messages  # the group opened what is not a link setting
     assert "number/drivemap_plant_conveyor/rs485_error_count" in messages  # a link setting named one by one
 
 

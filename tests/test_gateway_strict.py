@@ -33,7 +33,7 @@ buses:
       - {{name: pump1, model: vfd1000, unit: 1, writable: [communication_setting, control_command, parameter_0008]}}
       - {{name: conveyor, model: ev, unit: 2, writable: [net_in, digital_speed, alarm_reset, rs485_timeout]}}
       - {{name: meter, model: sdm630, unit: 3, writable: [demand_period]}}
-      - {{name: io, map: {ALLKINDS}, unit: 4, writable: [run]}}
+      - {{name: io, map: {ALLKINDS}, unit: 4, writable: [run, setpoint]}}
 """)
 
 
@@ -63,16 +63,17 @@ def test_bit_fields_written_exactly(devices: dict[str, Device]) -> None:
 def test_values_between_steps_are_refused_not_rounded(devices: dict[str, Device]) -> None:
     pump = devices["pump1"]
     error = refused(pump, "communication_setting", "12.345")
-    assert "12.34 and 12.35" in str(error)
+    assert "12.34" in str(error) and "12.35" in str(error) and "refused" in str(error)
     assert pump.command("communication_setting", "12.35").raw == 1235
     assert pump.command("communication_setting", "-0.01").raw == -1
 
 
 def test_f32_takes_what_a_single_holds(devices: dict[str, Device]) -> None:
-    meter = devices["meter"]
-    assert meter.command("demand_period", "15").raw is not None
-    assert meter.command("demand_period", "30.2").raw is not None  # the f32 nearest 30.2 prints as 30.2
-    assert "not representable as f32" in str(refused(meter, "demand_period", "30.123456789"))
+    io = devices["io"]  # setpoint: an f32 without a value set
+    assert io.command("setpoint", "15").raw is not None
+    assert io.command("setpoint", "30.2").raw is not None  # the f32 nearest 30.2 prints as 30.2
+    assert "not representable as f32" in str(refused(io, "setpoint", "30.123456789"))
+    assert "not one of the allowed values" in str(refused(devices["meter"], "demand_period", "30.2"))  # a value set
     assert shortest_f32(230.1999969482422) == 230.2
 
 

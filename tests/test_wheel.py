@@ -237,6 +237,24 @@ def test_the_gateway_runs_from_the_wheel_in_a_foreign_folder(env: Path, tmp_path
     assert checkout_digest() == checkout_before
 
 
+def test_the_gateway_example_checks_from_the_wheel_in_an_empty_folder(env: Path, tmp_path: Path) -> None:
+    """``drivemap gateway --example > plant.yaml`` and ``drivemap gateway --check plant.yaml`` from the
+    installed wheel in an empty folder: the example ships in the package, names only seed maps, and is
+    a configuration the gateway accepts as printed (without the opcua extra: without its OPC UA part)."""
+    package_before, checkout_before = tree_digest(site_package(env)), checkout_digest()
+    work = tmp_path / "empty"
+    work.mkdir()
+    printed = ok(env, work, "gateway", "--example")
+    assert printed.startswith("gateway: 1") or "\ngateway: 1\n" in printed, printed[:400]
+    assert "# (OPC UA left out: pip install 'drivemap[opcua]'" in printed and "\nopcua:" not in printed
+    (work / "plant.yaml").write_text(printed)
+    checked = ok(env, work, "gateway", "--check", "plant.yaml")
+    assert "registers every" in checked, checked
+    assert sorted(p.name for p in work.iterdir()) == ["plant.yaml"]
+    assert tree_digest(site_package(env)) == package_before
+    assert checkout_digest() == checkout_before
+
+
 def test_draft_from_the_wheel_in_an_empty_folder(env: Path, tmp_path: Path) -> None:
     """PDF, Word and Excel drafting work after a plain install (pdfplumber, python-docx, openpyxl are
     dependencies of the wheel), and every draft validates as written."""

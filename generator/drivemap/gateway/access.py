@@ -9,7 +9,8 @@ Modbus address (node, slave, station, unit id), its serial line (baud rate, pari
 its protocol, its password, the register layout it presents (SunSpec model type). The rule reads
 the map, never a hand list of registers: a writable register is a link setting when a word of its
 name or of its group's name is one of :data:`LINK_WORDS`, or its label, description or notes
-contain one of :data:`LINK_PHRASES` (case-insensitive). ``tests/test_gateway_access.py`` holds the
+contain one of :data:`LINK_PHRASES` (case-insensitive; a note naming the map's own
+``protocol.alignment`` key is not about the link). ``tests/test_gateway_access.py`` holds the
 rule to every shipped map.
 """
 
@@ -39,6 +40,7 @@ def link_setting(model: Model, reg: Register) -> bool:
     if _words(reg.name) & LINK_WORDS or _words(reg.group) & LINK_WORDS:
         return True
     text = " ".join(t for t in (reg.label, reg.description, reg.notes) if t).lower()
+    text = text.replace("protocol.alignment", "")  # the map's key named in a note says nothing of the link
     return any(p in text for p in LINK_PHRASES)
 
 

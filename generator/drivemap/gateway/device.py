@@ -1,17 +1,20 @@
 """One drive behind the gateway: its generated async client, what it publishes and the commands it takes.
 
-Values leave in engineering units as JSON values: numbers as the codec decodes them (a value scaled by
-a scale register with the factor read with it), strings as text, coils and bools as true/false, a
-not-available value as null, enum registers
-as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``), bit-field
-registers as an object of their fields (single bits true/false, enumerated fields by name, wider
-fields as integers), arrays as lists of those.
+Values leave in engineering units as JSON values: numbers whole, as the codec decodes them (a value
+scaled by a scale register with the factor read with it; an unscaled f32 as the shortest decimal of
+the same f32), strings as text, coils and bools as true/false, a not-available value as null, enum
+registers as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``),
+bit-field registers as an object of their fields (single bits true/false, enumerated fields by name,
+wider fields as integers), arrays as lists of those. A value topic shows a number as the runtime
+shows it (:func:`drivemap.runtime.client.display.register_text`: ``4.00`` at the map's precision 2);
+precision is for people, JSON and OPC UA carry the value whole.
 
 Commands are parsed and checked here, before they are queued: the register must exist, be
 writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
 and bounded (:mod:`drivemap.gateway.payload`), must have the register's type, and must pass the
 codec's checks (range, enum membership, representability) and the gateway's own exactness check (a
-value the register cannot hold exactly is refused, never rounded). Everything that fails raises a
+value the register cannot hold exactly is refused, never rounded). A register with a value set takes
+a value of the set by option text, label or value (:mod:`drivemap.gateway.valuesets`). Everything that fails raises a
 typed :class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
 """
 
@@ -21,6 +24,7 @@ import asyncio
 import dataclasses
 import enum
 import json
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -35,11 +39,12 @@ from drivemap.gateway.payload import (
     number,
     parse_json,
     payload_text,
-    shortest_f32,
     show,
 )
+from drivemap.gateway.valuesets import set_value
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
+from drivemap.runtime.client.display import display_text, register_text
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
@@ -110,9 +115,17 @@ class Device:
             return self.bits_json(reg, value)
         if isinstance(value, enum.Enum):
             return value.name
-        if reg.type == "f32" and isinstance(value, float) and reg.scale == 1 and not reg.offset:
-            return shortest_f32(value)
+        if isinstance(value, float) and math.isfinite(value):
+            spec = self.package.SPEC.register(reg.name)  # the value whole: precision is for the text only
+            return float(display_text(value, single=spec.type == "f32" and spec.scale == 1 and spec.offset == 0))
         return value
+
+    def value_text(self, name: str, value: Any) -> str | None:
+        """The text of a value topic for a published number of register ``name`` (``4.00`` at
+        precision 2); None for what is not a single number (the caller writes JSON)."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return None
+        return register_text(self.package.SPEC.register(name), value)
 
     def bits_json(self, reg: Register, value: Any) -> dict[str, Any]:
         if dataclasses.is_dataclass(value) and not isinstance(value, type):
@@ -175,6 +188,9 @@ class Device:
         codec = unwrap(acc.codec)
         if reg.optional and text.strip() in ("null", "None", ""):
             return None  # writes the map's first not-available value
+        if reg.values and not isinstance(codec, (BoolCodec, EnumCodec, FlagCodec, FieldsCodec)):
+            value = set_value(reg, acc.spec, text)
+            return value if isinstance(value, str) else number(reg.name, value, integer=_integer(reg))
         if isinstance(codec, StringCodec):
             return _text_value(text)
         if isinstance(codec, BoolCodec):
@@ -186,12 +202,16 @@ class Device:
         value = parse_json(reg.name, text)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InvalidValue(f"{reg.name}: expected a number, got {show(text)}")
-        return number(reg.name, value, integer=reg.is_integer and reg.type not in ("f32", "f64"))
+        return number(reg.name, value, integer=_integer(reg))
 
     def command_value(self, reg: Register, value: Any) -> Any:
         """The Python value for a typed OPC UA write (numbers; enum registers take the raw value)."""
         acc = self.client.accessor(reg.name)
         return self.parse_value(reg, acc, json.dumps(value))
+
+
+def _integer(reg: Register) -> bool:
+    return reg.is_integer and reg.type not in ("f32", "f64")
 
 
 def _text_value(text: str) -> str:

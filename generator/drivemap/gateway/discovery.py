@@ -3,13 +3,17 @@
 One Home Assistant device per drive (manufacturer, model, manual document and revision from the
 map; what the map does not state is left out) and, per register: a ``sensor`` for readable values
 (unit, ``device_class`` where the unit names one, ``state_class`` and ``suggested_display_precision``
-for numbers, ``enum`` options for enumerated values), a ``binary_sensor`` per single bit of a
+for numbers: the map's ``precision`` when it gives one, else the decimals of its scale, ``enum``
+options for enumerated values), a ``binary_sensor`` per single bit of a
 bit-field register (wider fields are sensors) and per read-only coil or discrete input. Controls
-only for registers in the device's ``writable`` list: a ``select`` per enumerated register, a
+only for registers in the device's ``writable`` list: a ``select`` per enumerated register and per
+register with a value set (``values:``; options are the labels, the value where a value has none), a
 ``number`` per register with a range in the map (min/max, step = the map's scale), a ``button`` per
 command register, a ``switch`` per coil or bool register (payloads true/false). Strings are text
 sensors (no unit or state class); a register with not-available values publishes null for them,
-which the sensor shows as unknown (its value template turns null into HA's "None" payload).
+which the sensor shows as unknown (its value template turns null into HA's "None" payload). Array
+elements are named as the manual numbers them (the map's ``first_index``: ``Alarm history 1`` is
+element 0); their topics and object ids keep the gateway's numbering from 0.
 
 Home Assistant refuses a state it was not announced: enum templates turn a value outside the options
 (``UNKNOWN_<n>``) into "None" (unknown); number templates turn a reading outside min..max into "None",
@@ -23,11 +27,12 @@ retained, with ``node_id = drivemap_<gateway>_<device>``.
 from __future__ import annotations
 
 import json
-from decimal import Decimal
 from typing import Any
 
 from drivemap import __version__
+from drivemap.backends.views.integrations import decimals
 from drivemap.gateway.device import PRESS, Device
+from drivemap.gateway.valuesets import value_options
 from drivemap.model.nodes import Model, Register
 
 #: Units the map may print -> (Home Assistant unit, device_class, state_class).
@@ -70,13 +75,16 @@ _UNITS: dict[str, tuple[str, str | None, str]] = {
 
 
 def precision(reg: Register) -> int | None:
-    """Decimals a value of ``reg`` has (its scale's and offset's), None for unscaled floats."""
+    """Decimals to show of ``reg``'s values: the map's ``precision`` when it gives one, else the
+    decimals of its scale and offset; None for unscaled floats and registers scaled by a scale
+    register (the decimals change with the factor)."""
+    if reg.precision is not None:
+        return reg.precision
     if reg.type in ("f32", "f64") and reg.scale == 1 and not reg.offset:
         return None
     if reg.scale_register is not None:
         return None
-    digits = [-int(Decimal(repr(float(x))).normalize().as_tuple().exponent) for x in (reg.scale, reg.offset or 0)]
-    return max(0, *digits)
+    return decimals(reg.scale, reg.offset or 0)
 
 
 def unit_info(reg: Register) -> dict[str, Any]:
@@ -139,10 +147,10 @@ def _title(name: str) -> str:
 def entity_name(reg: Register, index: int | None) -> str:
     """The display name of a register's entity, or of one element of an array register.
 
-    The one place that names entities: an element is named by its index as the gateway's topics
-    number it (from 0). Maps will be able to say how the manual numbers elements; that rule goes
-    here."""
-    return _title(reg.name) if index is None else f"{_title(reg.name)} {index}"
+    The one place that names entities: element ``index`` (0-based, as the gateway's topics number
+    it) is named as the manual numbers it, by the map's ``first_index``
+    (:meth:`~drivemap.model.nodes.Register.display_name`)."""
+    return _title(reg.name) if index is None else reg.display_name(index, _title(reg.name))
 
 
 def _enum_names(model: Model, enum: str) -> list[str]:
@@ -195,6 +203,8 @@ def _register(b: _Builder, reg: Register, published: bool, control: bool) -> Non
             if published:
                 st["value_template"] = _announced(_field(index), options)
             b.add("select", object_id, name, {**st, "command_topic": command, "options": options})
+        elif reg.values and control:
+            _value_select(b, reg, object_id, name, st, command, index)
         elif control and reg.min is not None and reg.max is not None and reg.type != "string":
             _number(b, reg, object_id, name, st, command, index)
         elif published and reg.enum:
@@ -227,6 +237,32 @@ def _number(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str,
         reading = {"state_topic": st["state_topic"], **({"value_template": f"{{{{ {_field(index)} }}}}"}
                                                         if index is not None else {})}
         _sensor(b, reg, f"{object_id}_reading", f"{name} reading", reading, reading.get("value_template"))
+
+
+def _chosen(field: str, pairs: list[tuple[float | str, str]]) -> str:
+    """A value template that turns a published value into its option text and anything else (a
+    value outside the set, null) into "None" (unknown); numbers compare with the value set's
+    tolerance (a scaled reading is not always the exact binary float of the map's value)."""
+    numeric = any(not isinstance(v, str) for v, _ in pairs)
+    head = f"{{% set v = {field} | float(none) %}}" if numeric else f"{{% set v = {field} | string %}}"
+    body = ""
+    for value, text in pairs:
+        if isinstance(value, str):
+            test = f"v == {json.dumps(value, ensure_ascii=True)}"
+        else:
+            test = f"v is not none and (v - {float(value)!r}) | abs <= {1e-9 * max(1.0, abs(float(value)))!r}"
+        body += f"{{% {'elif' if body else 'if'} {test} %}}{{{{ {json.dumps(text, ensure_ascii=True)} }}}}"
+    return f"{head}{body}{{% else %}}None{{% endif %}}"
+
+
+def _value_select(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
+                  index: int | None) -> None:
+    """A select over the register's value set: Home Assistant sends the option text, which the
+    gateway takes (as it takes the label or the value) and refuses anything else."""
+    pairs = value_options(reg)
+    if st:
+        st = {**st, "value_template": _chosen(_field(index), pairs)}
+    b.add("select", object_id, name, {**st, "command_topic": command, "options": [text for _, text in pairs]})
 
 
 def _bool(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,

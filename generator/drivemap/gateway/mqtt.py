@@ -10,7 +10,8 @@ Topics (``P`` = the configured prefix, ``D`` = a device name):
   (LWT) and on a clean stop;
 * ``P/D/REGISTER/set`` and ``P/D/REGISTER/INDEX/set`` (array elements): commands. Retained
   commands are ignored (no replay of old commands after a restart). Every command's outcome, ok or
-  the typed error, goes to ``P/D/error`` (not retained);
+  the typed error, goes to ``P/D/error`` (not retained); a value outside a register's value set is
+  answered with ``NotAllowedValue`` and the ``allowed`` values;
 * Home Assistant discovery under the discovery prefix (:mod:`drivemap.gateway.discovery`), retained.
 
 The bridge keeps the latest payload of every retained topic. While the broker is away, values keep
@@ -35,7 +36,7 @@ import aiomqtt
 from drivemap.gateway.config import MqttConfig
 from drivemap.gateway.device import Command, Device
 from drivemap.gateway.discovery import discovery_messages
-from drivemap.runtime.errors import DriveError
+from drivemap.runtime.errors import DriveError, NotAllowedValue
 
 log = logging.getLogger("drivemap.gateway.mqtt")
 
@@ -96,7 +97,8 @@ class MqttBridge:
 
     def publish_values(self, device: Device, values: dict[str, Any], changed: dict[str, Any]) -> None:
         for name, value in changed.items():
-            self._retain(f"{device.topic}/{name}", payload_text(value))
+            text = device.value_text(name, value)
+            self._retain(f"{device.topic}/{name}", payload_text(value) if text is None else text)
         self._retain(f"{device.topic}/state", json.dumps(device.values, separators=(",", ":"), ensure_ascii=False))
 
     def publish_availability(self, device: Device, online: bool) -> None:
@@ -218,8 +220,9 @@ class MqttBridge:
             cmd = device.command(target, payload, "mqtt")
             self.submit(cmd)
         except DriveError as exc:
+            allowed = {"allowed": list(exc.allowed)} if isinstance(exc, NotAllowedValue) else {}
             self.publish_outcome(device, {"register": target, "value": shown, "ok": False, "source": "mqtt",
-                                          "error": type(exc).__name__, "message": str(exc)})
+                                          "error": type(exc).__name__, "message": str(exc), **allowed})
         except Exception as exc:  # noqa: BLE001 - no message may stop the gateway: logged and answered
             log.exception("command on %s failed", topic)
             self.publish_outcome(device, {"register": target, "value": shown, "ok": False, "source": "mqtt",

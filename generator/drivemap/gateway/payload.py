@@ -15,10 +15,10 @@ from __future__ import annotations
 import json
 import math
 import re
-import struct
 from typing import Any
 
 from drivemap.runtime.client.codec import IeeeCodec, OptionalCodec
+from drivemap.runtime.client.display import display_text
 from drivemap.runtime.errors import InvalidValue, ValueOutOfRange
 
 #: The longest command payload (bytes); a bit-field object of every field of a 64-bit register fits.
@@ -131,18 +131,11 @@ def number(register: str, value: Any, *, integer: bool) -> int | float:
 
 
 def shortest_f32(value: float) -> float:
-    """The shortest decimal that reads back as the same IEEE-754 single (230.2, not 230.1999969482422)."""
+    """The shortest decimal that reads back as the same IEEE-754 single (230.2, not 230.1999969482422):
+    the runtime's display rule (:func:`drivemap.runtime.client.display.display_text`) as a number."""
     if not math.isfinite(value):
         return value
-    try:
-        target = struct.pack(">f", value)
-    except OverflowError:
-        return value
-    for digits in range(1, 10):
-        candidate = float(f"{value:.{digits}g}")
-        if struct.pack(">f", candidate) == target:
-            return candidate
-    return value
+    return float(display_text(value, single=True))
 
 
 def _close(a: float, b: float) -> bool:
