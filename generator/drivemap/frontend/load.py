@@ -171,20 +171,31 @@ def _check_depth(text: str, path: str) -> None:
     """Refuse nesting deeper than MAX_DEPTH from the parser's events (a state machine, no recursion),
     so neither libyaml's nor PyYAML's recursive composer ever sees a deep document."""
     loader_class = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    depth = 0
     try:
-        for event in yaml.parse(text, Loader=loader_class):
-            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-                depth += 1
-                if depth > MAX_DEPTH:
-                    mark = event.start_mark
-                    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
-                    raise CompileError([Diagnostic(Location(path, line, col),
-                                                   f"nesting deeper than {MAX_DEPTH} levels")])
-            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                depth -= 1
+        _depth_events(text, path, loader_class)
     except (yaml.YAMLError, ValueError):
+        # libyaml refuses deep documents itself ("maximum nesting depth", wording by version), and
+        # may do so while scanning ahead, before it hands over the events that would reach our
+        # limit: the pure-Python parser (a state machine too) decides, so the message is always ours.
+        if loader_class is not yaml.SafeLoader:
+            try:
+                _depth_events(text, path, yaml.SafeLoader)
+            except (yaml.YAMLError, ValueError):
+                pass
         return  # the composer reports syntax errors with their location
+
+
+def _depth_events(text: str, path: str, loader_class: Any) -> None:
+    depth = 0
+    for event in yaml.parse(text, Loader=loader_class):
+        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            if depth > MAX_DEPTH:
+                mark = event.start_mark
+                line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+                raise CompileError([Diagnostic(Location(path, line, col), f"nesting deeper than {MAX_DEPTH} levels")])
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
 
 
 def _compose_fast(text: str) -> Node | None:
