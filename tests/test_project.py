@@ -213,11 +213,11 @@ def test_an_interrupted_build_leaves_the_previous_output_intact(project: Path,
     real_stage = output._stage
     calls = {"n": 0}
 
-    def failing_stage(target: Path, body: str) -> str:
+    def failing_stage(target: Path, body: str, tmp: Path) -> str:
         calls["n"] += 1
         if calls["n"] == 3:
             raise OSError(28, "No space left on device")
-        return real_stage(target, body)
+        return real_stage(target, body, tmp)
 
     monkeypatch.setattr(output, "_stage", failing_stage)
     with pytest.raises(OSError):

@@ -151,4 +151,5 @@ def write_tree(root: Path, files: Mapping[str, str], *, force: bool = False) -> 
     """Write ``files`` into ``root`` as ``drivemap build`` does (manifest, staged, pruned)."""
     from drivemap.backends import output
 
-    output.write(output.plan(root, files, prune=True, force=force))
+    with output.locked([root]):
+        output.write(output.plan(root, files, prune=True, force=force))

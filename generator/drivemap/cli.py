@@ -105,13 +105,14 @@ def cmd_build(args: argparse.Namespace) -> int:
 
     project = _project(args, args.paths)
     models = _project_models(project)
-    changes = [output.plan(root, files, prune=prune, force=args.force)
-               for root, (files, prune) in outputs_by_root(project, models).items()]
-    errors = [e for c in changes for e in c.errors]
-    if errors:
-        return _report(errors)
-    for change in changes:
-        output.write(change)
+    grouped = outputs_by_root(project, models)
+    with output.locked(grouped):  # one build per output folder at a time; planned and written under it
+        changes = [output.plan(root, files, prune=prune, force=args.force) for root, (files, prune) in grouped.items()]
+        errors = [e for c in changes for e in c.errors]
+        if errors:
+            return _report(errors)
+        for change in changes:
+            output.write(change)
     for m in models:
         print(_summary(m))
     for change in changes:
@@ -120,6 +121,9 @@ def cmd_build(args: argparse.Namespace) -> int:
         for rel in change.edited:
             print(f"  replaced {display(change.root / rel)}: it had been edited by hand (generated files are not "
                   "edited; change the map or the templates)")
+        for rel in change.kept:
+            print(f"  kept {display(change.root / rel)}: edited by hand (no map produces it any more; not deleted, "
+                  "no longer tracked)")
     return 0
 
 
@@ -197,10 +201,12 @@ def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool)
     from drivemap.backends import output
 
     root = target if multi else target.parent
-    change = output.plan(root, files if multi else {target.name: next(iter(files.values()))}, prune=False, force=force)
-    if change.errors:
-        return _report(change.errors)
-    output.write(change)
+    with output.locked([root]):
+        change = output.plan(root, files if multi else {target.name: next(iter(files.values()))}, prune=False,
+                             force=force)
+        if change.errors:
+            return _report(change.errors)
+        output.write(change)
     print(f"wrote {display(target)}" + (f"/ ({len(files)} files)" if multi else ""))
     return 0
 
