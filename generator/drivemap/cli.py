@@ -54,7 +54,23 @@ def _compile(files: Sequence[Path]) -> tuple[list[Model], list[Diagnostic]]:
             models.append(compile_map(path))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
+    first: dict[str, Model] = {}
+    for model in models:
+        if model.name in first:
+            errors.append(Diagnostic(Location(model.path, _model_line(model.path), 1),
+                                     f"model id {model.name!r} is also the id of {first[model.name].path}: "
+                                     "one map per model (the generated package would come from one of them)",
+                                     related=((Location(first[model.name].path, 1, 1), "the other map"),)))
+        first.setdefault(model.name, model)
     return models, errors
+
+
+def _model_line(path: str) -> int:
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return 1
+    return next((n for n, line in enumerate(lines, 1) if line.strip().startswith("model:")), 1)
 
 
 def _project_models(project: Project) -> list[Model]:

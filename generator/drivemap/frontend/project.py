@@ -56,6 +56,7 @@ class ExportEntry:
     model: str
     output: Path
     options: Mapping[str, Any] = field(default_factory=dict)
+    line: int = 1  #: where the entry stands in the configuration file
 
 
 @dataclass(frozen=True)
@@ -228,7 +229,8 @@ def _exports(value: Any, root: Path, where: Path, prefix: str) -> tuple[ExportEn
     if not isinstance(value, list):
         raise _config_error(where, f"{prefix}exports: expected a list of tables ([[{prefix}exports]])")
     entries = []
-    for item in value:
+    lines = _entry_lines(where, len(value))
+    for item, line in zip(value, lines, strict=True):
         if not isinstance(item, dict) or not {"format", "model", "output"} <= set(item):
             raise _config_error(where, f"{prefix}exports: every entry needs format, model and output")
         extra = set(item) - {"format", "model", "output", "options"}
@@ -237,5 +239,18 @@ def _exports(value: Any, root: Path, where: Path, prefix: str) -> tuple[ExportEn
         options = item.get("options", {})
         if not all(isinstance(item[k], str) for k in ("format", "model", "output")) or not isinstance(options, dict):
             raise _config_error(where, f"{prefix}exports: format, model and output are strings, options a table")
-        entries.append(ExportEntry(item["format"], item["model"], root / item["output"], dict(options)))
+        entries.append(ExportEntry(item["format"], item["model"], root / item["output"], dict(options), line))
     return tuple(entries)
+
+
+def _entry_lines(where: Path, count: int) -> list[int]:
+    """The line of each ``[[tool.drivemap.exports]]`` header (or, for an inline list, of ``exports =``)."""
+    header = "[[tool.drivemap.exports]]" if where.name == "pyproject.toml" else "[[exports]]"
+    try:
+        text = where.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return [1] * count
+    found = [n for n, line in enumerate(text.splitlines(), 1) if line.strip().replace(" ", "") == header]
+    if len(found) == count:
+        return found
+    return [_key_line(where, "exports")] * count
