@@ -10,7 +10,7 @@ import yaml
 from drivemap.frontend import load
 
 ROOT = Path(__file__).resolve().parent.parent
-FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "drivemap" / "templates" / "new_map.yaml.jinja"]
+FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "drivemap" / "backends" / "templates" / "new_map.yaml.jinja"]
 
 
 @pytest.mark.skipif(not getattr(yaml, "__with_libyaml__", False), reason="PyYAML built without libyaml: one path only")
