@@ -108,7 +108,7 @@ def test_missing_file() -> None:
     "[" * 1_000_000,
     "a: " + "{x: " * 25_000 + "1" + "}" * 25_000,
     "a:\n" + "".join("  " * i + "- \n" for i in range(1, 60)),
-])
+], ids=["flow-1M", "mapping-25k", "block-60"])  # explicit ids: pytest 8.0 puts the whole text in the id (and the env)
 def test_deep_nesting_is_refused_before_anything_recurses(tmp_path: Path, text: str) -> None:
     """25,000- and 1,000,000-deep documents end in one located error, quickly (no crash, no hang)."""
     deep = tmp_path / "deep.yaml"
