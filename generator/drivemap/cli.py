@@ -14,12 +14,15 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from drivemap import __version__
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.nodes import Model
+
+if TYPE_CHECKING:
+    from drivemap.backends.output import Change
 
 
 class UsageError(Exception):
@@ -128,7 +131,7 @@ def cmd_build(args: argparse.Namespace) -> int:
         if errors:
             return _report(errors)
         for change in changes:
-            output.write(change)
+            _write_change(change)
     for m in models:
         print(_summary(m))
     for change in changes:
@@ -141,6 +144,18 @@ def cmd_build(args: argparse.Namespace) -> int:
             print(f"  kept {display(change.root / rel)}: edited by hand (no map produces it any more; not deleted, "
                   "no longer tracked)")
     return 0
+
+
+def _write_change(change: Change) -> None:
+    """Carry out a planned change; a folder or file the system refuses is a located error."""
+    from drivemap.backends import output
+
+    try:
+        output.write(change)
+    except OSError as exc:
+        where = display(change.root)
+        raise CompileError([Diagnostic(Location(where, 1, 1), f"cannot write the output here: "
+                                                              f"{exc.strerror or exc}")]) from None
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -222,7 +237,7 @@ def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool)
                              force=force)
         if change.errors:
             return _report(change.errors)
-        output.write(change)
+        _write_change(change)
     print(f"wrote {display(target)}" + (f"/ ({len(files)} files)" if multi else ""))
     return 0
 
@@ -232,19 +247,31 @@ def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool)
 
 def cmd_new(args: argparse.Namespace) -> int:
     from drivemap.backends.render import scaffold
+    from drivemap.compiler import compile_text
     from drivemap.frontend.schema import SCHEMA_PATH
 
     folder = Path(args.dir) if args.dir else _project(args).maps_folder()
+    if not re.fullmatch(r"[a-z][a-z0-9_]{0,63}", args.model):
+        raise CompileError([Diagnostic(Location(display(folder / f"{args.model[:80]}.yaml"), 1, 1),
+                                       f"model id {args.model[:80]!r} must be a lower-case identifier of at most "
+                                       "64 characters")])
     target = folder / f"{args.model}.yaml"
-    if not re.fullmatch(r"[a-z][a-z0-9_]*", args.model):
-        raise CompileError([Diagnostic(Location(display(target), 1, 1),
-                                       f"model id {args.model!r} must be a lower-case identifier")])
+    where = Location(display(target), 1, 1)
     if os.path.lexists(target):
-        raise CompileError([Diagnostic(Location(display(target), 1, 1), "file exists; not overwritten")])
-    folder.mkdir(parents=True, exist_ok=True)
+        raise CompileError([Diagnostic(where, "file exists; not overwritten")])
     ref = Path(os.path.relpath(SCHEMA_PATH.resolve(), folder.resolve())).as_posix()
-    with open(target, "x", encoding="utf-8", newline="\n") as handle:
-        handle.write(scaffold(args.model, ref))
+    text = scaffold(args.model, ref)
+    try:
+        compile_text(text, display(target))  # never write a map that validate refuses (a keyword id, ...)
+    except CompileError as exc:
+        problems = "; ".join(d.message for d in exc.diagnostics)
+        raise CompileError([Diagnostic(where, f"model id {args.model!r} cannot be used: {problems}")]) from None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(target, "x", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+    except OSError as exc:
+        raise CompileError([Diagnostic(where, f"cannot write the map: {exc.strerror or exc}")]) from None
     print(f"wrote {display(target)}")
     return 0
 
@@ -363,6 +390,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a path the system refuses that no verb located itself: still no traceback
+        where = display(os.fsdecode(exc.filename)) if exc.filename else "drivemap"
+        print(f"{where}:1:1: error: {exc.strerror or exc}", file=sys.stderr)
+        print("1 error", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import checks, schema
-from drivemap.frontend.load import load_file
+from drivemap.frontend.load import Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
@@ -25,7 +25,15 @@ def display_path(path: str | os.PathLike[str]) -> str:
 def compile_map(path: str | os.PathLike[str]) -> Model:
     """Load, validate and check one map; raise :class:`CompileError` with every error found."""
     shown = display_path(path)
-    doc = load_file(shown)
+    return _compile_document(load_file(shown), shown)
+
+
+def compile_text(text: str, shown: str) -> Model:
+    """:func:`compile_map` of a map's text (``shown`` is the path its messages name)."""
+    return _compile_document(load_text(text, shown), shown)
+
+
+def _compile_document(doc: Document, shown: str) -> Model:
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])
     errors = schema.validate(doc)

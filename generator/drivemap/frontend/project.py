@@ -130,6 +130,11 @@ def _read_toml(path: Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as exc:
         line, col = _toml_position(str(exc))
         raise CompileError([Diagnostic(Location(display(path), line, col), f"invalid TOML: {exc}")]) from None
+    except UnicodeDecodeError as exc:
+        raw = path.read_bytes()
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise CompileError([Diagnostic(Location(display(path), line, col), "invalid TOML: not UTF-8 text")]) from None
     except OSError as exc:
         raise _config_error(path, f"cannot read: {exc.strerror}") from None
 
@@ -206,7 +211,13 @@ def load_project(
     pkg = package or string("package") or out_dir.name
     if not _DOTTED.fullmatch(pkg) or any(part in ("__pycache__",) for part in pkg.split(".")):
         source = "--package" if package else (f"{prefix}package" if string("package") else f"the folder name of out ({out_dir.name!r})")
-        raise _config_error(where, f"{prefix}package: {pkg!r} from {source} is not an importable name; set package")
+        message = f"{prefix}package: {pkg!r} from {source} is not an importable name; set package"
+        if not package and not string("package") and not out and string("out"):  # the configured out's name
+            raise CompileError([Diagnostic(Location(display(where), _key_line(where, f"{prefix}out"), 1), message)])
+        if package or not string("package"):  # from the command line or a folder name: no line of a file says it
+            raise CompileError([Diagnostic(Location(display(out_dir), 1, 1), f"package: {pkg!r} from {source} is not "
+                                                                             "an importable name; pass --package or set package")])
+        raise _config_error(where, message)
     mods = list(behaviours) if behaviours else (strings("behaviours") or [])
     for mod in mods:
         if not _DOTTED.fullmatch(mod):

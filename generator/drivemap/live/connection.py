@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import argparse
 import errno
+import math
 import os
 import socket
 import termios
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -81,9 +83,26 @@ def add_connection_arguments(parser: argparse.ArgumentParser, *, unit: bool = Tr
     g.add_argument("--stop-bits", type=int, choices=[1, 2], default=None, help="serial stop bits (default: the map's)")
     if unit:
         g.add_argument("--unit", type=int, default=None, metavar="N", help="unit id (default: 1, or the map's lowest)")
-    g.add_argument("--timeout", type=float, default=None, metavar="S", help="response timeout (default: the map's)")
+    g.add_argument("--timeout", type=seconds(0.0, 600.0, zero=False), default=None, metavar="S",
+                   help="response timeout (default: the map's)")
     g.add_argument("--retries", type=int, default=None, metavar="N", help="retries after a timeout (default: the map's)")
     g.add_argument("--debug", action="store_true", help="log every frame in hex on stderr")
+
+
+def seconds(low: float, high: float, *, zero: bool = True) -> Callable[[str], float]:
+    """An argparse type: a finite number of seconds in [low, high] (above ``low`` unless ``zero``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+        if not math.isfinite(value) or value < low or value > high or (not zero and value == low):
+            raise argparse.ArgumentTypeError(f"{text!r}: give seconds {'from' if zero else 'above'} {low:g} "
+                                             f"up to {high:g}")
+        return value
+
+    return parse
 
 
 def _host_port(text: str, option: str, default_port: int | None) -> tuple[str, int]:
