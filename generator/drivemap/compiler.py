@@ -12,6 +12,10 @@ from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
 
+#: Most registers a map may hold (one full address space of one table), checked before the schema and
+#: the checks run: build time and memory grow with it (about 1 ms and 20 KB per register, docs/limits.md).
+MAX_REGISTERS = 65_536
+
 #: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does
 #: not have is looked up here.
 BUNDLED_MAPS = Path(__file__).resolve().parent / "data" / "maps"
@@ -36,6 +40,11 @@ def compile_text(text: str, shown: str) -> Model:
 def _compile_document(doc: Document, shown: str) -> Model:
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])
+    registers = doc.data.get("registers")
+    if isinstance(registers, list) and len(registers) > MAX_REGISTERS:
+        raise CompileError([Diagnostic(doc.positions.at(("registers", MAX_REGISTERS)),
+                                       f"more than {MAX_REGISTERS:,} registers: map refused before validation "
+                                       "(bounded time and memory; docs/limits.md)")])
     errors = schema.validate(doc)
     if errors:
         raise CompileError(errors)

@@ -23,6 +23,10 @@ from drivemap.diagnostics import CompileError, Diagnostic, Location
 MAX_MAP_BYTES = 32 * 1024 * 1024
 #: Deepest nesting accepted (checked on the parser's events, before anything recurses).
 MAX_DEPTH = 40
+#: Most YAML values (scalars, mappings, lists) a map may hold, counted on the parser's events before
+#: anything is built: a register of the synthetic benchmark map takes about 25, so 65,536 registers
+#: fit; what building costs is bounded by this, not by the file size (docs/limits.md).
+MAX_NODES = 2_000_000
 #: Largest integer magnitude accepted anywhere in a map (a 64-bit register's range fits).
 MAX_INT = 2**64
 
@@ -194,8 +198,15 @@ def _check_depth(text: str, path: str) -> None:
 
 
 def _depth_events(text: str, path: str, loader_class: Any) -> None:
-    depth = 0
+    depth = nodes = 0
     for event in yaml.parse(text, Loader=loader_class):
+        if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            nodes += 1
+            if nodes > MAX_NODES:
+                mark = event.start_mark
+                line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+                raise CompileError([Diagnostic(Location(path, line, col), f"more than {MAX_NODES:,} YAML values "
+                                               "(scalars, mappings, lists): map refused before anything is built")])
         if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
             depth += 1
             if depth > MAX_DEPTH:
