@@ -34,6 +34,8 @@ def plant(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
                                    + "0" * 5000 + "}}}", encoding="utf-8")
     (work / "np").mkdir()
     (work / "np" / "pyproject.toml").write_bytes(b'[tool.drivemap]\nmaps = "\xff\xfe"\n')
+    (work / "pk").mkdir()
+    (work / "pk" / "pyproject.toml").write_text('[tool.drivemap]\npackage = "class"\n', encoding="utf-8")
     return {"root": str(work), "file": "afile", "dir": "adir", "fifo": "afifo", "long": "a" * 300,
             "surrogate": "surrogate.yaml", "bigstate": "big.json"}
 

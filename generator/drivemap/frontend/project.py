@@ -20,6 +20,7 @@ exports        ``[]``                           committed exports: ``{format, mo
 
 from __future__ import annotations
 
+import keyword
 import os
 import re
 import tomllib
@@ -209,7 +210,7 @@ def load_project(
     configured_docs = None if out else string("docs")
     docs_dir = (cwd / docs) if docs else (root / configured_docs if configured_docs else out_dir / "docs")
     pkg = package or string("package") or out_dir.name
-    if not _DOTTED.fullmatch(pkg) or any(part in ("__pycache__",) for part in pkg.split(".")):
+    if not _DOTTED.fullmatch(pkg) or any(part == "__pycache__" or keyword.iskeyword(part) for part in pkg.split(".")):
         source = "--package" if package else (f"{prefix}package" if string("package") else f"the folder name of out ({out_dir.name!r})")
         message = f"{prefix}package: {pkg!r} from {source} is not an importable name; set package"
         if not package and not string("package") and not out and string("out"):  # the configured out's name
