@@ -38,7 +38,7 @@ def payloads(marker: Path) -> list[str]:
 
 
 def hostile_map(marker: Path) -> tuple[dict[str, object], list[str]]:
-    scaffold = ROOT / "generator" / "drivemap" / "templates" / "new_map.yaml.jinja"
+    scaffold = ROOT / "generator" / "drivemap" / "backends" / "templates" / "new_map.yaml.jinja"
     base = yaml.safe_load(scaffold.read_text(encoding="utf-8").replace("{{ model }}", "hostile"))
     texts = payloads(marker)
     base["device"]["title"] = texts[0]

@@ -223,9 +223,21 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise UsageError(f"drivemap export --format {args.format}", str(exc)) from None
     if args.output is None:
         for _, text in sorted(files.items()):
+            _refuse_unencodable(text, model.path)
+        for _, text in sorted(files.items()):
             sys.stdout.write(text)
         return 0
     return _write_export(Path(args.output), files, exporter.multi_file, args.force)
+
+
+def _refuse_unencodable(text: str, source: str) -> None:
+    """Output that UTF-8 cannot hold (a lone surrogate from the map) is refused before any is written."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise CompileError([Diagnostic(Location(display(source), 1, 1), f"the export cannot be written as UTF-8: "
+                                       f"character U+{ord(text[exc.start]):04X} (a lone surrogate from the map) "
+                                       f"at offset {exc.start}")]) from None
 
 
 def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool) -> int:

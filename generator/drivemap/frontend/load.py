@@ -97,8 +97,6 @@ class _Refused(Exception):
 #: manual's "00017" means.
 _OCTAL = re.compile(r"[-+]?0[0-7_]+")
 
-_SURROGATE = re.compile("[\ud800-\udfff]")
-
 _PLAIN_TAGS = {
     "tag:yaml.org,2002:str",
     "tag:yaml.org,2002:int",
@@ -169,12 +167,6 @@ class _Builder:
             return None
         if isinstance(value, float) and (value != value or value in (float("inf"), float("-inf"))):
             self.errors.append(Diagnostic(_loc(self.path, node), "NaN and infinity are not allowed"))
-            return None
-        if isinstance(value, str) and _SURROGATE.search(value):
-            found = _SURROGATE.search(value)
-            assert found is not None
-            self.errors.append(Diagnostic(_loc(self.path, node), f"character U+{ord(found.group()):04X} is a lone "
-                                          "surrogate (an escape such as \\uDC80 that is no character): not text"))
             return None
         return value
 
