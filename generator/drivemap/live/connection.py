@@ -237,10 +237,15 @@ def why_unreachable(link: Link) -> str:
     return f"cannot connect to {link.host}:{link.port} ({link.kind})"
 
 
-def explain(exc: Exception, link: Link, target: Target | None, what: str, *, garbled: bool) -> LiveError:
-    """One actionable line for a failed request (``what``: what it was doing)."""
+def explain(exc: Exception, link: Link, target: Target | None, what: str, *, garbled: bool,
+            rejected: str | None = None) -> LiveError:
+    """One actionable line for a failed request (``what``: what it was doing; ``rejected``: why the
+    last reply that came back was not the answer, when one did)."""
     if isinstance(exc, DeviceException):
         return LiveError(EXIT_DEVICE_EXCEPTION, device_exception_text(exc, link, target, what))
+    if isinstance(exc, DriveTimeout) and rejected:
+        return LiveError(EXIT_GARBLED, f"{what}: {link.describe()} answered, but not what was asked ({rejected}); "
+                                       "is this the device of this map, and the unit id right?")
     if isinstance(exc, DriveTimeout):
         if garbled:
             hint = ("wrong baud rate or parity? find them with: drivemap scan --serial " + link.device
@@ -282,10 +287,16 @@ class Watch:
     def __init__(self, bus: Bus) -> None:
         self.bus = bus
         self.before = bus.stats.bytes_garbled
+        self.rejected_before = bus.stats.rejected
 
     @property
     def garbled(self) -> bool:
         return self.bus.stats.bytes_garbled > self.before
+
+    @property
+    def rejected(self) -> str | None:
+        """What the last refused reply was, when one came during the operation."""
+        return getattr(self.bus, "last_rejected", None) if self.bus.stats.rejected > self.rejected_before else None
 
 
 def run(bus: Bus, link: Link, target: Target | None, what: str, func: Any, *args: Any) -> Any:
@@ -294,4 +305,4 @@ def run(bus: Bus, link: Link, target: Target | None, what: str, func: Any, *args
     try:
         return func(*args)
     except (DeviceException, TransportError) as exc:
-        raise explain(exc, link, target, what, garbled=watch.garbled) from None
+        raise explain(exc, link, target, what, garbled=watch.garbled, rejected=watch.rejected) from None

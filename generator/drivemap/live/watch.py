@@ -119,13 +119,15 @@ def cycle(session: Session, state: State) -> None:
     """One read of the selection; a failure keeps the last values and marks them stale."""
     assert session.bus is not None
     stats = session.bus.stats
-    before = (stats.transactions, stats.bytes_sent + stats.bytes_received, stats.bytes_garbled)
+    before = (stats.transactions, stats.bytes_sent + stats.bytes_received, stats.bytes_garbled, stats.rejected)
     started = time.monotonic()
     try:
         raws = session.read_keys(keys_of(state.cells))
     except (DeviceException, TransportError) as exc:
         garbled = stats.bytes_garbled > before[2]
-        state.stale, state.problem = True, explain(exc, session.link, session.target, "read", garbled=garbled).message
+        rejected = session.bus.last_rejected if stats.rejected > before[3] else None
+        state.stale, state.problem = True, explain(exc, session.link, session.target, "read", garbled=garbled,
+                                                   rejected=rejected).message
         state.stale_cycles += 1
     else:
         rows = rows_of(session.target, state.cells, raws)
