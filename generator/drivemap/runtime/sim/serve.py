@@ -45,6 +45,7 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from drivemap.runtime.client.bus import sleep_until
+from drivemap.runtime.sim.listen import why_not_listening
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 from drivemap.runtime.sim.tcp import SimTcpServer
 
@@ -393,7 +394,10 @@ class SimServer:
             else:
                 watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
             server.framer = watch
-        await server.serve_forever(background=True)
+        try:
+            await server.serve_forever(background=True)
+        except RuntimeError as exc:  # pymodbus: "Could not start listen, please check address."
+            raise SimulatorError(why_not_listening(self.tcp, self.serial, self.baudrate, exc)) from None
         self._server = server
         if self.tcp is not None:
             sockets = getattr(server.transport, "sockets", None) or []
