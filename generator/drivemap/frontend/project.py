@@ -222,6 +222,8 @@ def load_project(
     mods = list(behaviours) if behaviours else (strings("behaviours") or [])
     for mod in mods:
         if not _DOTTED.fullmatch(mod):
+            if behaviours:  # from the command line: no file holds it
+                raise CompileError([Diagnostic(Location("--behaviours", 1, 1), f"{mod!r} is not a module name")])
             raise _config_error(where, f"{prefix}behaviours: {mod!r} is not a module name")
     return Project(
         root=root,
