@@ -7,14 +7,10 @@ from pathlib import Path
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import checks, schema
-from drivemap.frontend.load import Document, load_file, load_text
+from drivemap.frontend.load import MAX_REGISTERS, Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
-
-#: Most registers a map may hold (one full address space of one table), checked before the schema and
-#: the checks run: build time and memory grow with it (about 1 ms and 20 KB per register, docs/limits.md).
-MAX_REGISTERS = 65_536
 
 #: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does
 #: not have is looked up here.
