@@ -95,9 +95,9 @@ def _bound(folder: Path, case: str, before: float) -> dict[str, Any]:
     """Time and memory of refusing the hostile maps the bounds stop (load.MAX_NODES, compiler.MAX_REGISTERS):
     ``nodes`` one value over the bound, ``nodes-limit`` exactly at it (refused later, by the schema, so the
     whole load is paid), ``registers`` one register over the bound."""
-    from drivemap.compiler import MAX_REGISTERS, compile_map
+    from drivemap.compiler import compile_map
     from drivemap.diagnostics import CompileError
-    from drivemap.frontend.load import MAX_NODES
+    from drivemap.frontend.load import MAX_NODES, MAX_REGISTERS
 
     base = (ROOT / "tests" / "bad_maps" / "bad_access_mode.yaml").read_text(encoding="utf-8").replace(
         "    access: ro\n", "    access: rw\n").replace("model: bad_access_mode", "model: big")

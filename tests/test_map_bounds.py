@@ -8,8 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from drivemap.compiler import MAX_REGISTERS
-from drivemap.frontend.load import MAX_NODES
+from drivemap.frontend.load import MAX_NODES, MAX_REGISTERS
 from tests.test_bad_maps import ROOT, _limited
 
 BASE = (ROOT / "tests" / "bad_maps" / "bad_access_mode.yaml").read_text(encoding="utf-8").replace(
