@@ -94,7 +94,7 @@ def test_the_wheel_carries_the_package_schema_and_seed_maps_only(wheel: Path) ->
             assert z.read(f"drivemap/data/{schema.name}") == schema.read_bytes()
         for seed in SEED_MAPS:
             assert z.read(f"drivemap/data/maps/{seed.name}") == seed.read_bytes()
-        assert "drivemap/templates/client.py.jinja" in names
+        assert "drivemap/backends/templates/client.py.jinja" in names
         assert "drivemap_models/ev/client.py" in names and "drivemap_models/py.typed" in names
         entry_points = z.read(next(n for n in names if n.endswith(".dist-info/entry_points.txt"))).decode()
     assert "drivemap.exporters" in entry_points and "drivemap.behaviours" in entry_points
