@@ -59,6 +59,8 @@ def worker(args: list[str]) -> dict[str, Any]:
             path = write_synthetic(folder, int(target))
         elif mode == "map":
             path = ROOT / "maps" / f"{target}.yaml"
+        elif mode == "bound":
+            return _bound(folder, target, before)
         prof = None
         if profile:
             import cProfile
@@ -87,6 +89,39 @@ def worker(args: list[str]) -> dict[str, Any]:
         result.update(compile_s=t1 - t0, render_s=t2 - t1, total_s=t2 - t0, rss_before_mb=before,
                       rss_peak_mb=_rss_mb())
     return result
+
+
+def _bound(folder: Path, case: str, before: float) -> dict[str, Any]:
+    """Time and memory of refusing the hostile maps the bounds stop (load.MAX_NODES, compiler.MAX_REGISTERS):
+    ``nodes`` one value over the bound, ``nodes-limit`` exactly at it (refused later, by the schema, so the
+    whole load is paid), ``registers`` one register over the bound."""
+    from drivemap.compiler import compile_map
+    from drivemap.diagnostics import CompileError
+    from drivemap.frontend.load import MAX_NODES, MAX_REGISTERS
+
+    base = (ROOT / "tests" / "bad_maps" / "bad_access_mode.yaml").read_text(encoding="utf-8").replace(
+        "    access: ro\n", "    access: rw\n").replace("model: bad_access_mode", "model: big")
+    import yaml
+
+    nodes = sum(isinstance(e, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent))
+                for e in yaml.parse(base, Loader=yaml.SafeLoader)) + 1  # the base's values and the flood list
+    if case == "registers":
+        text = base.replace("registers:\n", "registers:\n" + "".join(
+            f"  - {{name: r{i}, address: {i % 65536}, group: monitor, access: r, source: s}}\n"
+            for i in range(MAX_REGISTERS + 1)), 1)
+    else:
+        count = MAX_NODES + 10 if case == "nodes" else MAX_NODES - nodes - 2  # "flood" key + the list
+        text = base + "flood: [" + "0," * count + "0]\n"
+    path = folder / "big.yaml"
+    path.write_text(text, encoding="utf-8")
+    t0 = time.perf_counter()
+    try:
+        compile_map(path)
+        message = "accepted"
+    except CompileError as exc:
+        message = exc.diagnostics[0].message[:80]
+    return {"case": case, "bytes": len(text.encode()), "total_s": time.perf_counter() - t0, "message": message,
+            "rss_before_mb": before, "rss_peak_mb": _rss_mb()}
 
 
 def _quiet_cli(cli: Any, out: Path) -> int:
@@ -201,6 +236,13 @@ def run(quick: bool, budget_s: float) -> Section:
             if "profile" in prof:
                 sec.profiles.append(f"cProfile of the build of a synthetic map of {size} registers "
                                     f"(top entries by own time):\n\n```\n{_profile_summary(prof['profile'])}\n```")
+    for case in ("nodes", "registers", "nodes-limit"):
+        got = _run_worker("bound", case, per_build_timeout)
+        if "total_s" in got:
+            sec.detail.append(f"| bound: {case} | — | {got['bytes']} | 1 | {got['total_s']:.3f} ({got['message']}) "
+                              f"| | | | {got['rss_peak_mb']:.0f} | {got['rss_peak_mb'] - got['rss_before_mb']:.1f} |")
+        else:
+            sec.detail.append(f"| bound: {case} | — | — | 1 | {got} | | | | | |")
     return sec
 
 

@@ -108,7 +108,7 @@ def test_missing_file() -> None:
     "[" * 1_000_000,
     "a: " + "{x: " * 25_000 + "1" + "}" * 25_000,
     "a:\n" + "".join("  " * i + "- \n" for i in range(1, 60)),
-])
+], ids=["flow-1M", "mapping-25k", "block-60"])  # explicit ids: pytest 8.0 puts the whole text in the id (and the env)
 def test_deep_nesting_is_refused_before_anything_recurses(tmp_path: Path, text: str) -> None:
     """25,000- and 1,000,000-deep documents end in one located error, quickly (no crash, no hang)."""
     deep = tmp_path / "deep.yaml"
@@ -142,3 +142,26 @@ def test_a_large_realistic_map_is_not_refused_for_its_size(tmp_path: Path) -> No
     big.write_text(text + ("#" + "x" * 99 + "\n") * 110_000, encoding="utf-8")
     assert 11_000_000 < big.stat().st_size < MAX_MAP_BYTES
     assert load_file(big).data["device"]["model"] == "huge_integer"
+
+
+def test_depth_message_is_ours_whatever_libyaml_says(monkeypatch: pytest.MonkeyPatch) -> None:
+    """libyaml's own nesting limit (and its wording) changes between releases; when the fast parser
+    gives up, the depth check still decides, with its own located message."""
+    import yaml
+
+    from drivemap.diagnostics import CompileError
+    from drivemap.frontend import load
+
+    real_parse = yaml.parse
+
+    def libyaml_refusing(text: str, Loader: type = yaml.SafeLoader) -> object:  # noqa: N803
+        if Loader is not yaml.SafeLoader:
+            raise yaml.YAMLError("maximum nesting depth exceeded")
+        return real_parse(text, Loader=Loader)
+
+    monkeypatch.setattr(yaml, "CSafeLoader", type("Fake", (), {}), raising=False)
+    monkeypatch.setattr(yaml, "parse", libyaml_refusing)
+    with pytest.raises(CompileError) as caught:
+        load.load_text("a: " + "[" * 5000 + "]" * 5000, "deep.yaml")
+    assert caught.value.diagnostics[0].format().startswith("deep.yaml:")
+    assert "nesting deeper than 40 levels" in caught.value.diagnostics[0].message

@@ -228,7 +228,7 @@ def test_committed_export_is_built_and_checked(tmp_path: Path, monkeypatch: pyte
     text = (tmp_path / "pyproject.toml").read_text(encoding="utf-8")
     (tmp_path / "pyproject.toml").write_text(text.replace("ha-version", "colour"), encoding="utf-8")
     code, _, err = run("check")
-    assert code == 1 and "pyproject.toml:1:1: error: exports: homeassistant for ev: unknown option 'colour'" in err
+    assert code == 1 and "pyproject.toml:5:1: error: exports: homeassistant for ev: unknown option 'colour'" in err
     (tmp_path / "pyproject.toml").write_text(text.replace('"2024.3"', '"soon"'), encoding="utf-8")
     code, _, err = run("build")
     assert code == 1 and "--ha-version" in err and "Traceback" not in err

@@ -15,13 +15,13 @@ from typing import Any
 
 import jinja2
 import pytest
-from drivemap.model.spec import spec_from_model as load_spec
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
 from drivemap.gateway.device import Device
 from drivemap.gateway.discovery import discovery_messages
 from drivemap.gateway.service import Gateway
+from drivemap.model.spec import spec_from_model as load_spec
 from drivemap.runtime.errors import NotAllowedValue
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.runtime.sim.simulator import Simulator

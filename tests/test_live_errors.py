@@ -103,3 +103,52 @@ def test_help_documents_the_exit_codes() -> None:
     for text in ("exit codes:", "2    cannot reach the device", "3    no answer from that unit",
                  "4    garbled replies", "5    the device answered with an exception", "6    verify"):
         assert text in proc.stdout, text
+
+
+class _WrongReplies:
+    """A Modbus TCP device that answers every request, but never what was asked: another function
+    code (``fc``) or one register more than asked (``count``)."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen()
+        self.port = int(self.sock.getsockname()[1])
+        import threading
+
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            with conn:
+                while (head := conn.recv(7)) and len(head) == 7:
+                    pdu = conn.recv(int.from_bytes(head[4:6], "big") - 1)
+                    count = int.from_bytes(pdu[3:5], "big")
+                    if self.kind == "fc":
+                        body = bytes([0x04, 2 * count]) + b"\x00\x01" * count
+                    else:
+                        body = bytes([pdu[0], 2 * (count + 1)]) + b"\x00\x01" * (count + 1)
+                    conn.sendall(head[:4] + (len(body) + 1).to_bytes(2, "big") + head[6:7] + body)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.mark.parametrize(("kind", "said"), [("fc", "reply has function 0x04, sent 0x03"),
+                                            ("count", "reply has 2 registers, asked 1")])
+def test_a_device_answering_something_else_is_named_not_silent(kind: str, said: str) -> None:
+    device = _WrongReplies(kind)
+    try:
+        proc = cli("read", "ev", "--tcp", f"127.0.0.1:{device.port}", "--timeout", "0.2", "--retries", "0",
+                   "motor_state")
+    finally:
+        device.close()
+    line = _one_error_line(proc, 4)
+    assert "answered, but not what was asked" in line and said in line, line
+    assert "no answer" not in line

@@ -413,7 +413,7 @@ def test_framer_never_raises_and_passes_only_checked_requests(mode: str, data: s
             buffer = buffer[used:]
             if pdu is None:
                 break
-            assert 0x01 <= pdu.function_code <= 0xFF  # 80h-FFh too: answered with illegal function
+            assert 0x00 <= pdu.function_code <= 0xFF  # 00h and 80h-FFh too: answered with illegal function
             body = bytes([pdu.dev_id, pdu.function_code]) + pdu.encode()
             found = (rtu_requests_on_line if mode == "rtu" else ascii_requests_on_line)(stream, body[0], body[1])
             assert body in found, f"framer passed {body.hex(' ')}, which is not a checked frame of {stream!r}"

@@ -219,7 +219,7 @@ def test_function_codes_80_to_ff_get_the_illegal_function_code_on_a_serial_line(
         illegal = sim.exception_code("illegal_function")
         port = line.open_serial("master", baudrate=38400, timeout=0.5)
         try:
-            for code in (0x80, 0x83, 0x90, 0xFF):
+            for code in (0x00, 0x80, 0x83, 0x90, 0xFF):  # 00h too: SECURITY.md promises it on every framing
                 port.write(encode(bytes([1, code, 0x00, 0x02, 0x00, 0x01])))
                 want = encode(bytes([1, code | 0x80, illegal]))
                 assert port.read(len(want)) == want, hex(code)
@@ -249,3 +249,18 @@ def test_rtu_request_right_after_a_truncated_frame_is_answered() -> None:
         finally:
             port.close()
         assert not lost, f"requests after a truncated frame were lost (gaps in ms): {lost}"
+
+
+def test_an_idle_connection_is_closed(monkeypatch: pytest.MonkeyPatch) -> None:
+    from drivemap.runtime.sim import tcp
+
+    monkeypatch.setattr(tcp, "IDLE_TIMEOUT_S", 0.6)
+    with tcp_server("ev") as (sim, host, port):
+        with connect(host, port) as idle, connect(host, port) as busy:
+            started = time.monotonic()
+            for tid in range(8):  # a client that keeps talking keeps its connection
+                busy.sendall(mbap(tid, 1, READ))
+                assert read_frames(busy, 1, 1.0) == [(tid, 1, ev_reply(sim))]
+                time.sleep(0.15)
+            assert read_frames(idle, 1, 2.0) == [EOF]
+            assert 0.5 < time.monotonic() - started < 2.5

@@ -94,6 +94,10 @@ BAD = {
     "not_json": ('{"model": "ev",\n  "units": {"1": {', 2, 19, "cannot read simulator state"),
     "not_object": ('[1, 2, 3]', 1, 1, "a state file is a JSON object"),
     "deep": ("[" * 100_000 + "]" * 100_000, 1, 1, "cannot read simulator state"),
+    "duplicate_key": ('{"model": "ev", "version": 1,\n "units": {"1": {"digital_speed[0]": 1,\n'
+                      '  "digital_speed[0]": 2}}}', 3, 3, "duplicate key 'digital_speed[0]'"),
+    "huge_integer": ('{"model": "ev", "version": 1, "units": {"1": {"digital_speed[0]": 1' + "0" * 5000 + '}}}',
+                     1, 1, "cannot read simulator state: Exceeds the limit"),
 }
 
 
@@ -150,3 +154,34 @@ def test_simulate_refuses_the_file_with_a_located_error(tmp_path: Path) -> None:
     assert proc.stderr.splitlines()[0].startswith(f"{state}:3:3: error: state file version 999"), proc.stderr
     assert "Traceback" not in proc.stderr
     assert state.read_text(encoding="utf-8") == text
+
+
+def test_a_state_file_that_could_never_be_saved_is_refused_at_start(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder\n", encoding="utf-8")
+    with pytest.raises(StateFileError, match=r"a_file/ev\.json:1:1: error: cannot save simulator state in"):
+        sim_class()([1], state_file=blocker / "ev.json")
+    assert blocker.read_text(encoding="utf-8") == "not a folder\n"
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "simulate", "ev", "--tcp", "127.0.0.1:0",
+                           "--state", "/proc/drivemap-no-such/ev.json"], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith("/proc/drivemap-no-such/ev.json:1:1: error: cannot save simulator state in /proc")
+    assert "Traceback" not in proc.stderr
+
+
+def test_a_save_that_fails_later_is_reported_and_the_simulator_keeps_serving(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "d"
+    folder.mkdir()
+    sim = sim_class()([1], state_file=folder / "ev.json")
+    folder.rmdir()
+    folder.write_text("the folder became a file\n", encoding="utf-8")  # every save now fails
+    reply = sim.handle(1, write_06(EEPROM_ADDRESS, 1500))
+    assert reply == write_06(EEPROM_ADDRESS, 1500)                       # the write is answered
+    assert sim.get(EEPROM_CELL) == 1500
+    assert sim.handle(1, bytes([0x03]) + EEPROM_ADDRESS.to_bytes(2, "big") + (1).to_bytes(2, "big")) == \
+        bytes([0x03, 0x02]) + (1500).to_bytes(2, "big")                  # and so is the next request
+    assert sim.save_error is not None and "cannot save simulator state" in sim.save_error
+    assert "still serving, EEPROM changes are not saved" in capsys.readouterr().err

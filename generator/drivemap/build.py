@@ -47,9 +47,12 @@ def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tup
         for rel, text in exporter.render_all(models, options).items():
             files[folder / rel] = text
     by_name = {m.name: m for m in models}
+    writers = dict.fromkeys(files, "drivemap build's own output (out/docs)")
     for entry in project.exports:
         model = by_name.get(entry.model)
-        where = Location(display(project.config or project.root), 1, 1)
+        where = Location(display(project.config or project.root), entry.line, 1)
+        _check_target(project, entry.output.resolve(), where, writers)
+        writers[entry.output.resolve()] = f"the export at line {entry.line}"
         if model is None:
             raise CompileError([Diagnostic(where, f"exports: no map of model {entry.model!r} in the project")])
         exporter_cls = available().get(entry.format)
@@ -60,7 +63,7 @@ def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tup
             rendered = chosen.render(model, options_for(project, entry_options(chosen, entry.options)))
         except OptionError as exc:
             raise CompileError([Diagnostic(where, f"exports: {entry.format} for {entry.model}: {exc}")]) from None
-        files[entry.output.resolve()] = _single(rendered, entry.format)
+        files[entry.output.resolve()] = _single(rendered, entry.format, where)
     roots = [out, docs]
     grouped: dict[Path, tuple[dict[str, str], bool]] = {}
     for path, text in files.items():
@@ -99,10 +102,26 @@ def entry_options(exporter: Exporter, table: Mapping[str, Any]) -> dict[str, Any
     return vars(parser.parse_args(argv))
 
 
-def _single(files: Mapping[str, str], name: str) -> str:
+def _check_target(project: Project, target: Path, where: Location, writers: Mapping[Path, str]) -> None:
+    """A committed export's output must be a new file of the project, outside its maps."""
+    shown = display(target)
+    if not target.is_relative_to(project.root.resolve()):
+        problem = "is outside the project (exports write inside it)"
+    elif any(target.is_relative_to(m.resolve()) for m in project.maps if m.is_dir() or not m.suffix):
+        problem = "is inside the maps folder (choose another output)"
+    elif any(target == m.resolve() for m in project.map_files()):
+        problem = "is a map of the project"
+    elif target in writers:
+        problem = f"is also written by {writers[target]}"
+    else:
+        return
+    raise CompileError([Diagnostic(where, f"exports: output {shown} {problem}")])
+
+
+def _single(files: Mapping[str, str], name: str, where: Location) -> str:
     if len(files) != 1:
-        raise CompileError([Diagnostic(Location("exports", 1, 1), f"exporter {name!r} writes several files; "
-                                                                  "committed exports take single-file exporters")])
+        raise CompileError([Diagnostic(where, f"exports: exporter {name!r} writes several files; "
+                                              "committed exports take single-file exporters")])
     return next(iter(files.values()))
 
 
@@ -183,4 +202,5 @@ def write_tree(root: Path, files: Mapping[str, str], *, force: bool = False) -> 
     """Write ``files`` into ``root`` as ``drivemap build`` does (manifest, staged, pruned)."""
     from drivemap.backends import output
 
-    output.write(output.plan(root, files, prune=True, force=force))
+    with output.locked([root]):
+        output.write(output.plan(root, files, prune=True, force=force))

@@ -14,12 +14,15 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from drivemap import __version__
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.nodes import Model
+
+if TYPE_CHECKING:
+    from drivemap.backends.output import Change
 
 
 class UsageError(Exception):
@@ -54,7 +57,23 @@ def _compile(files: Sequence[Path]) -> tuple[list[Model], list[Diagnostic]]:
             models.append(compile_map(path))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
+    first: dict[str, Model] = {}
+    for model in models:
+        if model.name in first:
+            errors.append(Diagnostic(Location(model.path, _model_line(model.path), 1),
+                                     f"model id {model.name!r} is also the id of {first[model.name].path}: "
+                                     "one map per model (the generated package would come from one of them)",
+                                     related=((Location(first[model.name].path, 1, 1), "the other map"),)))
+        first.setdefault(model.name, model)
     return models, errors
+
+
+def _model_line(path: str) -> int:
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return 1
+    return next((n for n, line in enumerate(lines, 1) if line.strip().startswith("model:")), 1)
 
 
 def _project_models(project: Project) -> list[Model]:
@@ -105,13 +124,14 @@ def cmd_build(args: argparse.Namespace) -> int:
 
     project = _project(args, args.paths)
     models = _project_models(project)
-    changes = [output.plan(root, files, prune=prune, force=args.force)
-               for root, (files, prune) in outputs_by_root(project, models).items()]
-    errors = [e for c in changes for e in c.errors]
-    if errors:
-        return _report(errors)
-    for change in changes:
-        output.write(change)
+    grouped = outputs_by_root(project, models)
+    with output.locked(grouped):  # one build per output folder at a time; planned and written under it
+        changes = [output.plan(root, files, prune=prune, force=args.force) for root, (files, prune) in grouped.items()]
+        errors = [e for c in changes for e in c.errors]
+        if errors:
+            return _report(errors)
+        for change in changes:
+            _write_change(change)
     for m in models:
         print(_summary(m))
     for change in changes:
@@ -120,7 +140,22 @@ def cmd_build(args: argparse.Namespace) -> int:
         for rel in change.edited:
             print(f"  replaced {display(change.root / rel)}: it had been edited by hand (generated files are not "
                   "edited; change the map or the templates)")
+        for rel in change.kept:
+            print(f"  kept {display(change.root / rel)}: edited by hand (no map produces it any more; not deleted, "
+                  "no longer tracked)")
     return 0
+
+
+def _write_change(change: Change) -> None:
+    """Carry out a planned change; a folder or file the system refuses is a located error."""
+    from drivemap.backends import output
+
+    try:
+        output.write(change)
+    except OSError as exc:
+        where = display(change.root)
+        raise CompileError([Diagnostic(Location(where, 1, 1), f"cannot write the output here: "
+                                                              f"{exc.strerror or exc}")]) from None
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -206,6 +241,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise UsageError(f"drivemap export --format {args.format}", str(exc) + hint) from None
     if args.output is None:
         for _, text in sorted(files.items()):
+            _refuse_unencodable(text, devices[0][0].path)
+        for _, text in sorted(files.items()):
             sys.stdout.write(text)
         return 0
     return _write_export(Path(args.output), files, exporter.multi_file, args.force)
@@ -239,20 +276,31 @@ def _export_help(args: argparse.Namespace, exporters: dict[str, Any]) -> int:
     return 0
 
 
+def _refuse_unencodable(text: str, source: str) -> None:
+    """Output that UTF-8 cannot hold (a lone surrogate from the map) is refused before any is written."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise CompileError([Diagnostic(Location(display(source), 1, 1), f"the export cannot be written as UTF-8: "
+                                       f"character U+{ord(text[exc.start]):04X} (a lone surrogate from the map) "
+                                       f"at offset {exc.start}")]) from None
+
+
 def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool) -> int:
     from drivemap.backends import output
 
-    if not multi:  # one file: written alone, no manifest beside it
+    if not multi:  # one file: written alone, no manifest or lock beside it
         errors = output.write_single(target, next(iter(files.values())), force=force)
         if errors:
             return _report(errors)
         print(f"wrote {display(target)}")
         return 0
     root = target
-    change = output.plan(root, files, prune=False, force=force)
-    if change.errors:
-        return _report(change.errors)
-    output.write(change)
+    with output.locked([root]):
+        change = output.plan(root, files, prune=False, force=force)
+        if change.errors:
+            return _report(change.errors)
+        _write_change(change)
     print(f"wrote {display(target)}" + (f"/ ({len(files)} files)" if multi else ""))
     return 0
 
@@ -262,19 +310,31 @@ def _write_export(target: Path, files: dict[str, str], multi: bool, force: bool)
 
 def cmd_new(args: argparse.Namespace) -> int:
     from drivemap.backends.render import scaffold
+    from drivemap.compiler import compile_text
     from drivemap.frontend.schema import SCHEMA_PATH
 
     folder = Path(args.dir) if args.dir else _project(args).maps_folder()
+    if not re.fullmatch(r"[a-z][a-z0-9_]{0,63}", args.model):
+        raise CompileError([Diagnostic(Location(display(folder / f"{args.model[:80]}.yaml"), 1, 1),
+                                       f"model id {args.model[:80]!r} must be a lower-case identifier of at most "
+                                       "64 characters")])
     target = folder / f"{args.model}.yaml"
-    if not re.fullmatch(r"[a-z][a-z0-9_]*", args.model):
-        raise CompileError([Diagnostic(Location(display(target), 1, 1),
-                                       f"model id {args.model!r} must be a lower-case identifier")])
+    where = Location(display(target), 1, 1)
     if os.path.lexists(target):
-        raise CompileError([Diagnostic(Location(display(target), 1, 1), "file exists; not overwritten")])
-    folder.mkdir(parents=True, exist_ok=True)
+        raise CompileError([Diagnostic(where, "file exists; not overwritten")])
     ref = Path(os.path.relpath(SCHEMA_PATH.resolve(), folder.resolve())).as_posix()
-    with open(target, "x", encoding="utf-8", newline="\n") as handle:
-        handle.write(scaffold(args.model, ref))
+    text = scaffold(args.model, ref)
+    try:
+        compile_text(text, display(target))  # never write a map that validate refuses (a keyword id, ...)
+    except CompileError as exc:
+        problems = "; ".join(d.message for d in exc.diagnostics)
+        raise CompileError([Diagnostic(where, f"model id {args.model!r} cannot be used: {problems}")]) from None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(target, "x", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+    except OSError as exc:
+        raise CompileError([Diagnostic(where, f"cannot write the map: {exc.strerror or exc}")]) from None
     print(f"wrote {display(target)}")
     return 0
 
@@ -412,6 +472,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a path the system refuses that no verb located itself: still no traceback
+        where = display(os.fsdecode(exc.filename)) if exc.filename else "drivemap"
+        print(f"{where}:1:1: error: {exc.strerror or exc}", file=sys.stderr)
+        print("1 error", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

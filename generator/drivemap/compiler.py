@@ -20,7 +20,7 @@ from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import checks, family, formats, schema
-from drivemap.frontend.load import Document, load_file, load_text
+from drivemap.frontend.load import MAX_REGISTERS, Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
@@ -59,6 +59,11 @@ def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None)
     shown = doc.path
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])
+    registers = doc.data.get("registers")
+    if isinstance(registers, list) and len(registers) > MAX_REGISTERS:
+        raise CompileError([Diagnostic(doc.positions.at(("registers", MAX_REGISTERS)),
+                                       f"more than {MAX_REGISTERS:,} registers: map refused before validation "
+                                       "(bounded time and memory; docs/limits.md)")])
     version = formats.upgrade(doc)
     doc, variant = family.resolve(doc)
     errors = schema.validate(doc)

@@ -8,10 +8,16 @@ with its SHA-256). The rules, checked for the whole set of files *before* anythi
 - a file in the manifest is drivemap's (its header says "do not edit"): it is rewritten even if it
   was changed by hand, and the change reports that it was;
 - with ``prune`` (``drivemap build``), files of the manifest that no map produces any more are
-  deleted, and nothing else ever is; a non-empty folder without a manifest is refused unless
-  ``force`` (and even then files drivemap does not produce are kept).
+  deleted when their content is still what drivemap wrote (its SHA-256 is in the manifest); one
+  edited by hand, or replaced by another file, is kept and named; nothing else is ever deleted; a
+  non-empty folder without a manifest is refused unless ``force`` (and even then files drivemap
+  does not produce are kept);
+- symbolic links are never followed for writing or deleting: a link anywhere on an output path is
+  an error naming the link, and every output path must resolve inside the output folder.
 
-Writing is staged: every new file goes to a temporary file next to its target first; only when
+The caller holds :func:`staging.locked` on the folder around ``plan`` and ``write`` (one build
+per folder at a time). Writing is staged: every new file goes to a temporary file next to its
+target first (recorded before it is created, see :mod:`drivemap.backends.staging`); only when
 all are written are they renamed into place (each rename atomic), with the manifest recording
 every old and new file while that happens, so an interrupted build leaves the previous output
 intact or a state the next build recognises as its own.
@@ -20,22 +26,27 @@ intact or a state the next build recognises as its own.
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
+import secrets
 import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from drivemap.backends import staging
+from drivemap.backends.staging import TMP_PREFIX, link_in, locked
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 
-__all__ = ["MANIFEST", "Change", "check", "plan", "write", "write_single"]
+__all__ = ["MANIFEST", "TMP_PREFIX", "Change", "check", "locked", "plan", "write", "write_single"]
 
 MANIFEST = ".drivemap-manifest.json"
-TMP_PREFIX = ".drivemap-tmp-"
 VERSION = 1
+#: Files of drivemap's own bookkeeping in an output folder (never "someone else's").
+OWN = {MANIFEST, staging.JOURNAL, staging.LOCK}
 
 
 def digest(text: str | bytes) -> str:
@@ -52,6 +63,7 @@ class Change:
     unchanged: list[str] = field(default_factory=list)
     delete: list[str] = field(default_factory=list)
     edited: list[str] = field(default_factory=list)          # drivemap's files changed by hand, replaced
+    kept: list[str] = field(default_factory=list)            # no longer produced, but edited by hand: kept
     files: dict[str, str] = field(default_factory=dict)      # the manifest afterwards
     errors: list[Diagnostic] = field(default_factory=list)
 
@@ -102,7 +114,7 @@ def plan(root: Path, outputs: Mapping[str, str], *, prune: bool, force: bool = F
     change = Change(root)
     manifest = read_manifest(root)
     known = manifest or {}
-    if prune and manifest is None and root.is_dir() and any(p.name != MANIFEST for p in root.iterdir()) and not force:
+    if prune and manifest is None and root.is_dir() and any(p.name not in OWN for p in root.iterdir()) and not force:
         change.errors.append(_error(root, "output folder is not empty and has no drivemap manifest: not building "
                                           "into it (pass --force to build there; files drivemap does not produce are kept)"))
         return change
@@ -111,6 +123,8 @@ def plan(root: Path, outputs: Mapping[str, str], *, prune: bool, force: bool = F
             change.errors.append(_error(root / rel, "output path leaves the output folder"))
             continue
         path = root / rel
+        if _leaves(root, rel, change):
+            continue
         try:
             new = digest(text)
         except UnicodeEncodeError as exc:  # nothing is written: checked for every file before any is staged
@@ -135,17 +149,42 @@ def plan(root: Path, outputs: Mapping[str, str], *, prune: bool, force: bool = F
             if digest(old) not in known[rel]:
                 change.edited.append(rel)
     if prune:
-        for rel in sorted(set(known) - set(outputs)):
-            path = root / rel
-            if not _safe_rel(rel):
-                continue
-            if path.is_file() and not path.is_symlink():
-                change.delete.append(rel)
+        _prune(root, known, outputs, change)
     else:
         for rel, hashes in known.items():
             if rel not in change.files and (root / rel).exists():
                 change.files[rel] = sorted(hashes)[0]
     return change
+
+
+def _leaves(root: Path, rel: str, change: Change) -> bool:
+    """Record an error when ``root / rel`` goes through a symbolic link or resolves outside ``root``."""
+    link = link_in(root, rel)
+    if link is not None and link != root / rel:
+        change.errors.append(_error(link, f"is a symbolic link (to {os.readlink(link)}): drivemap never writes or "
+                                          "deletes through links; replace it with a folder or choose another output folder"))
+        return True
+    if link is None and not (root / rel).resolve().is_relative_to(root.resolve()):
+        change.errors.append(_error(root / rel, "output path leaves the output folder"))
+        return True
+    return False
+
+
+def _prune(root: Path, known: Mapping[str, set[str]], outputs: Mapping[str, str], change: Change) -> None:
+    """Files of the manifest no map produces any more: deleted while they still hold what drivemap
+    wrote, kept (and named) otherwise."""
+    for rel in sorted(set(known) - set(outputs)):
+        path = root / rel
+        if not _safe_rel(rel) or not os.path.lexists(path) or _leaves(root, rel, change):
+            continue
+        if path.is_symlink() or not path.is_file():
+            change.kept.append(rel)
+            continue
+        try:
+            same = digest(path.read_bytes()) in known[rel]
+        except OSError:
+            same = False
+        (change.delete if same else change.kept).append(rel)
 
 
 def _write_manifest(root: Path, files: Mapping[str, str], pending: Mapping[str, str] | None = None) -> None:
@@ -166,9 +205,10 @@ def _file_mode(target: Path) -> int:
         return 0o666 & ~mask
 
 
-def _stage(target: Path, text: str) -> str:
-    """Write ``text`` to a temporary file next to ``target``; return its path."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=TMP_PREFIX)
+def _stage(target: Path, text: str, tmp: Path) -> str:
+    """Write ``text`` to the temporary file ``tmp`` next to ``target`` (never an existing file or a
+    link); return its path."""
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
     try:
         os.fchmod(fd, _file_mode(target))
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
@@ -177,12 +217,13 @@ def _stage(target: Path, text: str) -> str:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    return tmp
+    return str(tmp)
 
 
 def _atomic_write(path: Path, text: str) -> None:
+    """The manifest, through a staging file of a fixed name the next build recognises."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _stage(path, text)
+    tmp = _stage(path, text, path.parent / f"{TMP_PREFIX}manifest")
     try:
         os.replace(tmp, path)
     except BaseException:
@@ -191,34 +232,33 @@ def _atomic_write(path: Path, text: str) -> None:
         raise
 
 
-def _sweep_temporaries(root: Path) -> None:
-    """Temporary files a killed run left behind (only drivemap's own, by name)."""
-    if root.is_dir():
-        for tmp in root.rglob(f"{TMP_PREFIX}*"):
-            if tmp.is_file() and not tmp.is_symlink():
-                tmp.unlink()
-
-
 def write(change: Change) -> None:
     """Carry out a planned change: stage every file, then rename them all, then prune."""
     if change.errors:
         raise CompileError(change.errors)
     root = change.root
-    _sweep_temporaries(root)
+    if root.is_dir():
+        staging.sweep(root)
     if not change.write and not change.delete and (root / MANIFEST).exists() and read_manifest(root) == {
         k: {v} for k, v in change.files.items()
     }:
         return
+    token = secrets.token_hex(6)
+    names = {rel: (Path(rel).parent / f"{TMP_PREFIX}{token}-{i}").as_posix() for i, rel in enumerate(sorted(change.write))}
+    if names:
+        root.mkdir(parents=True, exist_ok=True)
+        staging.record(root, names.values())
     staged: list[tuple[str, str]] = []
     try:
         for rel, text in sorted(change.write.items()):
             target = root / rel
             target.parent.mkdir(parents=True, exist_ok=True)
-            staged.append((_stage(target, text), rel))
+            staged.append((_stage(target, text, root / names[rel]), rel))
     except BaseException:
         for tmp, _ in staged:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+        staging.forget(root)
         raise
     old = {k: sorted(v)[0] for k, v in (read_manifest(root) or {}).items()}
     _write_manifest(root, old, pending={rel: change.files[rel] for _, rel in staged})
@@ -227,6 +267,7 @@ def write(change: Change) -> None:
     for rel in change.delete:
         _remove(root, rel)
     _write_manifest(root, change.files)
+    staging.forget(root)
 
 
 def _remove(root: Path, rel: str) -> None:
@@ -259,8 +300,11 @@ def check(root: Path, outputs: Mapping[str, str]) -> list[tuple[str, str]]:
         elif path.read_bytes() != text.encode("utf-8"):
             stale.append((rel, "differs"))
     for rel in sorted(set(known) - set(outputs)):
-        if (root / rel).exists():
-            stale.append((rel, "no map produces it any more (build deletes it)"))
+        path = root / rel
+        if path.is_file() and not path.is_symlink():
+            same = digest(path.read_bytes()) in known[rel]
+            stale.append((rel, "no map produces it any more (build deletes it)" if same else
+                          "no map produces it any more (build keeps it: edited by hand)"))
     return stale
 
 
@@ -290,5 +334,30 @@ def write_single(target: Path, text: str, *, force: bool = False) -> list[Diagno
             return [_error(target, "exists and was not written by drivemap: not overwritten (pass --force to "
                                    "replace it, or choose another file)")]
     if old is None or old != text.encode("utf-8"):
-        _atomic_write(target, text)
+        return _write_alone(target, text)
+    return []
+
+
+def _write_alone(target: Path, text: str) -> list[Diagnostic]:
+    """``text`` into ``target`` through a temporary file beside it, renamed into place (nothing else
+    stays behind); a folder that cannot hold it, or a name the system refuses, is a located error."""
+    folder = target.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{target.name[:40]}.", suffix=".drivemap-tmp")
+    except OSError as exc:
+        if exc.errno == errno.ENAMETOOLONG:
+            return [_error(target, exc.strerror or str(exc))]
+        return [_error(folder, f"cannot write {target.name} here: {exc.strerror or exc}")]
+    try:
+        os.fchmod(fd, _file_mode(target))
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+        os.replace(tmp, target)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if exc.errno == errno.ENAMETOOLONG:
+            return [_error(target, exc.strerror or str(exc))]
+        return [_error(target, f"cannot write: {exc.strerror or exc}")]
     return []

@@ -127,9 +127,18 @@ class Checker(RegisterChecks):
                     self.error(("registers", i, "page", "selector"), f"page selector {sel!r} is not a register")
                 elif sel == reg["name"]:
                     self.error(("registers", i, "page", "selector"), "a register cannot select its own page")
+                else:
+                    self.check_page_value(regs[self.register_names[sel]], page["value"], ("registers", i, "page", "value"))
         self.check_scale_registers()
         self.check_read_blocks()
         self.check_table_functions()
+
+    def check_page_value(self, selector: dict[str, Any], value: Any, where: PathT) -> None:
+        """A page's value is one the selector can hold: a value of its enum, when it has one."""
+        enum = (self.data.get("enums") or {}).get(selector.get("enum") or "")
+        if enum and value not in {v.get("value") for v in enum.get("values", [])}:
+            names = ", ".join(str(v.get("value")) for v in enum.get("values", []))
+            self.error(where, f"page value {value!r} is not a value of the selector's enum {selector['enum']} ({names})")
 
     def check_running(self) -> None:
         """protocol.running_state names a readable register; running_advice.instead a writable one."""
@@ -353,6 +362,9 @@ class Checker(RegisterChecks):
                            f"register, but function {base_fc:#04x} addresses the {table} table", key=True)
         if meaning.get("broadcast") and unit != self.data["protocol"].get("broadcast_address"):
             self.error(where + ("meaning", "broadcast"), "a broadcast example must address the broadcast unit")
+        if part == "request" and unit == 0 and meaning["operation"] == "read":
+            self.error(where + (part,), "a read addressed to the broadcast unit 0 gets no reply: an example of "
+                                        "one cannot be verified (address the device's unit id)")
 
 
 def check(doc: Document) -> tuple[list[Diagnostic], dict[str, str]]:

@@ -23,6 +23,13 @@ from drivemap.diagnostics import CompileError, Diagnostic, Location
 MAX_MAP_BYTES = 32 * 1024 * 1024
 #: Deepest nesting accepted (checked on the parser's events, before anything recurses).
 MAX_DEPTH = 40
+#: Most YAML values (scalars, mappings, lists) a map may hold, counted on the parser's events before
+#: anything is built: a register of the synthetic benchmark map takes about 25, so 65,536 registers
+#: fit; what building costs is bounded by this, not by the file size (docs/limits.md).
+MAX_NODES = 2_000_000
+#: Most registers a map may hold (one full address space of one table), counted on the same events:
+#: build time and memory grow with it (about 1 ms and 20 KB per register, docs/limits.md).
+MAX_REGISTERS = 65_536
 #: Largest integer magnitude accepted anywhere in a map (a 64-bit register's range fits).
 MAX_INT = 2**64
 
@@ -177,20 +184,73 @@ def _check_depth(text: str, path: str) -> None:
     """Refuse nesting deeper than MAX_DEPTH from the parser's events (a state machine, no recursion),
     so neither libyaml's nor PyYAML's recursive composer ever sees a deep document."""
     loader_class = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    depth = 0
     try:
-        for event in yaml.parse(text, Loader=loader_class):
-            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-                depth += 1
-                if depth > MAX_DEPTH:
-                    mark = event.start_mark
-                    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
-                    raise CompileError([Diagnostic(Location(path, line, col),
-                                                   f"nesting deeper than {MAX_DEPTH} levels")])
-            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                depth -= 1
+        _depth_events(text, path, loader_class)
     except (yaml.YAMLError, ValueError):
+        # libyaml refuses deep documents itself ("maximum nesting depth", wording by version), and
+        # may do so while scanning ahead, before it hands over the events that would reach our
+        # limit: the pure-Python parser (a state machine too) decides, so the message is always ours.
+        if loader_class is not yaml.SafeLoader:
+            try:
+                _depth_events(text, path, yaml.SafeLoader)
+            except (yaml.YAMLError, ValueError):
+                pass
         return  # the composer reports syntax errors with their location
+
+
+def _refuse(event: Any, path: str, message: str) -> CompileError:
+    mark = event.start_mark
+    line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+    return CompileError([Diagnostic(Location(path, line, col), message)])
+
+
+class _Registers:
+    """Counts the items of the top-level ``registers`` list on the parser's events."""
+
+    def __init__(self) -> None:
+        self.stack: list[list[Any]] = []  # [is_mapping, expecting_key, last key, is_the_registers_list]
+        self.count = 0
+
+    def item(self, event: Any) -> bool:
+        """Note a value event; True when it is one register too many."""
+        parent = self.stack[-1] if self.stack else None
+        is_value = True
+        if parent is not None and parent[0]:
+            if parent[1]:
+                parent[2] = getattr(event, "value", None)
+                is_value = False
+            parent[1] = not parent[1]
+        elif parent is not None and parent[3]:
+            self.count += 1
+        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            top = len(self.stack) == 1 and parent is not None and parent[0] and parent[2] == "registers"
+            self.stack.append([isinstance(event, yaml.MappingStartEvent), True, None,
+                               is_value and top and isinstance(event, yaml.SequenceStartEvent)])
+        return self.count > MAX_REGISTERS
+
+
+def _depth_events(text: str, path: str, loader_class: Any) -> None:
+    depth = nodes = 0
+    registers = _Registers()
+    for event in yaml.parse(text, Loader=loader_class):
+        if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent, yaml.AliasEvent)):
+            nodes += 1
+            if nodes > MAX_NODES:
+                raise _refuse(event, path, f"more than {MAX_NODES:,} YAML values (scalars, mappings, lists): "
+                                           "map refused before anything is built")
+            if registers.item(event):
+                raise _refuse(event, path, f"more than {MAX_REGISTERS:,} registers: map refused before anything "
+                                           "is built (bounded time and memory; docs/limits.md)")
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            registers.stack.pop()
+        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            if depth > MAX_DEPTH:
+                mark = event.start_mark
+                line, col = (mark.line + 1, mark.column + 1) if mark is not None else (1, 1)
+                raise CompileError([Diagnostic(Location(path, line, col), f"nesting deeper than {MAX_DEPTH} levels")])
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
 
 
 def _compose_fast(text: str) -> Node | None:

@@ -20,6 +20,7 @@ exports        ``[]``                           committed exports: ``{format, mo
 
 from __future__ import annotations
 
+import keyword
 import os
 import re
 import tomllib
@@ -56,6 +57,7 @@ class ExportEntry:
     model: str
     output: Path
     options: Mapping[str, Any] = field(default_factory=dict)
+    line: int = 1  #: where the entry stands in the configuration file
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,11 @@ def _read_toml(path: Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as exc:
         line, col = _toml_position(str(exc))
         raise CompileError([Diagnostic(Location(display(path), line, col), f"invalid TOML: {exc}")]) from None
+    except UnicodeDecodeError as exc:
+        raw = path.read_bytes()
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise CompileError([Diagnostic(Location(display(path), line, col), "invalid TOML: not UTF-8 text")]) from None
     except OSError as exc:
         raise _config_error(path, f"cannot read: {exc.strerror}") from None
 
@@ -203,12 +210,20 @@ def load_project(
     configured_docs = None if out else string("docs")
     docs_dir = (cwd / docs) if docs else (root / configured_docs if configured_docs else out_dir / "docs")
     pkg = package or string("package") or out_dir.name
-    if not _DOTTED.fullmatch(pkg) or any(part in ("__pycache__",) for part in pkg.split(".")):
+    if not _DOTTED.fullmatch(pkg) or any(part == "__pycache__" or keyword.iskeyword(part) for part in pkg.split(".")):
         source = "--package" if package else (f"{prefix}package" if string("package") else f"the folder name of out ({out_dir.name!r})")
-        raise _config_error(where, f"{prefix}package: {pkg!r} from {source} is not an importable name; set package")
+        message = f"{prefix}package: {pkg!r} from {source} is not an importable name; set package"
+        if not package and not string("package") and not out and string("out"):  # the configured out's name
+            raise CompileError([Diagnostic(Location(display(where), _key_line(where, f"{prefix}out"), 1), message)])
+        if package or not string("package"):  # from the command line or a folder name: no line of a file says it
+            raise CompileError([Diagnostic(Location(display(out_dir), 1, 1), f"package: {pkg!r} from {source} is not "
+                                                                             "an importable name; pass --package or set package")])
+        raise _config_error(where, message)
     mods = list(behaviours) if behaviours else (strings("behaviours") or [])
     for mod in mods:
         if not _DOTTED.fullmatch(mod):
+            if behaviours:  # from the command line: no file holds it
+                raise CompileError([Diagnostic(Location("--behaviours", 1, 1), f"{mod!r} is not a module name")])
             raise _config_error(where, f"{prefix}behaviours: {mod!r} is not a module name")
     return Project(
         root=root,
@@ -228,7 +243,8 @@ def _exports(value: Any, root: Path, where: Path, prefix: str) -> tuple[ExportEn
     if not isinstance(value, list):
         raise _config_error(where, f"{prefix}exports: expected a list of tables ([[{prefix}exports]])")
     entries = []
-    for item in value:
+    lines = _entry_lines(where, len(value))
+    for item, line in zip(value, lines, strict=True):
         if not isinstance(item, dict) or not {"format", "model", "output"} <= set(item):
             raise _config_error(where, f"{prefix}exports: every entry needs format, model and output")
         extra = set(item) - {"format", "model", "output", "options"}
@@ -237,5 +253,18 @@ def _exports(value: Any, root: Path, where: Path, prefix: str) -> tuple[ExportEn
         options = item.get("options", {})
         if not all(isinstance(item[k], str) for k in ("format", "model", "output")) or not isinstance(options, dict):
             raise _config_error(where, f"{prefix}exports: format, model and output are strings, options a table")
-        entries.append(ExportEntry(item["format"], item["model"], root / item["output"], dict(options)))
+        entries.append(ExportEntry(item["format"], item["model"], root / item["output"], dict(options), line))
     return tuple(entries)
+
+
+def _entry_lines(where: Path, count: int) -> list[int]:
+    """The line of each ``[[tool.drivemap.exports]]`` header (or, for an inline list, of ``exports =``)."""
+    header = "[[tool.drivemap.exports]]" if where.name == "pyproject.toml" else "[[exports]]"
+    try:
+        text = where.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return [1] * count
+    found = [n for n, line in enumerate(text.splitlines(), 1) if line.strip().replace(" ", "") == header]
+    if len(found) == count:
+        return found
+    return [_key_line(where, "exports")] * count

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import argparse
 import errno
+import math
 import os
 import socket
 import termios
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -83,9 +85,26 @@ def add_connection_arguments(parser: argparse.ArgumentParser, *, unit: bool = Tr
         g.add_argument("--unit", type=int, default=None, metavar="N", help="unit id (default: 1, or the map's lowest)")
         g.add_argument("--no-identity-check", action="store_true",
                        help="do not read the map's identity registers first (write then writes to any device)")
-    g.add_argument("--timeout", type=float, default=None, metavar="S", help="response timeout (default: the map's)")
+    g.add_argument("--timeout", type=seconds(0.0, 600.0, zero=False), default=None, metavar="S",
+                   help="response timeout (default: the map's)")
     g.add_argument("--retries", type=int, default=None, metavar="N", help="retries after a timeout (default: the map's)")
     g.add_argument("--debug", action="store_true", help="log every frame in hex on stderr")
+
+
+def seconds(low: float, high: float, *, zero: bool = True) -> Callable[[str], float]:
+    """An argparse type: a finite number of seconds in [low, high] (above ``low`` unless ``zero``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+        if not math.isfinite(value) or value < low or value > high or (not zero and value == low):
+            raise argparse.ArgumentTypeError(f"{text!r}: give seconds {'from' if zero else 'above'} {low:g} "
+                                             f"up to {high:g}")
+        return value
+
+    return parse
 
 
 def _host_port(text: str, option: str, default_port: int | None) -> tuple[str, int]:
@@ -220,10 +239,15 @@ def why_unreachable(link: Link) -> str:
     return f"cannot connect to {link.host}:{link.port} ({link.kind})"
 
 
-def explain(exc: Exception, link: Link, target: Target | None, what: str, *, garbled: bool) -> LiveError:
-    """One actionable line for a failed request (``what``: what it was doing)."""
+def explain(exc: Exception, link: Link, target: Target | None, what: str, *, garbled: bool,
+            rejected: str | None = None) -> LiveError:
+    """One actionable line for a failed request (``what``: what it was doing; ``rejected``: why the
+    last reply that came back was not the answer, when one did)."""
     if isinstance(exc, DeviceException):
         return LiveError(EXIT_DEVICE_EXCEPTION, device_exception_text(exc, link, target, what))
+    if isinstance(exc, DriveTimeout) and rejected:
+        return LiveError(EXIT_GARBLED, f"{what}: {link.describe()} answered, but not what was asked ({rejected}); "
+                                       "is this the device of this map, and the unit id right?")
     if isinstance(exc, DriveTimeout):
         if garbled:
             hint = ("wrong baud rate or parity? find them with: drivemap scan --serial " + link.device
@@ -265,10 +289,16 @@ class Watch:
     def __init__(self, bus: Bus) -> None:
         self.bus = bus
         self.before = bus.stats.bytes_garbled
+        self.rejected_before = bus.stats.rejected
 
     @property
     def garbled(self) -> bool:
         return self.bus.stats.bytes_garbled > self.before
+
+    @property
+    def rejected(self) -> str | None:
+        """What the last refused reply was, when one came during the operation."""
+        return getattr(self.bus, "last_rejected", None) if self.bus.stats.rejected > self.rejected_before else None
 
 
 def run(bus: Bus, link: Link, target: Target | None, what: str, func: Any, *args: Any) -> Any:
@@ -277,4 +307,4 @@ def run(bus: Bus, link: Link, target: Target | None, what: str, func: Any, *args
     try:
         return func(*args)
     except (DeviceException, TransportError) as exc:
-        raise explain(exc, link, target, what, garbled=watch.garbled) from None
+        raise explain(exc, link, target, what, garbled=watch.garbled, rejected=watch.rejected) from None

@@ -43,7 +43,7 @@ EXIT_CODES: dict[int, str] = {
     EXIT_INPUT: "bad input (command line, map, value); the error is located",
     EXIT_CONNECT: "cannot reach the device (host/port unreachable, no such serial device, permission denied)",
     EXIT_NO_ANSWER: "no answer from that unit",
-    EXIT_GARBLED: "garbled replies (wrong baud rate or parity?)",
+    EXIT_GARBLED: "garbled replies (wrong baud rate or parity?), or replies that do not answer the request",
     EXIT_DEVICE_EXCEPTION: "the device answered with an exception",
     EXIT_DISAGREE: "verify: map and device disagree",
     EXIT_IDENTITY: "the device is not the map's (identity check; --no-identity-check overrides)",

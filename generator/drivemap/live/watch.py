@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import stat
 import sys
 import time
 from dataclasses import dataclass, field
@@ -22,7 +23,7 @@ from rich.console import Group
 from rich.live import Live
 from rich.text import Text
 
-from drivemap.live.connection import add_connection_arguments, explain
+from drivemap.live.connection import add_connection_arguments, explain, seconds
 from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
 from drivemap.live.fmt import Row, console, rows_of, table
 from drivemap.live.pages import Cell, current_pages, on_shown_page, selectors
@@ -39,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                        epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model", metavar="MODEL|PATH")
     add_selection_arguments(p)
-    p.add_argument("--interval", type=float, default=1.0, metavar="S", help="seconds between cycles (default 1)")
+    p.add_argument("--interval", type=seconds(0.0, 86400.0), default=1.0, metavar="S", help="seconds between cycles (default 1)")
     p.add_argument("--log", default=None, metavar="FILE.csv", help="append every cycle's values to a CSV file")
     p.add_argument("--count", type=int, default=None, metavar="N", help="stop after N cycles (default: until Ctrl-C)")
     add_connection_arguments(p)
@@ -118,13 +119,15 @@ def cycle(session: Session, state: State) -> None:
     """One read of the selection; a failure keeps the last values and marks them stale."""
     assert session.bus is not None
     stats = session.bus.stats
-    before = (stats.transactions, stats.bytes_sent + stats.bytes_received, stats.bytes_garbled)
+    before = (stats.transactions, stats.bytes_sent + stats.bytes_received, stats.bytes_garbled, stats.rejected)
     started = time.monotonic()
     try:
         raws = session.read_keys(keys_of(state.cells))
     except (DeviceException, TransportError) as exc:
         garbled = stats.bytes_garbled > before[2]
-        state.stale, state.problem = True, explain(exc, session.link, session.target, "read", garbled=garbled).message
+        rejected = session.bus.last_rejected if stats.rejected > before[3] else None
+        state.stale, state.problem = True, explain(exc, session.link, session.target, "read", garbled=garbled,
+                                                   rejected=rejected).message
         state.stale_cycles += 1
     else:
         rows = rows_of(session.target, state.cells, raws)
@@ -168,13 +171,19 @@ def plain_line(state: State) -> str:
 def open_log(path: str, cells: list[Cell]) -> TextIO:
     """The CSV log: appended to when it has this watch's header, never overwritten otherwise."""
     header = ["time", "cycle", "stale", *(reg.element_name(i) for reg, i in cells)]
-    if os.path.exists(path):
-        with open(path, encoding="utf-8", newline="") as handle:
-            first = next(csv.reader(handle), None)
-        if first != header:
-            raise LiveError(EXIT_INPUT, f"--log {path}: the file exists with other columns; not overwritten")
-        return open(path, "a", encoding="utf-8", newline="")
-    handle = open(path, "w", encoding="utf-8", newline="")
+    try:
+        if os.path.exists(path):
+            if not stat.S_ISREG(os.stat(path).st_mode):  # a folder, FIFO or device: never opened
+                raise LiveError(EXIT_INPUT, f"--log {path}: not a regular file (a folder, FIFO or device)")
+            with open(path, encoding="utf-8", newline="") as handle:
+                first = next(csv.reader([handle.readline(1_000_000)]), None)  # bounded: one line at most
+            if first != header:
+                raise LiveError(EXIT_INPUT, f"--log {path}: the file exists with other columns; not overwritten")
+            return open(path, "a", encoding="utf-8", newline="")
+        handle = open(path, "x", encoding="utf-8", newline="")
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise LiveError(EXIT_INPUT, f"--log {path}: cannot use it as the CSV log: {reason}") from None
     csv.writer(handle).writerow(header)
     return handle
 

@@ -64,6 +64,8 @@ class _BusBase:
     def __init__(self, *, serial: bool, baudrate: int | None, bits_per_char: int, timeout: float | None,
                  retries: int | None, name: str) -> None:
         self.stats = Stats()
+        #: Why the last reply that did not answer its request was refused (what came back instead).
+        self.last_rejected: str | None = None
         self.serial_line = serial
         self.baudrate = baudrate
         self.bits_per_char = bits_per_char
@@ -169,6 +171,7 @@ class _BusBase:
     def _rejected(self, ex: Exchange, reply: ModbusPDU, problem: str, started: float) -> float:
         """Count and log a reply that is not ours; the seconds left of the attempt's timeout."""
         self.stats.rejected += 1
+        self.last_rejected = problem
         self._flush_rx("RX (not ours)")
         log.warning("%s reply rejected (unit %d, function 0x%02X): %s", self.name, ex.unit,
                     ex.pdu.function_code, problem)

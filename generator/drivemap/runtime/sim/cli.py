@@ -46,8 +46,19 @@ def serve_cli(args: argparse.Namespace) -> int:
         return 1
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Options that would be ignored or cannot work are refused, not silently dropped."""
+    if args.tcp and args.mode is not None:
+        raise SimulatorError("--mode is a serial framing (rtu or ascii); Modbus TCP has its own: drop --mode or use --serial")
+    if args.tcp and args.baudrate is not None:
+        raise SimulatorError("--baudrate is a serial setting; drop it with --tcp")
+    if args.baudrate is not None and not 50 <= args.baudrate <= 4_000_000:
+        raise SimulatorError(f"--baudrate {args.baudrate}: give a serial baud rate (50 to 4000000)")
+
+
 def run(factory: SimulatorFactory, args: argparse.Namespace, prog: str = "drivemap") -> int:
     """Build the simulator from parsed options and serve it in the foreground."""
+    _check_options(args)
     kwargs: dict[str, Any] = {"state_file": args.state, "realistic_timing": args.realistic_timing}
     presets = presets_of(factory, args, prog)
     if presets:

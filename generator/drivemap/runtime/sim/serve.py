@@ -1,7 +1,7 @@
 """Serve a :class:`~drivemap.runtime.sim.simulator.Simulator` with pymodbus: TCP, RTU or ASCII.
 
 pymodbus does the transports, the framing and the CRC/LRC; every request PDU goes, through
-``custom_pdu`` request classes registered for every function code 01h-7Fh, to
+``custom_pdu`` request classes registered for every function code 00h-FFh, to
 :meth:`Simulator.handle`, which answers in the device's dialect (vendor exception codes such as
 51h-55H or 20h included: pymodbus's ``ExceptionResponse`` carries any code byte). Requests the
 device must not answer (other units, broadcasts, error cases whose code is null) leave through
@@ -45,6 +45,7 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from drivemap.runtime.client.bus import sleep_until
+from drivemap.runtime.sim.listen import why_not_listening
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 from drivemap.runtime.sim.tcp import SimTcpServer
 
@@ -142,7 +143,7 @@ def _request_classes(sim: Simulator, arrival: _Arrival | None = None) -> list[ty
     arrival = arrival or _Arrival()
     return [
         type(f"SimRequest{code:02X}", (_SimRequest,), {"function_code": code, "simulator": sim, "arrival": arrival})
-        for code in range(0x01, 0x100)
+        for code in range(0x00, 0x100)
     ]
 
 
@@ -158,7 +159,8 @@ class _SimDecoder(DecodePDU):
         super().__init__(True)
         for cls in classes:
             self.register(cls)
-        self._high = {cls.function_code: cls for cls in classes if cls.function_code >= 0x80}
+        # 00h and 80h-FFh are no request codes; a device answers them with illegal function
+        self._high = {cls.function_code: cls for cls in classes if cls.function_code >= 0x80 or cls.function_code == 0}
 
     def lookupPduClass(self, data: bytes) -> type[ModbusPDU] | None:  # noqa: N802 (pymodbus API)
         high = self._high.get(data[1]) if len(data) > 1 else None
@@ -210,8 +212,6 @@ class _WatchRTU(FramerRTU):
                 whole = None
                 stale = self._waiting
         used, dev_id, tid, frame = whole if whole is not None else super().decode(data[stale:])
-        if frame and not frame[0]:
-            frame = self.EMPTY  # 00h is no function code: no reply, a frame error
         if used and not frame:
             self.simulator.frame_error(data[stale] if len(data) > stale else None)
             skip, found = self._behind_noise(data[stale:])
@@ -284,7 +284,7 @@ class _WatchAscii(FramerAscii):
             _, dev_id, tid, frame = super().decode(candidate)
         except ValueError:  # pymodbus parses the unit id outside its try block: non-hex raises
             dev_id, tid, frame = 0, 0, self.EMPTY
-        if not frame or not frame[0]:  # bad hex/LRC, too short, or 00h
+        if not frame:  # bad hex/LRC or too short (00h is a request: answered with illegal function)
             try:
                 unit: int | None = bytes.fromhex(candidate[1:3].decode("ascii"))[0]
             except (ValueError, UnicodeDecodeError, IndexError):
@@ -394,7 +394,10 @@ class SimServer:
             else:
                 watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
             server.framer = watch
-        await server.serve_forever(background=True)
+        try:
+            await server.serve_forever(background=True)
+        except RuntimeError as exc:  # pymodbus: "Could not start listen, please check address."
+            raise SimulatorError(why_not_listening(self.tcp, self.serial, self.baudrate, exc)) from None
         self._server = server
         if self.tcp is not None:
             sockets = getattr(server.transport, "sockets", None) or []

@@ -88,6 +88,22 @@ def _read_text(path: Path) -> str:
         raise StateProblem(path, "cannot read simulator state: not UTF-8 text", line, col) from None
 
 
+class _Duplicate(ValueError):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different (json keeps the last of two silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _Duplicate(key)
+        out[key] = value
+    return out
+
+
 class StateFile:
     """One state file: the document as loaded, the values it gives, and atomic writes of updates.
 
@@ -111,11 +127,17 @@ class StateFile:
             return {}
         text = _read_text(self.path)
         try:
-            data = json.loads(text)
+            data = json.loads(text, object_pairs_hook=_no_duplicates)
         except json.JSONDecodeError as exc:
             raise StateProblem(self.path, f"cannot read simulator state: {exc.msg}", exc.lineno, exc.colno) from None
         except RecursionError:
             raise StateProblem(self.path, "cannot read simulator state: nested too deeply") from None
+        except _Duplicate as exc:
+            line, col = _position(text, max(text.rfind(json.dumps(exc.key)), 0))  # the second one
+            raise StateProblem(self.path, f"cannot read simulator state: duplicate key {exc.key!r} (which one "
+                                          "is meant?); refused, left untouched", line, col) from None
+        except ValueError as exc:  # an integer of thousands of digits (Python's int conversion limit)
+            raise StateProblem(self.path, f"cannot read simulator state: {exc}") from None
         values = self._check(text, data)
         self.document = data
         return values

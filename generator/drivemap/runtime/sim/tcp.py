@@ -22,7 +22,9 @@ connections (:class:`SimTcpConnection`, made by :class:`SimTcpServer`) follow th
   may hold the next request's bytes (a length field longer than the frame swallows what follows):
   after its exception reply the connection is closed, so a request it swallowed ends in a closed
   connection, not in silence;
-* requests to units the simulator does not serve and broadcasts get no reply, as before.
+* requests to units the simulator does not serve and broadcasts get no reply, as before;
+* a connection that sends nothing for :data:`IDLE_TIMEOUT_S` (60 s) is closed: idle clients cannot
+  hold the server's connections forever (a client reconnects, as after any closed connection).
 
 The frame layout is pymodbus's :class:`~pymodbus.framer.FramerSocket` (which also encodes the
 replies); only the header checks and the loop over frames are added.
@@ -44,6 +46,7 @@ from drivemap.runtime.client.bus import sleep_until
 from drivemap.runtime.sim.simulator import Simulator
 
 __all__ = [
+    "IDLE_TIMEOUT_S",
     "MAX_MBAP_LENGTH",
     "PARTIAL_FRAME_TIMEOUT_S",
     "SimTcpConnection",
@@ -60,6 +63,8 @@ MAX_MBAP_LENGTH = 254
 #: bytes of one frame follow each other within a round trip; a frame that stops for this long was
 #: announced longer than it is, and whatever comes next would be misread as its rest.
 PARTIAL_FRAME_TIMEOUT_S = 0.1
+#: Seconds without a byte after which a connection is closed.
+IDLE_TIMEOUT_S = 60.0
 _HEADER = 7  # transaction id, protocol id, length, unit id
 
 
@@ -109,12 +114,23 @@ class SimTcpConnection(ServerRequestHandler):
         self._worker: asyncio.Task[None] | None = None
         self._stale: asyncio.TimerHandle | None = None
         self._doubt = False  # a frame whose PDU disagrees with its MBAP length was taken
+        self._idle: asyncio.TimerHandle | None = None
+
+    def callback_connected(self) -> None:
+        super().callback_connected()
+        self._arm_idle()
+
+    def _arm_idle(self) -> None:
+        if self._idle is not None:
+            self._idle.cancel()
+        self._idle = self.loop.call_later(IDLE_TIMEOUT_S, self.give_up, f"idle for {IDLE_TIMEOUT_S:g} s")
 
     # ---- receiving -------------------------------------------------------------------------------
     def callback_data(self, data: bytes, addr: tuple[Any, ...] | None = None) -> int:
         """Take every complete frame of ``data``; returns the bytes used (the rest waits for more)."""
         if self.is_closing or self._doubt:
             return len(data)
+        self._arm_idle()
         now = time.monotonic()
         used = 0
         while True:
@@ -175,6 +191,9 @@ class SimTcpConnection(ServerRequestHandler):
         self.close()
 
     def _cancel(self) -> None:
+        if self._idle is not None:
+            self._idle.cancel()
+            self._idle = None
         if self._stale is not None:
             self._stale.cancel()
             self._stale = None
