@@ -1,0 +1,221 @@
+"""A map document built from facts another source states, rendered as YAML that validates as written.
+
+Shared by ``drivemap import`` and ``drivemap probe``. The header carries only what the source says:
+every protocol fact it does not give is ``null`` (or an empty list) and listed for review, never a
+guessed default. :func:`write_map` validates the text under the name it will have, then writes it
+atomically; an existing file is replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ...diagnostics import CompileError, Diagnostic, Location
+from ...project import display
+
+__all__ = ["MapDoc", "Review", "snake", "unique_name", "upper", "write_map"]
+
+CODE_NAMES = {1: "Read Coils", 2: "Read Discrete Inputs", 3: "Read Holding Registers", 4: "Read Input Registers",
+              5: "Write Single Coil", 6: "Write Single Register", 15: "Write Multiple Coils",
+              16: "Write Multiple Registers"}
+TABLE_CODES = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
+#: Write function codes per table; a writable register without a stated one gets the last (multiple).
+WRITE_CODES = {"coil": (5, 15), "holding": (6, 16), "discrete": (), "input": ()}
+
+
+def snake(text: str, fallback: str = "register") -> str:
+    """A lower-case identifier from free text ("Phase 1 volts" -> ``phase_1_volts``)."""
+    out = re.sub(r"[^a-z0-9]+", "_", re.sub(r"([a-z0-9])([A-Z])", r"\1_\2", text).lower()).strip("_")
+    if not out:
+        out = fallback
+    if not out[0].isalpha():
+        out = f"{fallback}_{out}"
+    return out
+
+
+def upper(text: str, fallback: str = "VALUE") -> str:
+    return snake(text, fallback.lower()).upper()
+
+
+def camel(text: str) -> str:
+    return "".join(part.capitalize() for part in snake(text, "enum").split("_"))
+
+
+def unique_name(name: str, taken: set[str]) -> str:
+    candidate, n = name, 2
+    while candidate in taken:
+        candidate, n = f"{name}_{n}", n + 1
+    taken.add(candidate)
+    return candidate
+
+
+@dataclass
+class Review:
+    """What the source did not state (per register) and what was left out (and why)."""
+
+    missing: dict[str, list[str]] = field(default_factory=dict)
+    skipped: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def miss(self, name: str, *facts: str) -> None:
+        if facts:
+            self.missing.setdefault(name, []).extend(facts)
+
+    def lines(self) -> list[str]:
+        out = [f"  {name}: {', '.join(facts)}" for name, facts in self.missing.items()]
+        out += [f"  skipped: {why}" for why in self.skipped]
+        out += [f"  note: {text}" for text in self.notes]
+        return out
+
+
+@dataclass
+class MapDoc:
+    """A map under construction: header facts, groups, enums and registers in schema form."""
+
+    model: str
+    title: str
+    source: str
+    manual_file: str
+    modes: list[str] = field(default_factory=lambda: ["tcp"])
+    vendor: str | None = None
+    unit_min: int = 1
+    unit_max: int = 247
+    unit_source: str | None = None
+    groups: dict[str, str] = field(default_factory=dict)
+    enums: dict[str, dict[str, Any]] = field(default_factory=dict)
+    registers: list[dict[str, Any]] = field(default_factory=list)
+    max_quantity: dict[int, int | None] = field(default_factory=dict)
+    review: Review = field(default_factory=Review)
+    notes: str = ""
+    _names: set[str] = field(default_factory=set)
+
+    def name(self, wanted: str) -> str:
+        return unique_name(snake(wanted), self._names)
+
+    def group(self, name: str, title: str | None = None) -> str:
+        key = snake(name, "group")
+        self.groups.setdefault(key, title or name)
+        return key
+
+    def enum(self, wanted: str, values: list[tuple[int, str]]) -> str:
+        """An enum of (value, label) pairs; its value names come from the labels."""
+        names: set[str] = set()
+        rows = [{"value": v, "name": unique_name(upper(label, f"value_{v}"), names), "label": label}
+                for v, label in values]
+        key = camel(wanted)
+        existing = self.enums.get(key)
+        if existing is not None and existing["values"] == rows:
+            return key
+        n = 2
+        base = key
+        while key in self.enums:
+            key, n = f"{base}{n}", n + 1
+        self.enums[key] = {"values": rows, "source": self.source}
+        return key
+
+    def add(self, register: dict[str, Any]) -> None:
+        table = register.get("table", "holding")
+        self.max_quantity.setdefault(TABLE_CODES[table], None)
+        if "w" in register.get("access", "") and not any(c in self.max_quantity for c in WRITE_CODES[table]):
+            self.max_quantity[WRITE_CODES[table][-1]] = None
+        self.registers.append(register)
+
+    # -- rendering
+    def data(self) -> dict[str, Any]:
+        codes = sorted(self.max_quantity) or [3]
+        doc: dict[str, Any] = {
+            "drivemap": 1,
+            "device": {
+                "model": self.model, "title": self.title, "vendor": self.vendor,
+                "manual": {"file": self.manual_file, "document": None, "revision": None, "date": None,
+                           "language": "und"},
+                "coverage": f"What {self.source} states; every other fact is null and listed for review.",
+                "source": self.source,
+            },
+            "protocol": self._protocol(codes),
+        }
+        if self.notes:
+            doc["device"]["notes"] = self.notes
+        if self.enums:
+            doc["enums"] = self.enums
+        doc["groups"] = [{"name": k, "title": v, "source": self.source} for k, v in self.groups.items()]
+        doc["registers"] = self.registers
+        doc["examples"] = []
+        return doc
+
+    def _protocol(self, codes: list[int]) -> dict[str, Any]:
+        return {
+            "modes": list(dict.fromkeys([*self.modes, "rtu"])),
+            "unit_ids": {"min": self.unit_min, "max": self.unit_max, "source": self.unit_source or self.source,
+                         "notes": "" if self.unit_source else "Not stated by the source: the Modbus range 1-247."},
+            "broadcast_address": None,
+            "ports": [{"name": "serial", "modes": ["rtu"], "default_mode": None, "baudrates": [],
+                       "default_baudrate": None, "parity": [], "default_parity": None, "data_bits": [],
+                       "stop_bits": [], "default_stop_bits": None, "set_by": "unknown", "source": self.source,
+                       "notes": "Serial settings are not stated by the source. The map schema needs one serial port, so "
+                                "this entry (and 'rtu' in modes) is a placeholder until the manual says more."}],
+            "function_codes": [{"code": c, "name": CODE_NAMES[c], "max_quantity": self.max_quantity.get(c),
+                                "broadcast": None, "broadcast_reason": "not stated by the source",
+                                "source": self.source} for c in codes],
+            "exceptions": [],
+            "timing": {"silent_interval_chars": None, "response_timeout_ms": None, "retries": None,
+                       "source": self.source},
+            "source": self.source,
+        }
+
+    def text(self) -> str:
+        body = yaml.safe_dump(self.data(), sort_keys=False, allow_unicode=True, width=110, default_flow_style=False)
+        return f"# drivemap map written from {self.source}; review every null before use.\n{body}"
+
+
+def validate_text(text: str, shown: str) -> None:
+    """Compile ``text`` as the map ``shown`` (load, schema, checks); raise CompileError."""
+    from ... import checks, schema
+    from ...load import load_text
+
+    doc = load_text(text, shown)
+    errors = schema.validate(doc)
+    if errors:
+        raise CompileError(errors)
+    problems, _ = checks.check(doc)
+    if problems:
+        raise CompileError(problems)
+
+
+def target_path(output: str | None, model: str, maps_folder: Path) -> Path:
+    return Path(output) if output else maps_folder / f"{model}.yaml"
+
+
+def write_map(doc: MapDoc, target: Path, *, force: bool) -> None:
+    """Validate the map as ``target``, then write it atomically (an existing file only with ``force``)."""
+    shown = display(target)
+    if target.is_dir():
+        raise CompileError([Diagnostic(Location(shown, 1, 1), "is a folder; give a file name (-o maps/ID.yaml)")])
+    if os.path.lexists(target) and not force:
+        raise CompileError([Diagnostic(Location(shown, 1, 1), "file exists; not overwritten (pass --force)")])
+    if target.suffix not in (".yaml", ".yml"):
+        raise CompileError([Diagnostic(Location(shown, 1, 1), "a map file name ends in .yaml")])
+    if target.stem != doc.model:
+        raise CompileError([Diagnostic(Location(shown, 1, 1),
+                                       f"the file name must be the model id: {doc.model}.yaml (or pass --model "
+                                       f"{snake(target.stem)})")])
+    text = doc.text()
+    validate_text(text, shown)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".drivemap-tmp-")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
