@@ -315,6 +315,9 @@ def parser() -> argparse.ArgumentParser:
     from .live import add_parsers
 
     add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
+    from .onboard.probe_cli import add_parser as probe_parser
+
+    probe_parser(sub)  # probe: what a live device answers, as a skeleton map
     s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
     from .gateway.cli import add_arguments as gateway_arguments
 

@@ -190,6 +190,21 @@ def validate_text(text: str, shown: str) -> None:
         raise CompileError(problems)
 
 
+def model_id(given: str | None, output: str | None, default: str) -> str:
+    """The map's model id: ``--model``, else the ``-o`` file's name, else ``default`` (a located error if
+    it is not a lower-case identifier or does not match the file name)."""
+    from drivemap.live.values import locate_error
+
+    model = given or (Path(output).stem if output else default)
+    if snake(model) != model:
+        token = given or output or model
+        raise locate_error(token, f"model id {model!r} must be a lower-case identifier, e.g. {snake(model)}")
+    if output and Path(output).stem != model:
+        raise locate_error(given or model, f"--model {model} differs from the file name {Path(output).name}: "
+                                           f"a map's file is named after its model id")
+    return model
+
+
 def target_path(output: str | None, model: str, maps_folder: Path) -> Path:
     return Path(output) if output else maps_folder / f"{model}.yaml"
 

@@ -13,6 +13,7 @@ A model's length depends on the device only through its repeating groups: such a
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from typing import Any
 
 from .mapdoc import MapDoc, snake, upper
 
-__all__ = ["SunSpecError", "add_models", "load_model_def", "models_dir"]
+__all__ = ["SunSpecError", "add_end", "add_marker", "add_model", "add_models", "load_model_def", "models_dir"]
 
 #: SunSpec point type -> (drivemap type, "not implemented" raw value or None).
 TYPES: dict[str, tuple[str, int | None]] = {
@@ -42,11 +43,10 @@ class SunSpecError(ValueError):
 
 def models_dir() -> Path | None:
     """pysunspec2's bundled JSON models (None without the ``drivemap[sunspec]`` extra)."""
-    try:
-        import sunspec2
-    except ImportError:
+    spec = importlib.util.find_spec("sunspec2")
+    if spec is None or spec.origin is None:
         return None
-    folder = Path(os.path.dirname(sunspec2.__file__)) / "models" / "json"
+    folder = Path(os.path.dirname(spec.origin)) / "models" / "json"
     return folder if folder.is_dir() else None
 
 
@@ -79,6 +79,7 @@ class _Place:
     source: str
     sf_names: dict[str, str]
     pending: list[tuple[dict[str, Any], str]]
+    limit: int = 0x10000
 
     def resolve(self) -> None:
         """Scale-factor points usually follow the points they scale: resolved once the model is laid out."""
@@ -94,19 +95,27 @@ def add_models(doc: MapDoc, defs: list[tuple[dict[str, Any], int | None, str]], 
     """Lay out ``defs`` ((model JSON, L or None, where it came from)) from ``base``; the end address."""
     if base + 2 > 0x10000:
         raise SunSpecError(f"--base {base} leaves no room")
-    grp = doc.group("sunspec", "SunSpec marker and end model")
-    marker = _reg(doc, "sunspec_id", base, "u32", grp, "SunSpec marker 'SunS' (0x53756E53)", doc.source)
-    doc.add({**marker, "word_order": "high_first"})
+    add_marker(doc, base)
     address = base + 2
     for model, length, where in defs:
-        address = _add_model(doc, model, length, address, where)
-    for name, offset in (("end_model_id", 0), ("end_model_length", 1)):
-        doc.add(_reg(doc, name, address + offset, "u16", grp, "End model: ID 0xFFFF, L 0" if not offset else "L 0",
-                     doc.source))
+        address = add_model(doc, model, length, address, where)
+    add_end(doc, address)
     return address + 2
 
 
-def _add_model(doc: MapDoc, model: dict[str, Any], length: int | None, address: int, where: str) -> int:
+def add_marker(doc: MapDoc, base: int) -> None:
+    grp = doc.group("sunspec", "SunSpec marker and end model")
+    marker = _reg(doc, "sunspec_id", base, "u32", grp, "SunSpec marker 'SunS' (0x53756E53)", doc.source)
+    doc.add({**marker, "word_order": "high_first"})
+
+
+def add_end(doc: MapDoc, address: int) -> None:
+    grp = doc.group("sunspec", "SunSpec marker and end model")
+    for name, offset, label in (("end_model_id", 0, "End model ID (0xFFFF)"), ("end_model_length", 1, "End model L (0)")):
+        doc.add(_reg(doc, name, address + offset, "u16", grp, label, doc.source))
+
+
+def add_model(doc: MapDoc, model: dict[str, Any], length: int | None, address: int, where: str) -> int:
     top = model.get("group")
     if not isinstance(top, dict) or not isinstance(model.get("id"), int):
         raise SunSpecError(f"{where}: not a SunSpec model definition (no 'id' and 'group')")
@@ -119,7 +128,7 @@ def _add_model(doc: MapDoc, model: dict[str, Any], length: int | None, address: 
     if address + 2 + length > 0x10000:
         raise SunSpecError(f"model {model['id']} does not fit below 0x10000 at {address}")
     place = _Place(doc, doc.group(snake(top.get("name", f"model_{model['id']}")), top.get("label") or top["name"]),
-                   f"SunSpec model {model['id']} ({where})", {}, [])
+                   f"SunSpec model {model['id']} ({where})", {}, [], address + 2 + length)
     at = _points(place, top, address, prefix="", count=1, stride=0)
     for sub in repeats:
         size = _group_size(sub)
@@ -128,7 +137,7 @@ def _add_model(doc: MapDoc, model: dict[str, Any], length: int | None, address: 
             _points(place, sub, at, prefix=snake(sub.get("name", "group")) + "_", count=count, stride=size)
             at += count * size
     place.resolve()
-    if at != address + 2 + length:
+    if at < address + 2 + length:
         doc.review.notes.append(f"model {model['id']}: L {length} leaves {address + 2 + length - at} words "
                                 f"that its definition does not describe (from {at})")
     return address + 2 + length
@@ -137,7 +146,10 @@ def _add_model(doc: MapDoc, model: dict[str, Any], length: int | None, address: 
 def _points(place: _Place, group: dict[str, Any], at: int, *, prefix: str, count: int, stride: int) -> int:
     for point in group.get("points", []):
         size = int(point.get("size", 1))
-        if point.get("type") != "pad":
+        if at + (count - 1) * stride + size > place.limit:  # the last element's end
+            place.doc.review.skipped.append(f"{place.source}: point {point.get('name')} lies past the model's "
+                                            f"length L")
+        elif point.get("type") != "pad":
             _point(place, point, at, prefix, count, stride)
         at += size
     return at
