@@ -113,6 +113,10 @@ class Prober:
 
     def _split(self, table: str, address: int, count: int, into: dict[int, int]) -> bool:
         """Read ``count`` at ``address``, splitting on refusal; True when all of it was readable."""
+        limit = self.max_quantity[table]
+        if count > limit:  # the limit was lowered while this part waited
+            return all([self._split(table, a, min(limit, address + count - a), into)
+                        for a in range(address, address + count, limit)])
         values = self.read(table, address, count)
         if values is not None:
             into.update(zip(range(address, address + count), values, strict=False))
