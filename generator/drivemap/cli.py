@@ -315,8 +315,10 @@ def parser() -> argparse.ArgumentParser:
     from .live import add_parsers
 
     add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
+    from .onboard.importers.cli import add_parser as import_parser
     from .onboard.probe_cli import add_parser as probe_parser
 
+    import_parser(sub)  # import: Home Assistant, ESPHome, SunSpec, CSV definitions -> a map
     probe_parser(sub)  # probe: what a live device answers, as a skeleton map
     s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
     from .gateway.cli import add_arguments as gateway_arguments

@@ -38,7 +38,7 @@ def snake(text: str, fallback: str = "register") -> str:
         out = fallback
     if not out[0].isalpha():
         out = f"{fallback}_{out}"
-    return out
+    return out[:56].rstrip("_")  # room for a _N suffix under the schema's 64
 
 
 def upper(text: str, fallback: str = "VALUE") -> str:
@@ -95,10 +95,21 @@ class MapDoc:
     max_quantity: dict[int, int | None] = field(default_factory=dict)
     review: Review = field(default_factory=Review)
     notes: str = ""
+    #: a serial port the source states (replaces the placeholder port), timing facts it states
+    port: dict[str, Any] | None = None
+    timing: dict[str, Any] = field(default_factory=dict)
     _names: set[str] = field(default_factory=set)
 
     def name(self, wanted: str) -> str:
-        return unique_name(snake(wanted), self._names)
+        """A unique register name; one that is a keyword, a builtin the generated classes use or a
+        client attribute gets ``_reg`` appended (the generated client could not have it)."""
+        from drivemap.model import is_keyword
+        from drivemap.reserved import reserved
+
+        name = snake(wanted)
+        if is_keyword(name) or name in reserved().annotation or name in reserved().client:
+            name = f"{name}_reg"
+        return unique_name(name, self._names)
 
     def group(self, name: str, title: str | None = None) -> str:
         key = snake(name, "group")
@@ -120,6 +131,17 @@ class MapDoc:
             key, n = f"{base}{n}", n + 1
         self.enums[key] = {"values": rows, "source": self.source}
         return key
+
+    def enum_named(self, name: str, values: list[tuple[int, str]]) -> str:
+        """An enum the source names (its value names from the labels); the same name twice must agree."""
+        names: set[str] = set()
+        rows = [{"value": v, "name": unique_name(upper(label, f"value_{v}"), names), "label": label}
+                for v, label in values]
+        existing = self.enums.get(name)
+        if existing is not None and existing["values"] != rows:
+            raise ValueError(f"enum {name} is given twice with different values")
+        self.enums[name] = {"values": rows, "source": self.source}
+        return name
 
     def add(self, register: dict[str, Any]) -> None:
         table = register.get("table", "holding")
@@ -153,23 +175,26 @@ class MapDoc:
 
     def _protocol(self, codes: list[int]) -> dict[str, Any]:
         return {
-            "modes": list(dict.fromkeys([*self.modes, "rtu"])),
+            "modes": list(dict.fromkeys([*self.modes, *(self.port["modes"] if self.port else ["rtu"])])),
             "unit_ids": {"min": self.unit_min, "max": self.unit_max, "source": self.unit_source or self.source,
                          "notes": "" if self.unit_source else "Not stated by the source: the Modbus range 1-247."},
             "broadcast_address": None,
-            "ports": [{"name": "serial", "modes": ["rtu"], "default_mode": None, "baudrates": [],
-                       "default_baudrate": None, "parity": [], "default_parity": None, "data_bits": [],
-                       "stop_bits": [], "default_stop_bits": None, "set_by": "unknown", "source": self.source,
-                       "notes": "Serial settings are not stated by the source. The map schema needs one serial port, so "
-                                "this entry (and 'rtu' in modes) is a placeholder until the manual says more."}],
+            "ports": [self.port or self._placeholder_port()],
             "function_codes": [{"code": c, "name": CODE_NAMES[c], "max_quantity": self.max_quantity.get(c),
                                 "broadcast": None, "broadcast_reason": "not stated by the source",
                                 "source": self.source} for c in codes],
             "exceptions": [],
             "timing": {"silent_interval_chars": None, "response_timeout_ms": None, "retries": None,
-                       "source": self.source},
+                       **self.timing, "source": self.source},
             "source": self.source,
         }
+
+    def _placeholder_port(self) -> dict[str, Any]:
+        return {"name": "serial", "modes": ["rtu"], "default_mode": None, "baudrates": [], "default_baudrate": None,
+                "parity": [], "default_parity": None, "data_bits": [], "stop_bits": [], "default_stop_bits": None,
+                "set_by": "unknown", "source": self.source,
+                "notes": "Serial settings are not stated by the source. The map schema needs one serial port, so "
+                         "this entry (and 'rtu' in modes) is a placeholder until the manual says more."}
 
     def text(self) -> str:
         body = yaml.safe_dump(self.data(), sort_keys=False, allow_unicode=True, width=110, default_flow_style=False)
