@@ -98,6 +98,8 @@ class MapDoc:
     #: a serial port the source states (replaces the placeholder port), timing facts it states
     port: dict[str, Any] | None = None
     timing: dict[str, Any] = field(default_factory=dict)
+    #: address ranges the source says read (as 0) but names nothing at
+    reserved: list[dict[str, Any]] = field(default_factory=list)
     _names: set[str] = field(default_factory=set)
 
     def name(self, wanted: str) -> str:
@@ -170,6 +172,8 @@ class MapDoc:
             doc["enums"] = self.enums
         doc["groups"] = [{"name": k, "title": v, "source": self.source} for k, v in self.groups.items()]
         doc["registers"] = self.registers
+        if self.reserved:
+            doc["reserved"] = self.reserved
         doc["examples"] = []
         return doc
 
