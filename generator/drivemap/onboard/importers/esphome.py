@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .mapdoc import MapDoc, snake
+from .mapdoc import MapDoc, safe, snake
 from .yamlsrc import Node, Tagged, load_yaml, located
 
 __all__ = ["import_esphome"]
@@ -52,7 +52,7 @@ class Ctx:
         head, sep, tail = rest.partition(" ")
         if sep and re.fullmatch(r"[a-z][a-z0-9_]*", head) and (tail == "label" or re.fullmatch(r"[A-Z][A-Z0-9_]*", tail)):
             return head, tail
-        return snake(rest), None
+        return safe(rest), None
 
 
 def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:

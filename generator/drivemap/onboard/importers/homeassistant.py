@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from .ha_templates import apply_templates
-from .mapdoc import MapDoc, snake
+from .mapdoc import MapDoc, safe, snake
 from .yamlsrc import Node, Tagged, load_yaml, located
 
 __all__ = ["import_homeassistant"]
@@ -59,7 +59,7 @@ class Ctx:
         match = _ELEMENT.match(rest)
         if match:
             return match.group(1), int(match.group(2)), raw
-        return snake(rest), 0, raw
+        return safe(rest), 0, raw
 
     def put(self, entry: Node, reg: dict[str, Any], entity: str | None = None) -> None:
         name, index, _ = self.split(str(entry.get("name", "")))

@@ -21,7 +21,7 @@ import yaml
 from ...diagnostics import CompileError, Diagnostic, Location
 from ...project import display
 
-__all__ = ["MapDoc", "Review", "snake", "unique_name", "upper", "write_map"]
+__all__ = ["MapDoc", "Review", "safe", "snake", "unique_name", "upper", "write_map"]
 
 CODE_NAMES = {1: "Read Coils", 2: "Read Discrete Inputs", 3: "Read Holding Registers", 4: "Read Input Registers",
               5: "Write Single Coil", 6: "Write Single Register", 15: "Write Multiple Coils",
@@ -39,6 +39,18 @@ def snake(text: str, fallback: str = "register") -> str:
     if not out[0].isalpha():
         out = f"{fallback}_{out}"
     return out[:56].rstrip("_")  # room for a _N suffix under the schema's 64
+
+
+def safe(text: str) -> str:
+    """A register name from ``text``; a keyword, a builtin the generated classes use or a client
+    attribute gets ``_reg`` appended (the generated client could not have it)."""
+    from drivemap.model import is_keyword
+    from drivemap.reserved import reserved
+
+    name = snake(text)
+    if is_keyword(name) or name in reserved().annotation or name in reserved().client:
+        name = f"{name}_reg"
+    return name
 
 
 def upper(text: str, fallback: str = "VALUE") -> str:
@@ -103,19 +115,19 @@ class MapDoc:
     _names: set[str] = field(default_factory=set)
 
     def name(self, wanted: str) -> str:
-        """A unique register name; one that is a keyword, a builtin the generated classes use or a
-        client attribute gets ``_reg`` appended (the generated client could not have it)."""
-        from drivemap.model import is_keyword
-        from drivemap.reserved import reserved
-
-        name = snake(wanted)
-        if is_keyword(name) or name in reserved().annotation or name in reserved().client:
-            name = f"{name}_reg"
-        return unique_name(name, self._names)
+        """A unique register name (see :func:`safe`)."""
+        return unique_name(safe(wanted), self._names)
 
     def group(self, name: str, title: str | None = None) -> str:
+        """A group; its title gets " (group)" where the docs page has a fixed heading of that anchor."""
+        from drivemap.reserved import reserved
+        from drivemap.views.docs import slug
+
         key = snake(name, "group")
-        self.groups.setdefault(key, title or name)
+        if key not in self.groups:
+            text = title or name
+            taken = reserved().headings | {slug(t) for t in self.groups.values()}
+            self.groups[key] = f"{text} (group {key})" if slug(text) in taken else text
         return key
 
     def enum(self, wanted: str, values: list[tuple[int, str]]) -> str:
