@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import contextlib
 import json
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from helpers_client import tcp_server
+from helpers_client import simulator, tcp_server
 from helpers_live import ROOT, cli, no_traceback
 from sim_helpers import free_port
 
@@ -23,18 +24,25 @@ SUNSPEC_IDS = {"common": 1, "inverter": 103, "nameplate": 120, "settings": 121, 
                "mppt": 160, "storage": 124}
 
 
+def record(sim: Any, codes: list[int], requests: list[tuple[float, bytes]] | None = None) -> None:
+    """Every request PDU the simulator receives: its function code (and when, and the PDU)."""
+    handle = sim.handle
+
+    def recording(unit: int, pdu: bytes, **kw: Any) -> Any:
+        codes.append(pdu[0])
+        if requests is not None:
+            requests.append((time.monotonic(), pdu))
+        return handle(unit, pdu, **kw)
+
+    sim.handle = recording
+
+
 @contextlib.contextmanager
-def served(model: str) -> Iterator[tuple[Any, str, list[int]]]:
+def served(model: str, requests: list[tuple[float, bytes]] | None = None) -> Iterator[tuple[Any, str, list[int]]]:
     """The model's simulator on 127.0.0.1 (unit 1): (simulator, HOST:PORT, function codes it received)."""
     with tcp_server(model) as (sim, host, port):
         codes: list[int] = []
-        handle = sim.handle
-
-        def recording(unit: int, pdu: bytes, **kw: Any) -> Any:
-            codes.append(pdu[0])
-            return handle(unit, pdu, **kw)
-
-        sim.handle = recording
+        record(sim, codes, requests)
         yield sim, f"{host}:{port}", codes
 
 
@@ -202,3 +210,32 @@ def test_probe_cli_in_an_empty_folder_writes_into_the_project_maps(tmp_path: Pat
     validate = cli("validate", cwd=tmp_path)
     assert validate.returncode == 0 and "maps/probed_device.yaml: ok" in validate.stdout, validate.stderr
     assert compile_map(written).registers
+
+
+def test_probe_keeps_to_the_rate_and_the_max_quantity(tmp_path: Path) -> None:
+    requests: list[tuple[float, bytes]] = []
+    with served("sdm630", requests) as (_, where, _codes):
+        proc = cli("probe", "--tcp", where, "--tables", "input", "--range", "0-59", "--max-quantity", "8",
+                   "--rate", "25", "-o", str(tmp_path / "m.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    assert len(requests) >= 8
+    assert all(pdu[0] == 0x04 and int.from_bytes(pdu[3:5], "big") <= 8 for _, pdu in requests)
+    span = requests[-1][0] - requests[0][0]  # times seen by the server: each one may arrive a little late
+    assert span >= 0.9 * (len(requests) - 1) / 25, (span, len(requests))  # at most 25 requests a second
+
+
+def test_probe_over_a_serial_line(tmp_path: Path) -> None:
+    from drivemap.runtime.simserve import ThreadedSimServer
+    from drivemap.testing.vserial import VirtualSerialLine
+
+    sim = simulator("ev", (2,))
+    codes: list[int] = []
+    record(sim, codes)
+    with VirtualSerialLine(19200) as line:
+        with ThreadedSimServer(sim, serial=line.device_port, mode="rtu", baudrate=19200, parity="none"):
+            proc = cli("probe", "--serial", line.master_port, "--baudrate", "19200", "--parity", "none",
+                       "--unit", "2", "--range", "0-15", "--rate", "1000", "-o", str(tmp_path / "ev_serial.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    assert set(codes) <= {3, 4} and codes
+    found = {(r.table, r.address + i) for r in compile_map(tmp_path / "ev_serial.yaml").registers for i in range(r.count)}
+    assert found == {w for w in readable_words(sim.spec, sim.unit(2).values) if w[1] <= 15}
