@@ -239,3 +239,12 @@ def test_probe_over_a_serial_line(tmp_path: Path) -> None:
     assert set(codes) <= {3, 4} and codes
     found = {(r.table, r.address + i) for r in compile_map(tmp_path / "ev_serial.yaml").registers for i in range(r.count)}
     assert found == {w for w in readable_words(sim.spec, sim.unit(2).values) if w[1] <= 15}
+
+
+def test_probe_keeps_to_the_maps_max_quantity(tmp_path: Path) -> None:
+    requests: list[tuple[float, bytes]] = []
+    with served("v2", requests) as (_, where, _codes):  # v2 reads at most 16 words per request
+        proc = cli("probe", "--tcp", where, "--map", "v2", "--tables", "holding", "--range", "0-99", "--rate",
+                   "100000", "-o", str(tmp_path / "v2_probed.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    assert max(int.from_bytes(pdu[3:5], "big") for _, pdu in requests) == 16

@@ -23,6 +23,7 @@ from drivemap.live.connection import Link, add_connection_arguments, open_bus, r
 from drivemap.live.errors import EXIT_INPUT, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
 from drivemap.live.values import locate_error
 from drivemap.project import display, load_project
+from drivemap.runtime.spec import READ_CODES, DeviceSpec
 
 from .importers.mapdoc import MapDoc, model_id, target_path, write_map
 from .probe import STANDARD_MAX, Block, Prober, blocks_of
@@ -44,6 +45,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help=f"addresses to sweep, protocol addresses 0..65535 (default {DEFAULT_RANGE})")
     p.add_argument("--max-quantity", type=int, default=None, metavar="N",
                    help="largest read in words (bits for coils) (default: 125 words, 2000 bits)")
+    p.add_argument("--map", dest="like", default=None, metavar="MODEL|PATH",
+                   help="a map of the device (family) whose max quantities bound the reads and whose serial "
+                        "defaults apply")
     p.add_argument("--rate", type=float, default=20.0, metavar="R", help="at most R requests per second (default 20)")
     p.add_argument("--sunspec", action="store_true", help="find 'SunS' (40000, 50000, 0) and walk the model chain")
     p.add_argument("--snapshot", default=None, metavar="FILE", help="save every value read (JSON)")
@@ -71,7 +75,13 @@ def cmd_probe(args: argparse.Namespace) -> int:
         raise LiveError(EXIT_INPUT, "give the device: --tcp HOST[:PORT], --rtu-over-tcp HOST:PORT or --serial DEV "
                                     "(or --diff A.json B.json)")
     plan = _plan(args)
-    link = resolve_link(args, None)
+    target = None
+    if args.like:
+        from drivemap.live.target import load_target
+
+        target = load_target(args.like)
+        plan.limits = map_limits(plan.limits, target.spec)
+    link = resolve_link(args, target)
     if link.retries is None:
         link = replace(link, retries=0)
     if link.timeout is None:
@@ -110,6 +120,16 @@ def _plan(args: argparse.Namespace) -> _Plan:
     limits = {t: min(m, args.max_quantity or m) for t, m in STANDARD_MAX.items()}
     folder = load_project().maps_folder()
     return _Plan(tables, ranges, limits, target_path(args.output, model, folder), model)
+
+
+def map_limits(limits: dict[str, int], spec: DeviceSpec) -> dict[str, int]:
+    """The map's max_quantity of each read function bounds that table's reads too."""
+    out = dict(limits)
+    for table, code in READ_CODES.items():
+        fc = spec.function(code)
+        if fc is not None and fc.max_quantity:
+            out[table] = min(out[table], fc.max_quantity)
+    return out
 
 
 def parse_ranges(text: str) -> list[tuple[int, int]]:
