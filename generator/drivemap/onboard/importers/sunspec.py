@@ -34,6 +34,8 @@ TYPES: dict[str, tuple[str, int | None]] = {
     "eui48": ("u64", None), "string": ("string", None), "ipv6addr": ("string", None),
 }
 MARKER = (0x5375, 0x6E53)  # "SunS"
+#: SunSpec unit spellings -> the usual symbols (the others are kept as the model writes them)
+UNITS = {"Pct": "%", "C": "°C", "F": "°F", "Secs": "s", "AH": "Ah", "ohms": "Ω"}
 END_ID = 0xFFFF
 
 
@@ -178,7 +180,7 @@ def _point(place: _Place, point: dict[str, Any], at: int, prefix: str, count: in
     if missing is not None and point["name"] not in ("ID", "L"):
         reg["not_available"] = [missing]
     if point.get("units"):
-        reg["unit"] = str(point["units"])
+        reg["unit"] = UNITS.get(str(point["units"]), str(point["units"]))
     _scale(place, reg, point)
     _symbols(place, reg, point, kind)
     if point.get("desc"):
