@@ -108,7 +108,8 @@ def _run(args: argparse.Namespace, doc: MapDoc, paths: list[Path]) -> str | None
 
 def _summary(doc: MapDoc, target: Path) -> None:
     shown = display(target)
-    print(f"wrote {shown}: {len(doc.registers)} registers, {len(doc.enums)} enums")
+    enums = len(doc.enums)
+    print(f"wrote {shown}: {len(doc.registers)} registers, {enums} enum{'' if enums == 1 else 's'}")
     lines = doc.review.lines()
     if lines:
         print("review (not stated by the source, or left out):")
