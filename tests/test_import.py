@@ -324,6 +324,11 @@ def test_bad_input_is_located_and_nothing_is_overwritten(tmp_path: Path, capsys:
     broken.write_text("modbus:\n  - name: x\n    sensors: [\n", encoding="utf-8")
     code, _, err = run(capsys, "import", "homeassistant", str(broken), "-o", str(tmp_path / "x.yaml"))
     assert code == 1 and re.match(rf"{re.escape(str(broken))}:\d+:\d+: error: not YAML", err)
+    included = tmp_path / "configuration.yaml"
+    included.write_text("homeassistant:\n  name: home\nmodbus: !include modbus.yaml\n", encoding="utf-8")
+    code, _, err = run(capsys, "import", "homeassistant", str(included), "-o", str(tmp_path / "x.yaml"))
+    assert code == 1 and "error: modbus: !include modbus.yaml: import that file" in err
+    included.unlink()
     code, _, err = run(capsys, "import", "excel", str(broken))
     assert code == 1 and err.startswith("<command line>:1:") and "unknown format 'excel'" in err
     code, _, err = run(capsys, "import", "csv", str(tmp_path / "missing.csv"))

@@ -184,6 +184,9 @@ def test_probe_bad_input_is_located_and_sends_nothing(tmp_path: Path) -> None:
     with served("ev") as (_, where, codes):
         bad_range = cli("probe", "--tcp", where, "--range", "10-x", "-o", str(tmp_path / "x.yaml"))
         kept = cli("probe", "--tcp", where, "--range", "0-9", "-o", str(existing))
+        snap = cli("probe", "--tcp", where, "--range", "0-9", "--snapshot", str(existing), "-o",
+                   str(tmp_path / "new.yaml"))
+        reversed_range = cli("probe", "--tcp", where, "--range", "9-3", "-o", str(tmp_path / "x.yaml"))
         assert codes == []  # refused before anything was sent
         silent_unit = cli("probe", "--tcp", where, "--unit", "9", "--range", "0-3", "--timeout", "0.2",
                           "-o", str(tmp_path / "y.yaml"))
@@ -192,6 +195,8 @@ def test_probe_bad_input_is_located_and_sends_nothing(tmp_path: Path) -> None:
     assert bad_range.returncode == 1 and bad_range.stderr.startswith("<command line>:1:")
     assert "error: --range wants A-B" in bad_range.stderr
     assert kept.returncode == 1 and "file exists; not overwritten (pass --force)" in kept.stderr
+    assert snap.returncode == 1 and "file exists; not overwritten" in snap.stderr
+    assert reversed_range.returncode == 1 and "--range 9-3: addresses are 0..65535 and A <= B" in reversed_range.stderr
     assert existing.read_text(encoding="utf-8") == "mine\n"
     assert silent_unit.returncode == 3 and "no answer from unit 9" in silent_unit.stderr
     assert codes and set(codes) <= {3, 4}  # the silent unit got reads only

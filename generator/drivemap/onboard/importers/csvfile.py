@@ -100,7 +100,7 @@ def _own(doc: MapDoc, path: Path, rows: list[tuple[int, dict[str, str]]]) -> Non
 
 def _register(doc: MapDoc, name: str, members: list[tuple[int, dict[str, str]]]) -> dict[str, Any]:
     _, row = members[0]
-    reg: dict[str, Any] = {"name": name, "table": row["table"], "address": int(row["address"])}
+    reg: dict[str, Any] = {"name": doc.name(name), "table": row["table"], "address": int(row["address"])}
     for key in ("label", "type", "word_order"):
         if row[key]:
             reg[key] = _text(row[key])

@@ -91,6 +91,10 @@ def import_homeassistant(doc: MapDoc, paths: list[Path]) -> str | None:
         if isinstance(data, dict) and isinstance(data.get("template"), list):
             templates.extend((path, block) for block in data["template"])
     if not hubs:
+        data = load_yaml(paths[0])
+        included = data.get("modbus") if isinstance(data, dict) else None
+        if isinstance(included, Tagged):
+            raise located(paths[0], data, f"modbus: {included.tag} {included}: import that file")
         raise located(paths[0], None, "no modbus: hub here (a modbus: key with a list of hubs, or such a list)")
     path, hub = hubs[0]
     for other_path, other in hubs[1:]:

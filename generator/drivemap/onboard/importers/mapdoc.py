@@ -264,7 +264,12 @@ def write_map(doc: MapDoc, target: Path, *, force: bool) -> None:
                                        f"the file name must be the model id: {doc.model}.yaml (or pass --model "
                                        f"{snake(target.stem)})")])
     text = doc.text()
-    validate_text(text, shown)
+    try:
+        validate_text(text, shown)
+    except CompileError as exc:
+        raise CompileError([*exc.diagnostics, Diagnostic(Location(shown, 1, 1), (
+            "not written: the map built from the source does not validate (the errors above point into it); "
+            "fix the source or report it"))]) from None
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".drivemap-tmp-")
     try:
