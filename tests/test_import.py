@@ -360,3 +360,37 @@ def test_import_cli_in_an_empty_folder(tmp_path: Path) -> None:
     assert "wrote maps/ev.yaml" in proc.stdout and "review" in proc.stdout
     validate = cli("validate", cwd=work)
     assert validate.returncode == 0 and "maps/ev.yaml: ok" in validate.stdout, validate.stderr
+
+
+def test_import_and_probe_from_the_installed_wheel(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> None:
+    """Both verbs as users get them: the wheel in a fresh virtualenv (without the sunspec extra), run in
+    an empty folder outside this checkout; what they write validates there."""
+    import subprocess
+
+    from test_wheel import _wait_for, free_port, ok
+    from test_wheel import env as env_fixture
+    from test_wheel import wheel as wheel_fixture
+
+    bindir = env_fixture.__wrapped__(wheel_fixture.__wrapped__(tmp_path_factory), tmp_path_factory)  # type: ignore[attr-defined]
+    work = tmp_path / "new-device"
+    work.mkdir()
+    (work / "ev.csv").write_text(ok(bindir, work, "export", "ev", "--format", "csv"), encoding="utf-8")
+    assert "wrote maps/ev.yaml" in ok(bindir, work, "import", "csv", "ev.csv")
+    port = free_port()
+    server = subprocess.Popen([str(bindir / "drivemap"), "simulate", "vfd1000", "--tcp", f"127.0.0.1:{port}"],
+                              cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(port)
+        out = ok(bindir, work, "probe", "--tcp", f"127.0.0.1:{port}", "--range", "0x2000-0x2010", "--rate", "1000")
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    assert "nothing was written to the device" in out and "wrote maps/probed_device.yaml" in out
+    validated = ok(bindir, work, "validate")
+    assert "maps/probed_device.yaml: ok" in validated and "maps/ev.yaml: ok" in validated
+    from test_wheel import drivemap as run_wheel
+
+    needs = run_wheel(bindir, work, "import", "sunspec", "103")
+    assert needs.returncode == 1 and "needs drivemap[sunspec]" in needs.stderr and "Traceback" not in needs.stderr
+    assert sorted(p.relative_to(work).as_posix() for p in work.rglob("*")) == [
+        "ev.csv", "maps", "maps/ev.yaml", "maps/probed_device.yaml"]
