@@ -188,8 +188,10 @@ def test_probe_bad_input_is_located_and_sends_nothing(tmp_path: Path) -> None:
                    str(tmp_path / "new.yaml"))
         reversed_range = cli("probe", "--tcp", where, "--range", "9-3", "-o", str(tmp_path / "x.yaml"))
         assert codes == []  # refused before anything was sent
-        silent_unit = cli("probe", "--tcp", where, "--unit", "9", "--range", "0-3", "--timeout", "0.2",
+        started = time.monotonic()
+        silent_unit = cli("probe", "--tcp", where, "--unit", "9", "--range", "0-9999", "--timeout", "0.2",
                           "-o", str(tmp_path / "y.yaml"))
+        assert time.monotonic() - started < 30  # stops after 3 unanswered reads, not 10000 addresses later
     for proc in (bad_range, kept, silent_unit):
         no_traceback(proc)
     assert bad_range.returncode == 1 and bad_range.stderr.startswith("<command line>:1:")
@@ -199,6 +201,7 @@ def test_probe_bad_input_is_located_and_sends_nothing(tmp_path: Path) -> None:
     assert reversed_range.returncode == 1 and "--range 9-3: addresses are 0..65535 and A <= B" in reversed_range.stderr
     assert existing.read_text(encoding="utf-8") == "mine\n"
     assert silent_unit.returncode == 3 and "no answer from unit 9" in silent_unit.stderr
+    assert "no answer to the first 3 reads" in silent_unit.stderr
     assert codes and set(codes) <= {3, 4}  # the silent unit got reads only
     assert sorted(p.name for p in tmp_path.iterdir()) == ["probed_device.yaml"]
     closed = cli("probe", "--tcp", f"127.0.0.1:{free_port()}", "-o", str(tmp_path / "z.yaml"))
@@ -253,3 +256,19 @@ def test_probe_keeps_to_the_maps_max_quantity(tmp_path: Path) -> None:
                    "100000", "-o", str(tmp_path / "v2_probed.yaml"))
     assert proc.returncode == 0, proc.stderr
     assert max(int.from_bytes(pdu[3:5], "big") for _, pdu in requests) == 16
+
+
+def test_probe_stops_when_the_device_goes_away(tmp_path: Path) -> None:
+    with served("ev") as (sim, where, codes):
+        answering = sim.handle
+
+        def leaves(unit: int, pdu: bytes, **kw: Any) -> Any:
+            return answering(unit, pdu, **kw) if len(codes) <= 40 else None  # unplugged after 40 requests
+
+        sim.handle = leaves
+        proc = cli("probe", "--tcp", where, "--range", "0-9999", "--timeout", "0.1", "--rate", "100000",
+                   "-o", str(tmp_path / "gone.yaml"))
+    no_traceback(proc)
+    assert proc.returncode == 3, proc.stderr
+    assert "20 reads in a row went unanswered after" in proc.stderr
+    assert not (tmp_path / "gone.yaml").exists()

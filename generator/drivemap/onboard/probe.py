@@ -15,16 +15,24 @@ from dataclasses import dataclass, field
 
 from drivemap.runtime.bus import Bus
 from drivemap.runtime.core import READ_REQUESTS
-from drivemap.runtime.errors import DriveTimeout, TransportError
+from drivemap.runtime.errors import DriveTimeout
 from drivemap.runtime.exchange import Exchange
 from drivemap.runtime.spec import READ_CODES, TimingSpec
 
-__all__ = ["READ_ONLY_CODES", "Block", "Prober", "blocks_of"]
+__all__ = ["READ_ONLY_CODES", "Block", "ProbeSilence", "Prober", "blocks_of"]
 
 READ_ONLY_CODES = frozenset(READ_CODES.values())
 #: Largest request the Modbus standard allows per table (words; bits for coils and discrete inputs).
 STANDARD_MAX = {"holding": 125, "input": 125, "coil": 2000, "discrete": 2000}
 _SINGLES_BELOW = 8
+#: reads without any answer at the start, and in a row from a unit that answers bad addresses with
+#: exceptions, after which the probe stops (a unit that answers them with silence is read on: slowly)
+SILENT_START = 3
+SILENT_RUN = 20
+
+
+class ProbeSilence(Exception):
+    """The unit does not answer: the probe stops (message: what was seen)."""
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,7 @@ class Prober:
     answered: int = 0
     refusals: dict[int, int] = field(default_factory=dict)
     unsupported: set[str] = field(default_factory=set)
+    silent_run: int = 0
     _next_at: float = 0.0
 
     def read(self, table: str, address: int, count: int) -> list[int] | None:
@@ -82,10 +91,12 @@ class Prober:
         try:
             reply = self.bus.exchange(Exchange(self.unit, pdu, TimingSpec()))
         except DriveTimeout:
+            self._silence()
             return None
         if reply is None:
             return None
         self.answered += 1
+        self.silent_run = 0
         if reply.isError():
             self.refusals[reply.exception_code] = self.refusals.get(reply.exception_code, 0) + 1
             if reply.exception_code == 0x01:
@@ -94,6 +105,16 @@ class Prober:
         if code <= 0x02:
             return [1 if b else 0 for b in reply.bits[:count]]
         return list(reply.registers)
+
+    def _silence(self) -> None:
+        """Stop rather than wait out every address: a unit that never answered after a few reads, or one
+        that answered bad addresses with exceptions and then fell silent, is not there (any more)."""
+        self.silent_run += 1
+        if self.answered == 0 and self.requests >= SILENT_START:
+            raise ProbeSilence(f"no answer to the first {self.requests} reads")
+        if self.refusals and self.silent_run >= SILENT_RUN:
+            raise ProbeSilence(f"{self.silent_run} reads in a row went unanswered after {self.answered} answers "
+                               "(did the device go away?)")
 
     def _pace(self) -> None:
         if self.rate <= 0:
@@ -133,6 +154,3 @@ class Prober:
             self.max_quantity[table] = min(self.max_quantity[table], count - half)
         return False
 
-
-def connect_error(exc: Exception) -> bool:
-    return isinstance(exc, TransportError)

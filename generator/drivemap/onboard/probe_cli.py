@@ -26,7 +26,7 @@ from drivemap.project import display, load_project
 from drivemap.runtime.spec import READ_CODES, DeviceSpec
 
 from .importers.mapdoc import MapDoc, model_id, target_path, write_map
-from .probe import STANDARD_MAX, Block, Prober, blocks_of
+from .probe import STANDARD_MAX, Block, Prober, ProbeSilence, blocks_of
 from .probe_snapshot import diff, load_snapshot, snapshot_text
 from .probe_sunspec import Chain, walk
 
@@ -88,9 +88,12 @@ def cmd_probe(args: argparse.Namespace) -> int:
         link = replace(link, timeout=1.0)
     _check_outputs(args, plan.target)
     bus = open_bus(link)
+    prober = Prober(bus, link.unit, dict(plan.limits), args.rate)
     try:
-        prober = Prober(bus, link.unit, dict(plan.limits), args.rate)
         values, chain = _sweep(prober, plan, args.sunspec)
+    except ProbeSilence as exc:
+        raise LiveError(EXIT_NO_ANSWER, f"no answer from {link.describe()}: {exc} (is the unit id right? list the "
+                                        "units with: drivemap scan; nothing was written)") from None
     finally:
         bus.close()
     if prober.answered == 0:
