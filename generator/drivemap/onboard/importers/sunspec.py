@@ -95,8 +95,8 @@ class _Place:
 
 def add_models(doc: MapDoc, defs: list[tuple[dict[str, Any], int | None, str]], base: int) -> int:
     """Lay out ``defs`` ((model JSON, L or None, where it came from)) from ``base``; the end address."""
-    if base + 2 > 0x10000:
-        raise SunSpecError(f"--base {base} leaves no room")
+    if not 0 <= base <= 0xFFFD:
+        raise SunSpecError(f"--base {base}: the address of 'SunS' is 0..65533")
     add_marker(doc, base)
     address = base + 2
     for model, length, where in defs:

@@ -22,6 +22,8 @@ __all__ = ["import_sunspec"]
 
 
 def import_sunspec(doc: MapDoc, tokens: list[str], base: int) -> None:
+    if not 0 <= base <= 0xFFFD:
+        raise locate_error(str(base), f"--base {base}: the address of 'SunS' is 0..65533")
     defs: list[tuple[dict[str, Any], int | None, str]] = []
     for token in tokens:
         source, length = _split(token)
