@@ -49,7 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help="a map of the device (family) whose max quantities bound the reads and whose serial "
                         "defaults apply")
     p.add_argument("--rate", type=float, default=20.0, metavar="R", help="at most R requests per second (default 20)")
-    p.add_argument("--sunspec", action="store_true", help="find 'SunS' (40000, 50000, 0) and walk the model chain")
+    p.add_argument("--sunspec", action="store_true",
+                   help="find 'SunS' (40000, 50000, 0) and walk the model chain (instead of --tables/--range)")
     p.add_argument("--snapshot", default=None, metavar="FILE", help="save every value read (JSON)")
     p.add_argument("--diff", nargs=2, default=None, metavar=("A.json", "B.json"),
                    help="list the registers that changed between two snapshots (no device)")
