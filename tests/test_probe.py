@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 from helpers_client import simulator, tcp_server
-from helpers_live import ROOT, cli, no_traceback
+from helpers_live import ROOT, cli, no_traceback, simulate
 from sim_helpers import free_port
 
 from drivemap.compiler import compile_map
@@ -98,17 +98,22 @@ def test_probe_finds_every_readable_block_and_nothing_else(model: str, tmp_path:
     assert all(r.source.startswith("probe 20") and r.type in ("u16", "bool") for r in probed.registers)
 
 
-def fronius_chain(sim: Any) -> None:
+def fronius_values(registers: Any) -> dict[str, int]:
     """The SunSpec values a Fronius Symo Hybrid presents (printed in its documents, quoted in the map's
     notes), which the map gives no defaults for: "SunS", each model's ID and L, the end model."""
-    sim.set_raw("sunspec_id", 0x53756E53)
-    address = {r.name: r.address for r in sim.spec.registers}
+    address = {r.name: r.address for r in registers}
     order = sorted(SUNSPEC_IDS, key=lambda g: address[f"{g}_model_id"])
+    values = {"sunspec_id": 0x53756E53, "end_block_id": 0xFFFF, "end_block_length": 0}
     for i, group in enumerate(order):
         after = address[f"{order[i + 1]}_model_id"] if i + 1 < len(order) else address["end_block_id"]
-        sim.set_raw(f"{group}_model_id", SUNSPEC_IDS[group])
-        sim.set_raw(f"{group}_model_length", after - address[f"{group}_model_id"] - 2)
-    sim.set_raw("end_block_id", 0xFFFF)
+        values[f"{group}_model_id"] = SUNSPEC_IDS[group]
+        values[f"{group}_model_length"] = after - address[f"{group}_model_id"] - 2
+    return values
+
+
+def fronius_chain(sim: Any) -> None:
+    for name, raw in fronius_values(sim.spec.registers).items():
+        sim.set_raw(name, raw)
 
 
 def cell_types(model: Any, first: int) -> dict[int, tuple[str, int, int | None]]:
@@ -272,3 +277,28 @@ def test_probe_stops_when_the_device_goes_away(tmp_path: Path) -> None:
     assert proc.returncode == 3, proc.stderr
     assert "20 reads in a row went unanswered after" in proc.stderr
     assert not (tmp_path / "gone.yaml").exists()
+
+
+def test_probe_sunspec_against_drivemap_simulate(tmp_path: Path) -> None:
+    """The walk against ``drivemap simulate`` itself: a copy of the Fronius map whose SunSpec marker,
+    model IDs and lengths carry their fixed values as defaults (the shipped map gives none)."""
+    import re
+
+    import sunspec2  # noqa: F401  (the sunspec extra is a test dependency)
+
+    source = ROOT / "maps" / "fronius_symo_hybrid.yaml"
+    text = source.read_text(encoding="utf-8").replace("../schemas/", f"{ROOT / 'schemas'}/")
+    for name, value in fronius_values(compile_map(source).registers).items():
+        entry = re.compile(rf"(  - name: {name}\n(?:    .*\n)*?)(    source:)")
+        text, found = entry.subn(rf"\g<1>    default: {value}\n\g<2>", text, count=1)
+        assert found == 1, name
+    served_map = tmp_path / "sim" / "fronius_symo_hybrid.yaml"
+    served_map.parent.mkdir()
+    served_map.write_text(text, encoding="utf-8")
+    with simulate(str(served_map)) as port:
+        proc = cli("probe", "--tcp", f"127.0.0.1:{port}", "--sunspec", "--rate", "1000", "-o",
+                   str(tmp_path / "fronius_probed.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    assert "160 (L 48) at 40253, 124 (L 24) at 40303" in proc.stdout and "18 reads" in proc.stdout
+    recovered = cell_types(compile_map(tmp_path / "fronius_probed.yaml"), 40000)
+    assert set(recovered) == set(cell_types(compile_map(source), 40000))
