@@ -394,3 +394,32 @@ def test_import_and_probe_from_the_installed_wheel(tmp_path_factory: pytest.Temp
     assert needs.returncode == 1 and "needs drivemap[sunspec]" in needs.stderr and "Traceback" not in needs.stderr
     assert sorted(p.relative_to(work).as_posix() for p in work.rglob("*")) == [
         "ev.csv", "maps", "maps/ev.yaml", "maps/probed_device.yaml"]
+
+
+JUNK = ["", "x", "-1", "0x", "[]", "{}", "null", "1e999", "abc: [", "99999999", "'", "- - -", "&a [*a]", "!secret s"]
+
+
+def test_mangled_sources_end_in_located_errors_never_a_traceback(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Lines of real sources replaced by junk: every run ends in 0 or one located error, nothing else."""
+    import random
+
+    import sunspec2
+
+    rng = random.Random(25)
+    sources = {"homeassistant": [HA], "esphome": [ESPHOME], "csv": [VENDOR],
+               "sunspec": [(Path(sunspec2.__file__).parent / "models/json/model_160.json").read_text("utf-8")]}
+    for i in range(60):
+        fmt = rng.choice(sorted(sources))
+        lines = rng.choice(sources[fmt]).splitlines()
+        for _ in range(rng.randint(1, 4)):
+            k = rng.randrange(len(lines))
+            key = lines[k].split(":", 1)[0] if ":" in lines[k] else ""
+            lines[k] = f"{key}: {rng.choice(JUNK)}" if key and rng.random() < 0.7 else rng.choice(JUNK)
+        source = tmp_path / f"s{i}.{ {'csv': 'csv', 'sunspec': 'json'}.get(fmt, 'yaml') }"
+        source.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        argv = ["import", fmt, f"{source}:48" if fmt == "sunspec" else str(source), "-o", str(tmp_path / "o" / "m.yaml"),
+                "--force", *(["--word-order", "high_first"] if fmt == "csv" else [])]
+        code, _, err = run(capsys, *argv)
+        assert code in (0, 1), (source, err)
+        assert code == 0 or re.search(r"^\S+:\d+:\d+: error: ", err, re.M), (source, err)

@@ -66,6 +66,11 @@ def cmd_import(args: argparse.Namespace) -> int:
         from drivemap.live.values import locate_error
 
         raise locate_error(args.files[0], str(exc)) from None
+    except (ValueError, TypeError, KeyError, AttributeError, IndexError, OverflowError, RecursionError) as exc:
+        # an entry of a shape no importer rule reads (a list where a number belongs ...): nothing is written
+        where = paths[0] if paths[0].is_file() else Path(args.files[0])
+        raise CompileError([Diagnostic(Location(display(where), 1, 1),
+                                       f"cannot import an entry of this file: {type(exc).__name__}: {exc}")]) from None
     if not doc.registers:
         raise CompileError([Diagnostic(Location(display(paths[0]), 1, 1),
                                        "no registers found to import" + _skipped(doc))])

@@ -93,7 +93,10 @@ def sensor(ctx: Ctx, entry: Node) -> None:
             reg[key] = value
     nan = entry.get("nan_value")
     if nan is not None:
-        reg["not_available"] = [int(nan, 0) if isinstance(nan, str) else int(nan)]
+        try:
+            reg["not_available"] = [int(nan, 0) if isinstance(nan, str) else int(nan)]
+        except (TypeError, ValueError):
+            raise located(ctx.path, entry, f"{entry.get('name')}: nan_value {nan!r} is not an integer") from None
     if entry.get("unit_of_measurement") and not isinstance(entry["unit_of_measurement"], Tagged):
         reg["unit"] = str(entry["unit_of_measurement"])
     virtual = entry.get("virtual_count", entry.get("slave_count"))

@@ -57,7 +57,10 @@ def _apply(ctx: Ctx, entry: dict[str, Any]) -> bool:
     name = str(entry.get("name", ""))
     match = _LABELS.match(state)
     if match:
-        labels = {int(k): str(v) for k, v in json.loads(match.group(1)).items()}
+        try:
+            labels = {int(k): str(v) for k, v in json.loads(match.group(1)).items()}
+        except (ValueError, AttributeError):
+            return False
         source = _STATE.match(match.group(2)) or _FIELD.match(match.group(2))
         if source is None:
             return False
