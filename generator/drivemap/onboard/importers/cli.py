@@ -46,7 +46,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    from ..importers.sunspec import SunSpecError
+    from .sunspec import SunSpecError
 
     if args.format not in FORMATS:
         from drivemap.live.values import locate_error

@@ -18,8 +18,8 @@ from typing import Any
 
 import yaml
 
-from ...diagnostics import CompileError, Diagnostic, Location
-from ...project import display
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.project import display
 
 __all__ = ["MapDoc", "Review", "safe", "snake", "unique_name", "upper", "write_map"]
 
@@ -219,8 +219,8 @@ class MapDoc:
 
 def validate_text(text: str, shown: str) -> None:
     """Compile ``text`` as the map ``shown`` (load, schema, checks); raise CompileError."""
-    from ... import checks, schema
-    from ...load import load_text
+    from drivemap import checks, schema
+    from drivemap.load import load_text
 
     doc = load_text(text, shown)
     errors = schema.validate(doc)
