@@ -3,8 +3,9 @@
 The package is in layers; each imports only the layers below it (import-linter checks it)::
 
     cli                      the ``drivemap`` command
-    gateway | live | onboard applications: MQTT/OPC UA gateway; read/write/watch/scan/verify at a drive;
-      | migrate              draft/import/probe (maps from manuals, definitions, devices); format migration
+    onboard                  draft/import/probe: maps from manuals, definitions users own, live devices
+    gateway | live | migrate applications: MQTT/OPC UA gateway; read/write/watch/scan/verify at a drive;
+                             older map formats brought to the current one
     build                    a project's outputs (maps -> files), the simulator factory
     compiler                 map path -> checked Model: the front end, then each exporter's validate hook
     backends                 exporters (python, docs, json, homeassistant, esphome, pymodbus-sim, csv),

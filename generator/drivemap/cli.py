@@ -446,6 +446,12 @@ def parser() -> argparse.ArgumentParser:
     from drivemap.onboard.draft.cli import add_parser as draft_parser
 
     draft_parser(sub)  # draft: a map from the register tables of a manual
+
+    from drivemap.onboard.importers.cli import add_parser as import_parser
+    from drivemap.onboard.probe_cli import add_parser as probe_parser
+
+    import_parser(sub)  # import: Home Assistant, ESPHome, SunSpec, CSV definitions -> a map
+    probe_parser(sub)  # probe: what a live device answers, as a skeleton map
     s = sub.add_parser("gateway", help="publish buses of drives to MQTT (Home Assistant discovery) and OPC UA")
     from drivemap.gateway.cli import add_arguments as gateway_arguments
 

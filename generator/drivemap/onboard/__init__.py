@@ -1,1 +1,1 @@
-"""Onboarding a new device: drafting a map from its manual (``drivemap draft``)."""
+"""Onboarding a new device: draft a map from a manual, import definitions users own, probe a live device."""

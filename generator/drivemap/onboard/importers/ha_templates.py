@@ -1,0 +1,115 @@
+"""The ``template:`` entities drivemap's Home Assistant export writes, read back as register facts.
+
+* ``{% set labels = {...} %}...`` over ``states('sensor.X')``: X's enum (values and labels);
+* ``((states('sensor.X') | int(0)) // 2^o) % 2^w``: a bit field of X (offset o, width w), its name
+  from the entity name; with a labels mapping: the field's enum;
+* ``{% set sf = states('sensor.F') | int %}{% set v = states('sensor.X_raw') | float %}``: X's scale
+  factor register F, and X's unit from the template entity.
+
+Any other template is the user's own logic: listed, not imported.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from drivemap.onboard.importers.mapdoc import upper
+
+if TYPE_CHECKING:
+    from drivemap.onboard.importers.homeassistant import Ctx
+
+__all__ = ["apply_templates"]
+
+_LABELS = re.compile(r"^\{% set labels = (\{.*\}) %\}\{% set v = (.*) %\}\{\{ labels\.get\(v, v\) \}\}$", re.S)
+_STATE = re.compile(r"^states\('(sensor\.[a-z0-9_]+)'\)$")
+_FIELD = re.compile(r"^\(\(\(states\('(sensor\.[a-z0-9_]+)'\) \| int\(0\)\) // (\d+)\) % (\d+)\) \| string$")
+_BIT = re.compile(r"^\{\{ \(\(states\('(sensor\.[a-z0-9_]+)'\) \| int\(0\)\) // (\d+)\) % (\d+)( == 1)? \}\}$")
+_SCALED = re.compile(r"^\{% set sf = states\('(sensor\.[a-z0-9_]+)'\) \| int %\}"
+                     r"\{% set v = states\('(sensor\.[a-z0-9_]+)'\) \| float %\}")
+
+
+def apply_templates(ctx: Ctx, path: Path, block: Any) -> None:
+    if not isinstance(block, dict):
+        return
+    for kind in ("sensor", "binary_sensor"):
+        for entry in block.get(kind) or []:
+            if isinstance(entry, dict) and not _apply(ctx, entry):
+                ctx.doc.review.skipped.append(f"{path.name}: template {kind} {entry.get('name')!r} (the user's own "
+                                              "logic, not a register fact)")
+
+
+def _register(ctx: Ctx, entity: str) -> dict[str, Any] | None:
+    found = ctx.entities.get(entity)
+    return ctx.regs[found[0]][found[1]] if found else None
+
+
+def _log2(value: int) -> int | None:
+    exponent = int(math.log2(value)) if value > 0 else -1
+    return exponent if exponent >= 0 and 1 << exponent == value else None
+
+
+def _apply(ctx: Ctx, entry: dict[str, Any]) -> bool:
+    state = str(entry.get("state", ""))
+    name = str(entry.get("name", ""))
+    match = _LABELS.match(state)
+    if match:
+        try:
+            labels = {int(k): str(v) for k, v in json.loads(match.group(1)).items()}
+        except (ValueError, AttributeError):
+            return False
+        source = _STATE.match(match.group(2)) or _FIELD.match(match.group(2))
+        if source is None:
+            return False
+        if source.re is _STATE:
+            return _enum(ctx, name, source.group(1), labels)
+        return _bit(ctx, name, source.group(1), int(source.group(2)), int(source.group(3)), labels)
+    match = _BIT.match(state)
+    if match:
+        return _bit(ctx, name, match.group(1), int(match.group(2)), int(match.group(3)), None)
+    match = _SCALED.match(state)
+    if match:
+        return _scaled(ctx, entry, match.group(1), match.group(2))
+    return False
+
+
+def _enum(ctx: Ctx, name: str, entity: str, labels: dict[int, str]) -> bool:
+    reg = _register(ctx, entity)
+    if reg is None:
+        return False
+    owner = ctx.entities[entity][0]
+    reg["enum"] = ctx.doc.enum(owner, sorted(labels.items()))
+    return True
+
+
+def _bit(ctx: Ctx, name: str, entity: str, divisor: int, modulus: int, labels: dict[int, str] | None) -> bool:
+    reg = _register(ctx, entity)
+    offset, width = _log2(divisor), _log2(modulus)
+    if reg is None or offset is None or width is None or width == 0:
+        return False
+    bit_name = upper(name.rpartition(" ")[2], f"bit_{offset}")
+    if any(b["name"] == bit_name for b in reg.get("bits", [])):
+        return True  # the same field of another element of the array
+    bit: dict[str, Any] = {"name": bit_name, "offset": offset}
+    if width != 1:
+        bit["width"] = width
+    bit["label"] = bit_name
+    if labels:
+        bit["enum"] = ctx.doc.enum(f"{ctx.entities[entity][0]}_{bit_name}", sorted(labels.items()))
+    reg.setdefault("bits", []).append(bit)
+    ctx.doc.review.miss(ctx.entities[entity][0], f"label of bit {bit_name} (the export names it only)")
+    return True
+
+
+def _scaled(ctx: Ctx, entry: dict[str, Any], factor: str, raw: str) -> bool:
+    reg, scale = _register(ctx, raw), ctx.entities.get(factor)
+    if reg is None or scale is None:
+        return False
+    reg["scale_register"] = scale[0]
+    unit = entry.get("unit_of_measurement")
+    if unit:
+        reg["unit"] = str(unit)
+    return True

@@ -1,0 +1,200 @@
+"""``drivemap import homeassistant``: a Home Assistant ``modbus:`` configuration as a map.
+
+Reads a package or ``configuration.yaml`` (``modbus:`` with one or more hubs) or a bare list of hubs
+(a file included with ``modbus: !include``), exported by drivemap or written by hand:
+
+* the hub: ``type`` serial (method, baudrate, bytesize, parity, stopbits -> the map's port), tcp,
+  udp or rtuovertcp; ``timeout`` -> response timeout; ``message_wait_milliseconds`` -> inter-frame gap;
+* ``sensors``: ``address``, ``input_type``, ``data_type`` (and the old int/uint/float with ``count``),
+  ``count`` of strings, ``swap``, ``scale``, ``offset``, ``nan_value``, ``unit_of_measurement``,
+  ``virtual_count``/``slave_count`` (an array), ``slave``/``device_address``;
+* ``binary_sensors`` (coils, discrete inputs), ``switches`` (coils; holding registers: a command
+  value, one value per switch of a write-only enum, or on/off values), ``climates`` (current and
+  target temperature, min/max, the HVAC mode register's values);
+* drivemap's own ``template:`` entities: enum labels, bit fields, scale-factor registers.
+
+``precision`` is display, ``scan_interval`` polling: neither is a device fact (entities are grouped
+by their interval, so a re-export can repeat it). Whatever does not map is listed in the review.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from drivemap.onboard.importers.ha_templates import apply_templates
+from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, load_yaml, located
+
+__all__ = ["import_homeassistant"]
+
+SIZED = {"int16": "s16", "uint16": "u16", "int32": "s32", "uint32": "u32", "int64": "s64", "uint64": "u64",
+         "float32": "f32", "float64": "f64"}
+LEGACY = {("int", 1): "s16", ("int", 2): "s32", ("int", 4): "s64", ("uint", 1): "u16", ("uint", 2): "u32",
+          ("uint", 4): "u64", ("float", 2): "f32", ("float", 4): "f64"}
+TABLES = {"holding": "holding", "input": "input", "coil": "coil", "discrete_input": "discrete"}
+PARITY = {"N": "none", "E": "even", "O": "odd"}
+_ELEMENT = re.compile(r"^([a-z][a-z0-9_]*) (\d+)$")
+
+
+@dataclass
+class Ctx:
+    """One hub being imported: its registers by name (arrays as {index: register}), the entity ids."""
+
+    doc: MapDoc
+    path: Path
+    prefix: str
+    regs: dict[str, dict[int, dict[str, Any]]] = field(default_factory=dict)
+    entities: dict[str, tuple[str, int]] = field(default_factory=dict)
+    units: set[int] = field(default_factory=set)
+    intervals: dict[str, int] = field(default_factory=dict)
+
+    def split(self, text: str) -> tuple[str, int, bool]:
+        """(register name, element index, is it a '<name> raw' sensor) of an entity name."""
+        rest = text[len(self.prefix) + 1:] if text.startswith(self.prefix + " ") else text
+        raw = rest.endswith(" raw")
+        rest = rest[:-4] if raw else rest
+        match = _ELEMENT.match(rest)
+        if match:
+            return match.group(1), int(match.group(2)), raw
+        return safe(rest), 0, raw
+
+    def put(self, entry: Node, reg: dict[str, Any], entity: str | None = None) -> None:
+        name, index, _ = self.split(str(entry.get("name", "")))
+        if not name or name == "register":
+            raise located(self.path, entry, "an entity without a name")
+        elements = self.regs.setdefault(name, {})
+        if index in elements:
+            name = self.doc.name(name)  # a second entity of the same name: a register of its own
+            elements = self.regs.setdefault(name, {})
+        elements[index] = reg
+        text = str(entry.get("name", ""))
+        slug = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
+        self.entities[f"{entity or 'sensor'}.{slug}"] = (name, index)
+        plain = re.sub(r"[^a-z0-9]+", "_", text.removesuffix(" raw").lower()).strip("_")
+        for i in range(1, reg.get("count", 1)):  # the elements of a virtual_count array
+            self.entities[f"{entity or 'sensor'}.{plain}_{i}"] = (name, index)
+        unit = entry.get("device_address", entry.get("slave"))
+        if isinstance(unit, int):
+            self.units.add(unit)
+
+
+def import_homeassistant(doc: MapDoc, paths: list[Path]) -> str | None:
+    """Fill ``doc`` from the files' first hub; the hub's name (the model id it suggests)."""
+    hubs: list[tuple[Path, Node]] = []
+    templates: list[tuple[Path, Any]] = []
+    for path in paths:
+        data = load_yaml(path)
+        hubs.extend((path, hub) for hub in _hubs(path, data))
+        if isinstance(data, dict) and isinstance(data.get("template"), list):
+            templates.extend((path, block) for block in data["template"])
+    if not hubs:
+        data = load_yaml(paths[0])
+        included = data.get("modbus") if isinstance(data, dict) else None
+        if isinstance(included, Tagged):
+            raise located(paths[0], data, f"modbus: {included.tag} {included}: import that file")
+        raise located(paths[0], None, "no modbus: hub here (a modbus: key with a list of hubs, or such a list)")
+    path, hub = hubs[0]
+    for other_path, other in hubs[1:]:
+        doc.review.skipped.append(f"{other_path.name}:{other.line}: hub {other.get('name')!r} (one map per device: "
+                                  "import it on its own)")
+    name = str(hub.get("name") or "modbus_hub")
+    ctx = Ctx(doc, path, name)
+    _hub(ctx, hub)
+    _entities(ctx, hub)
+    for tpath, block in templates:
+        apply_templates(ctx, tpath, block)
+    _finish(ctx)
+    return snake(name, "device")
+
+
+def _hubs(path: Path, data: Any) -> list[Node]:
+    if isinstance(data, dict):
+        data = data.get("modbus")
+    if isinstance(data, Node):
+        data = [data]
+    if not isinstance(data, list):
+        return []
+    for hub in data:
+        if not isinstance(hub, Node):
+            raise located(path, None, "a modbus: hub is a mapping (name, type, ...)")
+    return list(data)
+
+
+def _hub(ctx: Ctx, hub: Node) -> None:
+    kind = hub.get("type")
+    doc = ctx.doc
+    if kind == "serial":
+        method = str(hub.get("method", "rtu"))
+        if method not in ("rtu", "ascii"):
+            raise located(ctx.path, hub, f"method {method!r}: rtu or ascii")
+        doc.modes = [method]
+        doc.port = _port(ctx, hub, method)
+    elif kind in ("tcp", "udp", "rtuovertcp"):
+        doc.modes = ["tcp"] if kind != "rtuovertcp" else ["rtu"]
+        host, port = hub.get("host"), hub.get("port")
+        if not isinstance(host, Tagged) and host is not None:
+            option = "--tcp" if kind != "rtuovertcp" else "--rtu-over-tcp"
+            doc.review.notes.append(f"export again with {option} {host}:{port} (the hub's address is not a map fact)")
+    else:
+        raise located(ctx.path, hub, f"hub type {kind!r}: serial, tcp, udp or rtuovertcp")
+    if isinstance(hub.get("timeout"), int | float):
+        doc.timing["response_timeout_ms"] = float(hub["timeout"]) * 1000
+    if isinstance(hub.get("message_wait_milliseconds"), int | float):
+        doc.timing["inter_frame_gap_ms"] = hub["message_wait_milliseconds"]
+
+
+def _port(ctx: Ctx, hub: Node, method: str) -> dict[str, Any]:
+    def given(key: str) -> Any:
+        value = hub.get(key)
+        return None if isinstance(value, Tagged) else value
+
+    parity = PARITY.get(str(given("parity"))) if given("parity") is not None else None
+    baud, data_bits, stop_bits = given("baudrate"), given("bytesize"), given("stopbits")
+    return {"name": "serial", "modes": [method], "default_mode": method,
+            "baudrates": [baud] if isinstance(baud, int) else [], "default_baudrate": baud if isinstance(baud, int) else None,
+            "parity": [parity] if parity else [], "default_parity": parity,
+            "data_bits": [data_bits] if data_bits in (7, 8) else [],
+            "stop_bits": [stop_bits] if stop_bits in (1, 2) else [],
+            "default_stop_bits": stop_bits if stop_bits in (1, 2) else None,
+            "set_by": "unknown", "source": ctx.doc.source,
+            "notes": f"The line settings of the Home Assistant hub {hub.get('name')!r} (what one installation uses)."}
+
+
+def _entities(ctx: Ctx, hub: Node) -> None:
+    from drivemap.onboard.importers.ha_entities import binary_sensor, climate, sensor, switches
+
+    for entry in _list(ctx, hub, "sensors"):
+        sensor(ctx, entry)
+    for entry in _list(ctx, hub, "binary_sensors"):
+        binary_sensor(ctx, entry)
+    switches(ctx, _list(ctx, hub, "switches"))
+    for entry in _list(ctx, hub, "climates"):
+        climate(ctx, entry)
+    for key in ("covers", "fans", "lights"):
+        for entry in _list(ctx, hub, key):
+            ctx.doc.review.skipped.append(f"{ctx.path.name}:{entry.line}: {key[:-1]} {entry.get('name')!r} "
+                                          "(no register meaning to import)")
+
+
+def _list(ctx: Ctx, hub: Node, key: str) -> list[Node]:
+    items = hub.get(key) or []
+    if not isinstance(items, list) or not all(isinstance(e, Node) for e in items):
+        raise located(ctx.path, hub, f"{key}: a list of entities")
+    return items
+
+
+def _finish(ctx: Ctx) -> None:
+    from drivemap.onboard.importers.ha_entities import arrays
+
+    for name, elements in ctx.regs.items():
+        ctx.doc.add(arrays(ctx, name, elements))
+    if len(ctx.units) == 1 and ctx.units != {1}:
+        ctx.doc.review.notes.append(f"export again with --unit {next(iter(ctx.units))} (the entities' device address)")
+    elif len(ctx.units) > 1:
+        ctx.doc.review.notes.append(f"the entities use device addresses {sorted(ctx.units)}: one map per device")
+    extra = [f"--interval {g}={n}" for g, n in sorted(ctx.intervals.items()) if n != 15]
+    if extra:
+        ctx.doc.review.notes.append("export again with " + " ".join(extra) + " (the entities' scan intervals)")

@@ -1,0 +1,88 @@
+"""Reading users' YAML (Home Assistant, ESPHome): their tags kept as opaque values, every mapping with its line.
+
+``!secret``, ``!include``, ``!lambda``, ``!env_var`` ... become :class:`Tagged` values (a field
+holding one is not a stated fact); mappings are :class:`Node` dicts that know their line, so an
+entry that cannot be imported is reported as ``file:line:col: error: ...``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend.project import display
+
+__all__ = ["Node", "Tagged", "load_yaml", "located", "renamed"]
+
+_MAX_BYTES = 8 * 1024 * 1024
+
+
+class Tagged(str):
+    """A value behind a YAML tag (``!secret wifi``): its text, not a fact."""
+
+    tag: str = ""
+
+
+class Node(dict[str, Any]):
+    """A mapping that remembers where it starts (1-based line and column)."""
+
+    line: int = 1
+    col: int = 1
+
+
+def renamed(node: Node, name: str) -> Node:
+    """A copy of ``node`` with another ``name`` (and the same place in the file)."""
+    out = Node(node, name=name)
+    out.line, out.col = node.line, node.col
+    return out
+
+
+class _Loader(yaml.SafeLoader):
+    pass
+
+
+def _mapping(loader: _Loader, node: yaml.MappingNode) -> Node:
+    out = Node({str(k): v for k, v in loader.construct_mapping(node, deep=True).items()})
+    out.line, out.col = node.start_mark.line + 1, node.start_mark.column + 1
+    return out
+
+
+def _tagged(loader: _Loader, suffix: str, node: yaml.Node) -> Tagged:
+    value = loader.construct_scalar(node) if isinstance(node, yaml.ScalarNode) else ""
+    out = Tagged(str(value))
+    out.tag = "!" + suffix
+    return out
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
+_Loader.add_multi_constructor("!", _tagged)
+
+
+def located(path: Path, where: Any, message: str) -> CompileError:
+    """A located error at the mapping ``where`` (a :class:`Node`), else at the file's start."""
+    line, col = (where.line, where.col) if isinstance(where, Node) else (1, 1)
+    return CompileError([Diagnostic(Location(display(path), line, col), message)])
+
+
+def load_yaml(path: Path) -> Any:
+    """The document of ``path``; a located error for unreadable or malformed YAML."""
+    shown = display(path)
+    try:
+        if path.stat().st_size > _MAX_BYTES:
+            raise CompileError([Diagnostic(Location(shown, 1, 1), "larger than 8 MiB: not a configuration file")])
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CompileError([Diagnostic(Location(shown, 1, 1), f"cannot read: {exc.strerror or exc}")]) from None
+    except UnicodeDecodeError:
+        raise CompileError([Diagnostic(Location(shown, 1, 1), "not UTF-8 text")]) from None
+    try:
+        return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+        raise CompileError([Diagnostic(Location(shown, line, col), f"not YAML: {exc.problem or exc}")]) from None
+    except (yaml.YAMLError, RecursionError) as exc:
+        raise CompileError([Diagnostic(Location(shown, 1, 1), f"not YAML: {exc}")]) from None

@@ -1,0 +1,156 @@
+"""Discover what a live device answers: bounded reads that split on refusal, never a write.
+
+:class:`Prober` sends only the four read function codes (01h-04h; :data:`READ_ONLY_CODES` is
+checked before every request), at most ``max_quantity`` words (bits) each and at most ``rate``
+requests per second. A read that is refused (any exception reply, or silence) is split in halves
+down to 8 words, then tried word by word, so every readable word in the swept ranges is found and
+no unreadable one is reported. A refused read whose halves both answer in full means the device
+takes fewer words per request: later reads use the smaller size.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.exchange import Exchange
+from drivemap.runtime.client.sansio import READ_REQUESTS
+from drivemap.runtime.errors import DriveTimeout
+from drivemap.runtime.spec import READ_CODES, TimingSpec
+
+__all__ = ["READ_ONLY_CODES", "Block", "ProbeSilence", "Prober", "blocks_of"]
+
+READ_ONLY_CODES = frozenset(READ_CODES.values())
+#: Largest request the Modbus standard allows per table (words; bits for coils and discrete inputs).
+STANDARD_MAX = {"holding": 125, "input": 125, "coil": 2000, "discrete": 2000}
+_SINGLES_BELOW = 8
+#: reads without any answer at the start, and in a row from a unit that answers bad addresses with
+#: exceptions, after which the probe stops (a unit that answers them with silence is read on: slowly)
+SILENT_START = 3
+SILENT_RUN = 20
+
+
+class ProbeSilence(Exception):
+    """The unit does not answer: the probe stops (message: what was seen)."""
+
+
+@dataclass(frozen=True)
+class Block:
+    """Consecutive readable addresses of one table and the values read there."""
+
+    table: str
+    start: int
+    values: tuple[int, ...]
+
+    @property
+    def end(self) -> int:
+        """Last address (inclusive)."""
+        return self.start + len(self.values) - 1
+
+
+def blocks_of(values: dict[str, dict[int, int]]) -> list[Block]:
+    """Runs of consecutive addresses per table, in table then address order."""
+    out: list[Block] = []
+    for table in ("coil", "discrete", "input", "holding"):
+        cells = values.get(table, {})
+        run: list[int] = []
+        for address in sorted(cells):
+            if run and address != run[-1] + 1:
+                out.append(Block(table, run[0], tuple(cells[a] for a in run)))
+                run = []
+            run.append(address)
+        if run:
+            out.append(Block(table, run[0], tuple(cells[a] for a in run)))
+    return out
+
+
+@dataclass
+class Prober:
+    """Reads of one unit on a connected bus (read function codes only)."""
+
+    bus: Bus
+    unit: int
+    max_quantity: dict[str, int]
+    rate: float
+    requests: int = 0
+    answered: int = 0
+    refusals: dict[int, int] = field(default_factory=dict)
+    unsupported: set[str] = field(default_factory=set)
+    silent_run: int = 0
+    _next_at: float = 0.0
+
+    def read(self, table: str, address: int, count: int) -> list[int] | None:
+        """The values of one read, or None when refused (exception or silence)."""
+        code = READ_CODES[table]
+        if code not in READ_ONLY_CODES or count > self.max_quantity[table]:
+            raise AssertionError("the probe sends bounded reads only")
+        self._pace()
+        self.requests += 1
+        pdu = READ_REQUESTS[code](address=address, count=count)
+        try:
+            reply = self.bus.exchange(Exchange(self.unit, pdu, TimingSpec()))
+        except DriveTimeout:
+            self._silence()
+            return None
+        if reply is None:
+            return None
+        self.answered += 1
+        self.silent_run = 0
+        if reply.isError():
+            self.refusals[reply.exception_code] = self.refusals.get(reply.exception_code, 0) + 1
+            if reply.exception_code == 0x01:
+                self.unsupported.add(table)
+            return None
+        if code <= 0x02:
+            return [1 if b else 0 for b in reply.bits[:count]]
+        return list(reply.registers)
+
+    def _silence(self) -> None:
+        """Stop rather than wait out every address: a unit that never answered after a few reads, or one
+        that answered bad addresses with exceptions and then fell silent, is not there (any more)."""
+        self.silent_run += 1
+        if self.answered == 0 and self.requests >= SILENT_START:
+            raise ProbeSilence(f"no answer to the first {self.requests} reads")
+        if self.refusals and self.silent_run >= SILENT_RUN:
+            raise ProbeSilence(f"{self.silent_run} reads in a row went unanswered after {self.answered} answers "
+                               "(did the device go away?)")
+
+    def _pace(self) -> None:
+        if self.rate <= 0:
+            return
+        now = time.monotonic()
+        if now < self._next_at:
+            time.sleep(self._next_at - now)
+        self._next_at = max(now, self._next_at) + 1.0 / self.rate
+
+    def sweep(self, table: str, first: int, last: int, into: dict[int, int]) -> None:
+        """Every readable address of ``table`` in ``first..last`` with its value, into ``into``."""
+        address = first
+        while address <= last and table not in self.unsupported:
+            count = min(self.max_quantity[table], last - address + 1)
+            self._split(table, address, count, into)
+            address += count
+
+    def _split(self, table: str, address: int, count: int, into: dict[int, int]) -> bool:
+        """Read ``count`` at ``address``, splitting on refusal; True when all of it was readable."""
+        limit = self.max_quantity[table]
+        if count > limit:  # the limit was lowered while this part waited
+            return all([self._split(table, a, min(limit, address + count - a), into)
+                        for a in range(address, address + count, limit)])
+        values = self.read(table, address, count)
+        if values is not None:
+            into.update(zip(range(address, address + count), values, strict=False))
+            return True
+        if count == 1 or table in self.unsupported:
+            return False
+        if count <= _SINGLES_BELOW:
+            for a in range(address, address + count):
+                self._split(table, a, 1, into)
+            return False
+        half = count // 2
+        whole = self._split(table, address, half, into) & self._split(table, address + half, count - half, into)
+        if whole:  # both halves answered: the device takes fewer words per request than asked
+            self.max_quantity[table] = min(self.max_quantity[table], count - half)
+        return False
+
