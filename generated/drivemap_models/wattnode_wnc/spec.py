@@ -21,7 +21,7 @@ SPEC = DeviceSpec(
     unit_min=1,
     unit_max=247,
     broadcast_address=None,
-    serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
+    serial=SerialSpec(mode='rtu', baudrate=None, parity='none', stop_bits=1, data_bits=8),
     function_codes=(
         FunctionSpec(code=0x03, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
         FunctionSpec(code=0x06, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
