@@ -12,17 +12,17 @@ from typing import Any
 from drivemap.runtime.client import (
     AsyncBus,
     AsyncClientBase,
-    AsyncCommand,
     AsyncReadOnly,
     AsyncReadWrite,
     AsyncReadWriteArray,
+    AsyncReadWriteCommand,
     Bus,
     ClientBase,
-    Command,
     PagePolicy,
     ReadOnly,
     ReadWrite,
     ReadWriteArray,
+    ReadWriteCommand,
     SnapshotBase,
 )
 from drivemap.runtime.client.codec import (
@@ -320,6 +320,8 @@ class Snapshot(SnapshotBase):
     phaseadjustc: float | None = None
     creeplimit: int | None = None
     phaseoffset: int | None = None
+    zeroenergy: int | None = None
+    zerodemand: int | None = None
     currentintscale: int | None = None
     iopinmode: Iopinmode | None = None
     applycomconfig: int | None = None
@@ -780,19 +782,19 @@ class Client(ClientBase[Snapshot]):
         Default: 120; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 171.
         """
-        self.zeroenergy: Command[int] = Command(self, _codec_zeroenergy)
+        self.zeroenergy: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_zeroenergy)
         """ZeroEnergy
 
-        Address 0x0653 (Modicon 41620); u16, access w.
+        Address 0x0653 (Modicon 41620); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Command: writing 1 executes it.
         Manual: WNC V18 sheet Main List row 172.
         """
-        self.zerodemand: Command[int] = Command(self, _codec_zerodemand)
+        self.zerodemand: ReadWriteCommand[int] = ReadWriteCommand(self, _codec_zerodemand)
         """ZeroDemand
 
-        Address 0x0654 (Modicon 41621); u16, access w.
+        Address 0x0654 (Modicon 41621); u16, access rw.
         Unit: none; scale 1; range — .. —.
         Default: —; reflect: unknown; storage: unknown.
         Command: writing 1 executes it.
@@ -835,7 +837,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0674 (Modicon 41653); u16, access rw.
         Unit: none; scale 1; range — .. —.
-        Default: —; reflect: unknown; storage: unknown.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 181.
         """
         self.paritymode: ReadWrite[Paritymode] = ReadWrite(self, _codec_paritymode)
@@ -1062,9 +1064,9 @@ class AsyncClient(AsyncClientBase[Snapshot]):
         """CreepLimit (see :attr:`Client.creeplimit`)."""
         self.phaseoffset: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_phaseoffset)
         """PhaseOffset (see :attr:`Client.phaseoffset`)."""
-        self.zeroenergy: AsyncCommand[int] = AsyncCommand(self, _codec_zeroenergy)
+        self.zeroenergy: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_zeroenergy)
         """ZeroEnergy (see :attr:`Client.zeroenergy`)."""
-        self.zerodemand: AsyncCommand[int] = AsyncCommand(self, _codec_zerodemand)
+        self.zerodemand: AsyncReadWriteCommand[int] = AsyncReadWriteCommand(self, _codec_zerodemand)
         """ZeroDemand (see :attr:`Client.zerodemand`)."""
         self.currentintscale: AsyncReadWrite[int] = AsyncReadWrite(self, _codec_currentintscale)
         """CurrentIntScale (see :attr:`Client.currentintscale`)."""

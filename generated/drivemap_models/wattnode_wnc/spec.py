@@ -401,14 +401,12 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='zeroenergy',
             address=0x0653,
-            access='w',
             command_value=1,
             source='WNC V18 sheet Main List row 172',
         ),
         RegisterSpec(
             name='zerodemand',
             address=0x0654,
-            access='w',
             command_value=1,
             source='WNC V18 sheet Main List row 173',
         ),
@@ -440,6 +438,7 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='baudrate',
             address=0x0674,
+            defaults=(0,),
             enum='Baudrate',
             enum_values=(0, 4, 5, 6),
             source='WNC V18 sheet Main List row 181',
