@@ -8,7 +8,6 @@ from drivemap.runtime.spec import (
     ExceptionSpec,
     FunctionSpec,
     RegisterSpec,
-    ReservedSpec,
     SerialSpec,
     TimingSpec,
 )
@@ -298,7 +297,6 @@ SPEC = DeviceSpec(
         ),
     ),
     reserved=(
-        ReservedSpec(start=0x001A, end=0x0042, readable=None, table='input'),
     ),
     comm_errors=(
     ),
