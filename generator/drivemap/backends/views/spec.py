@@ -131,7 +131,9 @@ def context(model: Model, options: Options) -> dict[str, Any]:
 
 def _imports(model: Model) -> list[str]:
     """Only the spec classes this model uses (generated code stays ruff-clean)."""
-    names = {"DeviceSpec", "ExceptionSpec", "FunctionSpec", "RegisterSpec", "SerialSpec", "TimingSpec"}
+    names = {"DeviceSpec", "FunctionSpec", "RegisterSpec", "SerialSpec", "TimingSpec"}
+    if model.protocol.exceptions:
+        names.add("ExceptionSpec")
     if any(r.bits for r in model.registers):
         names.add("BitSpec")
     if any(r.page for r in model.registers) or any(r.page for r in model.reserved):
