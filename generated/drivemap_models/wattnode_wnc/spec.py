@@ -5,7 +5,6 @@ Manual: github.com/mcci-catena/MCCI-WattNode-Modbus @ 3016f4f23d9569beedb536b423
 
 from drivemap.runtime.spec import (
     DeviceSpec,
-    ExceptionSpec,
     FunctionSpec,
     RegisterSpec,
     SerialSpec,
