@@ -698,7 +698,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0648 (Modicon 41609); u16, access rw.
         Unit: W; scale 1; range — .. — W.
-        Default: —; reflect: unknown; storage: unknown.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 161.
         """
         self.dempermins: ReadWrite[int] = ReadWrite(self, _codec_dempermins)
@@ -813,7 +813,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0656 (Modicon 41623); u16, access rw.
         Unit: none; scale 1; range — .. —.
-        Default: —; reflect: unknown; storage: unknown.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 175.
         """
         self.applycomconfig: ReadWrite[int] = ReadWrite(self, _codec_applycomconfig)
@@ -845,7 +845,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0675 (Modicon 41654); u16, access rw.
         Unit: none; scale 1; range — .. —.
-        Default: —; reflect: unknown; storage: unknown.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 182.
         """
         self.modbusmode: ReadWrite[Modbusmode] = ReadWrite(self, _codec_modbusmode)
@@ -853,7 +853,7 @@ class Client(ClientBase[Snapshot]):
 
         Address 0x0676 (Modicon 41655); u16, access rw.
         Unit: none; scale 1; range — .. —.
-        Default: —; reflect: unknown; storage: unknown.
+        Default: 0; reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 183.
         """
         self.replydelay: ReadWrite[int] = ReadWrite(self, _codec_replydelay)

@@ -320,6 +320,7 @@ SPEC = DeviceSpec(
             name='powerintscale',
             address=0x0648,
             unit='W',
+            defaults=(0,),
             source='WNC V18 sheet Main List row 161',
         ),
         RegisterSpec(
@@ -418,6 +419,7 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='iopinmode',
             address=0x0656,
+            defaults=(0,),
             enum='Iopinmode',
             enum_values=(0, 1, 2, 3, 4, 5, 6, 7, 8),
             source='WNC V18 sheet Main List row 175',
@@ -445,6 +447,7 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='paritymode',
             address=0x0675,
+            defaults=(0,),
             enum='Paritymode',
             enum_values=(0, 1),
             source='WNC V18 sheet Main List row 182',
@@ -452,6 +455,7 @@ SPEC = DeviceSpec(
         RegisterSpec(
             name='modbusmode',
             address=0x0676,
+            defaults=(0,),
             enum='Modbusmode',
             enum_values=(0, 1),
             source='WNC V18 sheet Main List row 183',
