@@ -25,6 +25,9 @@ SERIAL: dict[str, dict[str, Any]] = {
     "v2": {"baudrate": 9600, "parity": "none", "stopbits": 1},
     "edx": {"baudrate": 9600, "parity": "none", "stopbits": 1, "method": "rtu"},
     "fronius_symo_hybrid": {"baudrate": 9600, "parity": "none", "stopbits": 1},
+    "wattnode_wnc": {"baudrate": 9600},
+    "delta_vfd_el_w": {"baudrate": 9600, "parity": "none", "stopbits": 1, "method": "rtu"},
+    "delta_vfd_f": {"baudrate": 9600, "parity": "none", "stopbits": 1, "method": "rtu"},
 }
 #: the synthetic map that uses every construct of the map language (coils, discretes, f64, strings,
 #: low-first bytes, scale registers...): exported as well as the maps of maps/
