@@ -1,0 +1,215 @@
+"""A real Home Assistant (2024.3.3, the newest for Python 3.11, in its own virtualenv) reading drivemap's
+output: the ``modbus`` export against a preset simulator, and ``drivemap gateway`` through MQTT
+discovery on a real broker. What HA shows must equal what ``drivemap read`` reads, entity by entity,
+and HA must log nothing about these integrations. Only 127.0.0.1; every process ends in ``finally``.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from drivemap.backends.python.inmemory import load_package
+from drivemap.compiler import load_model
+from drivemap.runtime.sim.serve import ThreadedSimServer
+from tests.ha_compare import compare_modbus, read_index
+from tests.ha_live import HomeAssistant, preset
+from tests.toolenv import require
+from tests.waits import free_port
+
+pytestmark = pytest.mark.tools
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def simulator(model: str, units: list[int] | None = None) -> Any:
+    package = load_package(load_model(str(ROOT / "maps" / f"{model}.yaml")))
+    return package.simulator.Simulator(units or [1])
+
+
+def drivemap(*args: str, timeout: float = 120) -> str:
+    done = subprocess.run([sys.executable, "-m", "drivemap", *args], capture_output=True, text=True, timeout=timeout)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+def read_all(model: str, port: int, unit: int = 1) -> dict[str, Any]:
+    doc: dict[str, Any] = json.loads(drivemap("read", model, "--tcp", f"127.0.0.1:{port}", "--unit", str(unit),
+                                              "--all", "--json"))
+    return doc
+
+
+def _settled(uids: set[str]) -> Any:
+    def check(found: dict[str, dict[str, Any]]) -> bool:
+        states = {e["unique_id"]: e["state"] for e in found.values()}
+        return all(states.get(u) not in (None, "unknown", "unavailable") for u in uids)
+    return check
+
+
+@pytest.mark.parametrize("model", ["sdm630", "ev"])
+def test_home_assistant_reads_the_modbus_export_as_drivemap_does(model: str, tmp_path: Path) -> None:
+    tool = require("homeassistant-run")
+    sim = simulator(model)
+    skipped = preset(sim)
+    port = free_port()
+    export_text = drivemap("export", model, "--format", "homeassistant", "--tcp", f"127.0.0.1:{port}",
+                           "--ha-version", "2024.3")
+    export = yaml.safe_load(export_text)
+    hub = export["modbus"][0]
+    uids = {e["unique_id"] for e in hub.get("sensors", [])}
+    ha = HomeAssistant(tool, tmp_path / "ha")
+    ha.configure({"device": export_text})
+    started = time.monotonic()
+    with ThreadedSimServer(sim, tcp=("127.0.0.1", port)):
+        try:
+            ha.start()
+            ha.onboard()
+            found = ha.wait_for(_settled(uids), 120, "the modbus entities")
+            reads = read_index(read_all(model, port))
+        finally:
+            ha.stop()
+    compared, bad, not_compared = compare_modbus(export, found, reads, model)
+    total = len(compared) + len(bad) + len(not_compared)
+    print(f"\n{model}: {len(compared)}/{total} entities equal drivemap's read, {len(bad)} differ, "
+          f"{len(not_compared)} not compared ({time.monotonic() - started:.0f} s); preset skipped {skipped}")
+    for line in not_compared:
+        print("  not compared:", line)
+    assert not bad, "\n".join(bad)
+    assert len(compared) >= 0.9 * total, not_compared
+    values = {line.split(" drivemap ")[1] for line in compared}
+    assert len(values) > len(compared) // 3, "the preset did not give distinct values"
+    assert not ha.bad_log_lines(), "\n".join(ha.bad_log_lines())
+
+
+GATEWAY = """gateway: 1
+name: plant
+mqtt: {{host: 127.0.0.1, port: {mqtt}, prefix: drivemap, discovery: true}}
+buses:
+  - name: line1
+    tcp: 127.0.0.1:{line1}
+    devices:
+      - {{name: pump1, title: Pump 1, model: vfd1000, unit: 1, interval: 1, writable: [communication_setting]}}
+  - name: line2
+    tcp: 127.0.0.1:{line2}
+    devices:
+      - {{name: conveyor, title: Conveyor drive, model: ev, unit: 1, interval: 1,
+          writable: [comm_error_action, rs485_timeout, digital_speed]}}
+"""
+
+
+def discovery_configs(port: int, prefix: str = "homeassistant", wait: float = 3.0) -> list[dict[str, Any]]:
+    """Every retained discovery message on the broker (component added from the topic)."""
+    import asyncio
+
+    import aiomqtt
+
+    async def collect() -> list[dict[str, Any]]:
+        out: list[dict[str, Any]] = []
+        async with aiomqtt.Client("127.0.0.1", port, identifier="ha-live-discovery") as client:
+            await client.subscribe(f"{prefix}/#")
+            try:
+                async with asyncio.timeout(wait):
+                    async for message in client.messages:
+                        if message.payload:
+                            payload = json.loads(bytes(message.payload))  # type: ignore[arg-type]
+                            out.append({**payload, "component": message.topic.value.split("/")[1]})
+            except TimeoutError:
+                pass
+        return out
+    return asyncio.run(collect())
+
+
+def _mqtt_settled(count: int) -> Any:
+    def check(found: dict[str, dict[str, Any]]) -> bool:
+        mqtt = [e for e in found.values() if e["platform"] == "mqtt"]
+        return len(mqtt) >= count and all(e["state"] not in (None, "unavailable") for e in mqtt)
+    return check
+
+
+def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(tmp_path: Path) -> None:
+    from tests.ha_compare import compare_mqtt
+    from tests.helpers_gateway import Broker
+
+    tool = require("homeassistant-run")
+    sims = {"pump1": simulator("vfd1000"), "conveyor": simulator("ev")}
+    for sim in sims.values():
+        preset(sim)
+    ports = {"line1": free_port(), "line2": free_port()}
+    broker = Broker(tmp_path).start()
+    config = tmp_path / "plant.yaml"
+    config.write_text(GATEWAY.format(mqtt=broker.port, **ports), encoding="utf-8")
+    ha = HomeAssistant(tool, tmp_path / "ha")
+    ha.configure({}, mqtt_port=broker.port)
+    gateway: subprocess.Popen[bytes] | None = None
+    started = time.monotonic()
+    servers = [ThreadedSimServer(sims["pump1"], tcp=("127.0.0.1", ports["line1"])),
+               ThreadedSimServer(sims["conveyor"], tcp=("127.0.0.1", ports["line2"]))]
+    try:
+        for server in servers:
+            server.start()
+        with open(tmp_path / "gateway.log", "wb") as log:
+            gateway = subprocess.Popen([sys.executable, "-m", "drivemap", "gateway", str(config)],
+                                       stdout=log, stderr=subprocess.STDOUT)
+        ha.start()
+        ha.onboard()
+        configs = discovery_configs(broker.port)
+        assert len(configs) > 50, f"the gateway announced {len(configs)} entities"
+        found = ha.wait_for(_mqtt_settled(len(configs)), 120, "the discovered entities")
+        results = {}
+        for device, model in (("pump1", "vfd1000"), ("conveyor", "ev")):
+            port = ports["line1" if device == "pump1" else "line2"]
+            reads = {e["name"]: e for e in read_all(model, port)["registers"]}
+            node = f"drivemap_plant_{device}"
+            mine = [c for c in configs if c["unique_id"].startswith(node + "_")]
+            results[device] = compare_mqtt(mine, found, reads, node)
+        _drive_through_home_assistant(ha, found, sims["conveyor"])
+    finally:
+        ha.stop()
+        if gateway is not None:
+            gateway.terminate()
+            try:
+                gateway.wait(15)
+            except subprocess.TimeoutExpired:
+                gateway.kill()
+                gateway.wait(5)
+        broker.stop()
+        for server in servers:
+            server.stop()
+    for device, (compared, bad, not_compared) in results.items():
+        total = len(compared) + len(bad) + len(not_compared)
+        print(f"\n{device}: {len(compared)}/{total} discovered entities equal drivemap's read, {len(bad)} differ, "
+              f"{len(not_compared)} not compared")
+        for line in not_compared:
+            print("  not compared:", line)
+        assert not bad, "\n".join(bad)
+        assert len(compared) >= 0.9 * total, not_compared
+    print(f"gateway run: {time.monotonic() - started:.0f} s")
+    assert not ha.bad_log_lines(), "\n".join(ha.bad_log_lines())
+
+
+def _drive_through_home_assistant(ha: HomeAssistant, found: dict[str, dict[str, Any]], sim: Any) -> None:
+    """number.set_value and select.select_option called on HA's REST API must reach the drive."""
+    by_uid = {e["unique_id"]: eid for eid, e in found.items()}
+    number = by_uid["drivemap_plant_conveyor_rs485_timeout"]
+    select = by_uid["drivemap_plant_conveyor_comm_error_action"]
+    element = by_uid["drivemap_plant_conveyor_digital_speed_3"]
+    options = found[select]["attributes"]["options"]
+    option = next(o for o in options if o != sim.get("comm_error_action"))
+    timeout = 777 if sim.get("rs485_timeout") != 777 else 555
+    ha.call("number", "set_value", {"entity_id": number, "value": timeout})
+    ha.call("select", "select_option", {"entity_id": select, "option": option})
+    ha.call("number", "set_value", {"entity_id": element, "value": 1234})
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline:
+        got = (sim.get("rs485_timeout"), str(sim.get("comm_error_action")), sim.get("digital_speed[3]"))
+        if got == (timeout, option, 1234):
+            break
+        time.sleep(0.3)
+    assert got == (timeout, option, 1234), f"the drive has {got}; gateway log:\n{ha.log()[-3000:]}"
