@@ -104,7 +104,8 @@ def _expected_template(domain: str, ent: dict[str, Any], entry: dict[str, Any]) 
     if isinstance(value, dict) and last.lower() in value:  # one field of a bit-field register
         for part in str(entry["meaning"]).split("; "):
             if part.startswith(last.lower() + " "):
-                return part[len(last) + 1:]
+                text = part[len(last) + 1:]  # a value the map does not list: HA shows its number
+                return text[8:] if text.startswith("UNKNOWN_") else text
         return None
     return None if entry["meaning"] is None else str(entry["meaning"])
 

@@ -43,10 +43,16 @@ def _int_value(reg: Any, k: int) -> int:
     return raw
 
 
+#: presets that would make the simulated drive change its own readings while HA reads it (ev: a
+#: communication timeout of a few ms trips its comm alarm between two polls, motor_state -> FAULT)
+STEADY: dict[str, dict[str, float]] = {"ev": {"rs485_timeout": 0, "rs232_timeout": 0}}
+
+
 def preset(sim: Simulator) -> list[str]:
     """Give every readable register element of every unit a distinct value the map allows (value
     sets and enums: one of their non-zero values; numbers: inside min/max; bools: true; text: a
-    short word). Page selectors and command registers are left alone. Returns the names not set."""
+    short word), then the :data:`STEADY` values. Page selectors and command registers are left
+    alone. Returns the names not set."""
     spec = sim.spec
     selectors = {r.page.selector for r in spec.registers if r.page is not None}
     skipped: list[str] = []
@@ -62,6 +68,8 @@ def preset(sim: Simulator) -> list[str]:
                 _preset_one(sim, reg, name, k)
             except SimulatorError:
                 skipped.append(name)
+    for name, value in STEADY.get(spec.model, {}).items():
+        sim.set(name, value)
     return skipped
 
 
