@@ -101,7 +101,6 @@ def ha_device(gateway: str, device: Device) -> dict[str, Any]:
         "identifiers": [f"drivemap_{gateway}_{device.name}"],
         "name": device.cfg.title,
         "model": m.device.title,
-        "model_id": m.name,
         "sw_version": f"drivemap {__version__}",
     }
     if m.device.vendor:
