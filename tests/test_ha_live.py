@@ -55,7 +55,7 @@ def _settled(uids: set[str]) -> Any:
 
 @pytest.mark.parametrize("model", ["sdm630", "ev"])
 def test_home_assistant_reads_the_modbus_export_as_drivemap_does(model: str, tmp_path: Path) -> None:
-    tool = require("homeassistant-run")
+    tool = require("homeassistant")
     sim = simulator(model)
     skipped = preset(sim)
     port = free_port()
@@ -140,7 +140,7 @@ def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(tmp_
     from tests.ha_compare import compare_mqtt
     from tests.helpers_gateway import Broker
 
-    tool = require("homeassistant-run")
+    tool = require("homeassistant")
     sims = {"pump1": simulator("vfd1000"), "conveyor": simulator("ev")}
     for sim in sims.values():
         preset(sim)

@@ -32,11 +32,11 @@ from pathlib import Path
 #: of the others, so a changed list gets a fresh virtualenv).
 TOOLS: dict[str, str | tuple[str, ...]] = {
     "esphome": "esphome==2026.6.5",
-    "homeassistant": "homeassistant==2024.3.3",
-    # a Home Assistant that *runs* (`hass -c CFG --skip-pip`, tests/test_ha_live.py): what it would
-    # otherwise pip-install at start for its core, recorder, frontend, http, modbus and mqtt (a
-    # frontend that fails to set up sends HA into recovery mode, which loads no integration)
-    "homeassistant-run": (
+    # check_config (tests/test_exporters_tools.py) and a Home Assistant that *runs* (`hass -c CFG
+    # --skip-pip`, tests/test_ha_live.py): with what HA would otherwise pip-install at start for its
+    # core, recorder, frontend, http, modbus and mqtt (a frontend that fails to set up sends HA into
+    # recovery mode, which loads no integration)
+    "homeassistant": (
         "homeassistant==2024.3.3", "pymodbus==3.6.6", "SQLAlchemy==2.0.27", "fnv-hash-fast==0.5.0",
         "psutil-home-assistant==0.0.1", "paho-mqtt==1.6.1", "home-assistant-frontend==20240307.0",
         "Pillow==10.2.0", "janus==1.0.0", "securetar==2024.2.1", "josepy<2",
