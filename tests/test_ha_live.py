@@ -53,7 +53,7 @@ def _settled(uids: set[str]) -> Any:
     return check
 
 
-@pytest.mark.parametrize("model", ["sdm630", "ev"])
+@pytest.mark.parametrize("model", ["sdm630", "ev", "vfd1000"])
 def test_home_assistant_reads_the_modbus_export_as_drivemap_does(model: str, tmp_path: Path) -> None:
     tool = require("homeassistant")
     sim = simulator(model)
@@ -85,7 +85,8 @@ def test_home_assistant_reads_the_modbus_export_as_drivemap_does(model: str, tmp
     for line in compared[::20]:
         print("  e.g.", line)
     assert not bad, "\n".join(bad)
-    assert len(compared) >= 0.9 * total, not_compared
+    readable = [line for line in not_compared if "command switch" not in line]  # write-only: nothing to read
+    assert len(readable) <= 0.1 * total, readable
     values = {line.split(" drivemap ")[1] for line in compared}
     assert len(values) > len(compared) // 3, "the preset did not give distinct values"
     assert not logged, "\n".join(logged)
