@@ -1,12 +1,14 @@
-"""Third-party tools (ESPHome, Home Assistant, pymodbus.simulator) in their own virtualenvs, cached between runs.
+"""Third-party tools (ESPHome, Home Assistant, pymodbus.simulator; node-opcua from npm), cached between runs.
 
-Each tool gets a virtualenv of its own under ``~/.cache/drivemap-tools`` (``DRIVEMAP_TOOLS_CACHE``
-overrides it), outside the repository, so its pins never meet drivemap's and a rerun reuses it. A
-virtualenv counts as ready only once its install finished (a marker file written last); a broken
-or half-made one is rebuilt. When pip cannot install the package, the test is skipped with pip's
-own words in the reason (pytest prints it in its summary: ``-ra``), never silently.
+Each Python tool gets a virtualenv of its own under ``~/.cache/drivemap-tools`` (``DRIVEMAP_TOOLS_CACHE``
+overrides it), outside the repository, so its pins never meet drivemap's and a rerun reuses it; a tool
+may need several requirements (Home Assistant that runs needs what it would pip-install at start).
+An npm tool gets a folder there with its package.json and node_modules. A tool counts as ready only
+once its install finished (a marker file written last); a broken or half-made one is rebuilt. When
+pip or npm cannot install it, the test FAILS with the installer's own words (a check not run is no
+pass); installs are bounded by ``INSTALL_TIMEOUT_S``.
 
-    python tests/toolenv.py esphome      # prepare one ahead of a test run (prints its bin folder)
+    python tests/toolenv.py esphome      # prepare one ahead of a test run (prints its folder)
 """
 
 from __future__ import annotations
