@@ -96,16 +96,18 @@ GATEWAY = """gateway: 1
 name: plant
 mqtt: {{host: 127.0.0.1, port: {mqtt}, prefix: drivemap, discovery: true}}
 buses:
-  - name: line1
-    tcp: 127.0.0.1:{line1}
-    devices:
-      - {{name: pump1, title: Pump 1, model: vfd1000, unit: 1, interval: 1, writable: [communication_setting]}}
-  - name: line2
-    tcp: 127.0.0.1:{line2}
-    devices:
-      - {{name: conveyor, title: Conveyor drive, model: ev, unit: 1, interval: 1,
-          writable: [comm_error_action, rs485_timeout, digital_speed]}}
 """
+#: device -> (model, its entry in the gateway config); each on a bus (a simulator) of its own
+DEVICES = {
+    "pump1": ("vfd1000", "{name: pump1, title: Pump 1, model: vfd1000, unit: 1, interval: 1, "
+                         "writable: [communication_setting]}"),
+    "conveyor": ("ev", "{name: conveyor, title: Conveyor drive, model: ev, unit: 1, interval: 1, "
+                       "writable: [comm_error_action, rs485_timeout, digital_speed]}"),
+    "meter": ("sdm630", "{name: meter, title: Meter, model: sdm630, unit: 1, interval: 1}"),
+}
+REACTIVE_ENERGY = ("Home Assistant 2024.3 has no reactive_energy device class: it refuses the discovery of "
+                   "sdm630's 12 kvarh entities ('expected SensorDeviceClass or one of ...'); discovery "
+                   "would need to know the HA version it talks to")
 
 
 def discovery_configs(port: int, prefix: str = "homeassistant", wait: float = 3.0) -> list[dict[str, Any]]:
@@ -130,31 +132,40 @@ def discovery_configs(port: int, prefix: str = "homeassistant", wait: float = 3.
     return asyncio.run(collect())
 
 
-def _mqtt_settled(count: int) -> Any:
+def _mqtt_settled(ha: HomeAssistant, count: int) -> Any:
+    """All ``count`` discovered entities have a state, or HA has already logged a refusal."""
     def check(found: dict[str, dict[str, Any]]) -> bool:
         mqtt = [e for e in found.values() if e["platform"] == "mqtt"]
-        return len(mqtt) >= count and all(e["state"] not in (None, "unavailable") for e in mqtt)
+        done = len(mqtt) >= count and all(e["state"] not in (None, "unavailable") for e in mqtt)
+        return done or bool(ha.bad_log_lines())
     return check
 
 
-def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(tmp_path: Path) -> None:
+@pytest.mark.parametrize("devices", [
+    ("pump1", "conveyor"),
+    pytest.param(("meter",), marks=pytest.mark.xfail(strict=True, reason=REACTIVE_ENERGY)),
+], ids=["vfd1000+ev", "sdm630"])
+def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(devices: tuple[str, ...],
+                                                                            tmp_path: Path) -> None:
     from tests.ha_compare import compare_mqtt
     from tests.helpers_gateway import Broker
 
     tool = require("homeassistant")
-    sims = {"pump1": simulator("vfd1000"), "conveyor": simulator("ev")}
+    sims = {d: simulator(DEVICES[d][0]) for d in devices}
     for sim in sims.values():
         preset(sim)
-    ports = {"line1": free_port(), "line2": free_port()}
+    ports = {d: free_port() for d in devices}
+    lines = {d: (d, DEVICES[d][0]) for d in devices}
     broker = Broker(tmp_path).start()
     config = tmp_path / "plant.yaml"
-    config.write_text(GATEWAY.format(mqtt=broker.port, **ports), encoding="utf-8")
+    config.write_text(GATEWAY.format(mqtt=broker.port) + "".join(
+        f"  - name: line_{d}\n    tcp: 127.0.0.1:{ports[d]}\n    devices:\n      - {DEVICES[d][1]}\n" for d in devices),
+        encoding="utf-8")
     ha = HomeAssistant(tool, tmp_path / "ha")
     ha.configure({}, mqtt_port=broker.port)
     gateway: subprocess.Popen[bytes] | None = None
     started = time.monotonic()
-    servers = [ThreadedSimServer(sims["pump1"], tcp=("127.0.0.1", ports["line1"])),
-               ThreadedSimServer(sims["conveyor"], tcp=("127.0.0.1", ports["line2"]))]
+    servers = [ThreadedSimServer(sims[d], tcp=("127.0.0.1", ports[line])) for d, (line, _) in lines.items()]
     try:
         for server in servers:
             server.start()
@@ -164,20 +175,20 @@ def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(tmp_
         ha.start()
         ha.onboard()
         configs = discovery_configs(broker.port)
-        assert len(configs) > 50, f"the gateway announced {len(configs)} entities"
-        found = ha.wait_for(_mqtt_settled(len(configs)), 120, "the discovered entities")
+        assert len(configs) > 20 * len(devices), f"the gateway announced {len(configs)} entities"
+        found = ha.wait_for(_mqtt_settled(ha, len(configs)), 120, "the discovered entities")
         (tmp_path / "entities.json").write_text(json.dumps(found, indent=1), encoding="utf-8")
         mqtt = {e["unique_id"]: e["state"] for e in found.values() if e["platform"] == "mqtt"}
         missing = [c["unique_id"] for c in configs if c["unique_id"] not in mqtt]
         assert not missing, f"{len(missing)} of {len(configs)} discovered entities are not in HA: {missing[:20]}"
         results = {}
-        for device, model in (("pump1", "vfd1000"), ("conveyor", "ev")):
-            port = ports["line1" if device == "pump1" else "line2"]
-            reads = {e["name"]: e for e in read_all(model, port)["registers"]}
+        for device, (line, model) in lines.items():
+            reads = {e["name"]: e for e in read_all(model, ports[line])["registers"]}
             node = f"drivemap_plant_{device}"
             mine = [c for c in configs if c["unique_id"].startswith(node + "_")]
             results[device] = compare_mqtt(mine, found, reads, node)
-        _drive_through_home_assistant(ha, found, sims["conveyor"])
+        if "conveyor" in sims:
+            _drive_through_home_assistant(ha, found, sims["conveyor"])
         logged = ha.bad_log_lines()
     finally:
         ha.stop()
