@@ -179,3 +179,14 @@ def test_every_shipped_unit_has_its_unece_code_or_is_named_as_without() -> None:
     docs = (ROOT / "docs/gateway.md").read_text()
     for unit in units - without:
         assert f"| {UNECE[unit]} |" in docs or f"/ {UNECE[unit]}" in docs or f"{UNECE[unit]} /" in docs, unit
+
+
+#: the MQTT device keys Home Assistant 2024.3 accepts (components/mqtt/mixins.py MQTT_ENTITY_DEVICE_INFO_SCHEMA);
+#: it refuses the whole entity for any other key ("extra keys not allowed @ data['device']['model_id']")
+HA_2024_3_DEVICE_KEYS = {"identifiers", "connections", "manufacturer", "model", "name", "sw_version", "hw_version",
+                         "via_device", "suggested_area", "configuration_url", "serial_number"}
+
+
+def test_discovery_device_has_only_keys_home_assistant_2024_3_accepts(messages: dict[str, dict[str, Any]]) -> None:
+    for where, payload in messages.items():
+        assert set(payload["device"]) <= HA_2024_3_DEVICE_KEYS, (where, set(payload["device"]) - HA_2024_3_DEVICE_KEYS)

@@ -109,7 +109,6 @@ def ha_device(gateway: str, device: Device) -> dict[str, Any]:
         "identifiers": [f"drivemap_{gateway}_{device.name}"],
         "name": device.cfg.title,
         "model": m.device.title,
-        "model_id": m.name,
         "sw_version": f"drivemap {__version__}",
     }
     if m.device.vendor:

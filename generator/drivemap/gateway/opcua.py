@@ -190,7 +190,9 @@ def _raw_of(device: Device, reg: Register, value: Any) -> Any:
         raw = 0
         for bit in reg.bits:
             v = value.get(bit.name, 0)
-            if isinstance(v, str) and bit.enum is not None:
+            if isinstance(v, str) and v.startswith("UNKNOWN_"):  # a value the map does not list: its bits
+                v = int(v[8:])
+            elif isinstance(v, str) and bit.enum is not None:
                 v = next((e.value for e in device.model.enum(bit.enum).values if e.name == v), 0)
             raw |= (int(v) & ((1 << bit.width) - 1)) << bit.offset
         return raw
