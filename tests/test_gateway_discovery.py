@@ -143,6 +143,7 @@ def test_link_setting_rule_on_every_shipped_map(path: Path) -> None:
         "ev": {"net_x_input_function", "comm_error_action", "watch_data_select", "rs485_timeout", "rs485_error_count",
                "rs232_timeout", "rs232_error_count", "rs485_comm_settings", "comm_error_history_clear"},
         "fronius_symo_hybrid": {"f_model_type"},  # switches the register layout the inverter presents
+        "wattnode_wnc": {"address", "baudrate", "paritymode"},
     }.get(model.name, set())
     assert links == expected
     for group in model.groups:
@@ -190,3 +191,28 @@ HA_2024_3_DEVICE_KEYS = {"identifiers", "connections", "manufacturer", "model", 
 def test_discovery_device_has_only_keys_home_assistant_2024_3_accepts(messages: dict[str, dict[str, Any]]) -> None:
     for where, payload in messages.items():
         assert set(payload["device"]) <= HA_2024_3_DEVICE_KEYS, (where, set(payload["device"]) - HA_2024_3_DEVICE_KEYS)
+
+
+def test_discovery_leaves_out_device_classes_the_configured_release_lacks(tmp_path: Path) -> None:
+    """`mqtt.ha_version: "2024.3"`: kvarh gets no reactive_energy class (that release refuses the entity);
+    without it (the current release) the class is announced."""
+
+    def meter_classes(text: str) -> dict[str, Any]:
+        path = tmp_path / "gw.yaml"
+        path.write_text(text)
+        cfg = load_config(path)
+
+        async def made() -> dict[str, Device]:
+            return Gateway(cfg).devices
+
+        meter = asyncio.run(made())["meter"]
+        return {payload["unit_of_measurement"]: payload.get("device_class")
+                for _, payload in discovery_messages("plant", meter, "homeassistant", "x", cfg.mqtt.ha_version)
+                if payload.get("unit_of_measurement") in ("kvarh", "kWh")}
+
+    assert meter_classes(CONFIG) == {"kvarh": "reactive_energy", "kWh": "energy"}
+    old = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '2024.3'}")
+    assert meter_classes(old) == {"kvarh": None, "kWh": "energy"}
+    bad = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '24.3'}")
+    with pytest.raises(CompileError, match="ha_version"):
+        meter_classes(bad)

@@ -83,6 +83,8 @@ class MqttConfig:
     reconnect_max: float = 30.0
     discovery: bool = True
     discovery_prefix: str = "homeassistant"
+    #: the Home Assistant release discovery is for (YEAR, MONTH); None: the current one
+    ha_version: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -371,7 +373,16 @@ def _mqtt(check: _Checker, name: str, m: dict[str, Any]) -> MqttConfig:
         password=check.secret(m, ("mqtt",)), qos=m.get("qos", 1), keepalive=m.get("keepalive", 30),
         reconnect_min=low, reconnect_max=max(low, float(rec.get("max", 30.0))),
         discovery=m.get("discovery", True), discovery_prefix=m.get("discovery_prefix", "homeassistant"),
+        ha_version=_ha_version(m.get("ha_version")),
     )
+
+
+def _ha_version(text: str | None) -> tuple[int, int] | None:
+    """``mqtt.ha_version`` ("2024.3"; the schema checks its form) as (year, month)."""
+    if text is None:
+        return None
+    year, month = str(text).split(".")[:2]
+    return int(year), int(month)
 
 
 def _opcua(check: _Checker, name: str, o: dict[str, Any]) -> OpcuaConfig:

@@ -30,6 +30,7 @@ import json
 from typing import Any
 
 from drivemap import __version__
+from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.integrations import decimals
 from drivemap.gateway.device import PRESS, Device
 from drivemap.gateway.valuesets import value_options
@@ -87,13 +88,14 @@ def precision(reg: Register) -> int | None:
     return decimals(reg.scale, reg.offset or 0)
 
 
-def unit_info(reg: Register) -> dict[str, Any]:
-    """unit_of_measurement / device_class / state_class / suggested_display_precision of a number."""
+def unit_info(reg: Register, ha_version: tuple[int, int] | None = None) -> dict[str, Any]:
+    """unit_of_measurement / device_class / state_class / suggested_display_precision of a number
+    (device classes Home Assistant ``ha_version`` does not know are left out)."""
     out: dict[str, Any] = {"state_class": "measurement"}
     if reg.unit is not None:
         unit, device_class, state_class = _UNITS.get(reg.unit, (reg.unit, None, "measurement"))
         out = {"unit_of_measurement": unit, "state_class": state_class}
-        if device_class:
+        if device_class and iv.device_class_known(device_class, ha_version):
             out["device_class"] = device_class
     digits = precision(reg)
     if digits is not None:
@@ -120,8 +122,10 @@ def ha_device(gateway: str, device: Device) -> dict[str, Any]:
 
 
 class _Builder:
-    def __init__(self, gateway: str, device: Device, discovery_prefix: str, availability: str) -> None:
+    def __init__(self, gateway: str, device: Device, discovery_prefix: str, availability: str,
+                 ha_version: tuple[int, int] | None = None) -> None:
         self.gateway = gateway
+        self.ha_version = ha_version
         self.device = device
         self.prefix = discovery_prefix
         self.node = f"drivemap_{gateway}_{device.name}"
@@ -218,7 +222,7 @@ def _register(b: _Builder, reg: Register, published: bool, control: bool) -> Non
 def _sensor(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], template: str | None) -> None:
     if reg.optional and not template:
         st = {**st, "value_template": "{{ 'None' if value == 'null' else value }}"}
-    b.add("sensor", object_id, name, {**st, **unit_info(reg)})
+    b.add("sensor", object_id, name, {**st, **unit_info(reg, b.ha_version)})
 
 
 def _number(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
@@ -227,7 +231,7 @@ def _number(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str,
     reading outside the range shows as unknown there and in full in a ``<name> reading`` sensor."""
     assert reg.min is not None and reg.max is not None
     step = reg.scale if not float(reg.scale).is_integer() else int(reg.scale)
-    info = {k: v for k, v in unit_info(reg).items() if k != "state_class"}
+    info = {k: v for k, v in unit_info(reg, b.ha_version).items() if k != "state_class"}
     if st:
         st = {**st, "value_template": _in_range(_field(index), reg.min, reg.max)}
     b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": reg.min,
@@ -293,10 +297,10 @@ def _bits(b: _Builder, reg: Register, object_id: str, name: str, state: str, ind
             b.add("sensor", oid, label, {**fields, "value_template": f"{{{{ {field} }}}}"})
 
 
-def discovery_messages(gateway: str, device: Device, discovery_prefix: str,
-                       availability: str) -> list[tuple[str, dict[str, Any]]]:
-    """(topic, payload) of every discovery message of one device."""
-    b = _Builder(gateway, device, discovery_prefix, availability)
+def discovery_messages(gateway: str, device: Device, discovery_prefix: str, availability: str,
+                       ha_version: tuple[int, int] | None = None) -> list[tuple[str, dict[str, Any]]]:
+    """(topic, payload) of every discovery message of one device, for Home Assistant ``ha_version``."""
+    b = _Builder(gateway, device, discovery_prefix, availability, ha_version)
     published = set(device.cfg.publish)
     for reg in device.model.registers:
         control = reg.writable and device.may_write(reg.name)

@@ -86,7 +86,8 @@ class MqttBridge:
         self.published = 0
         if cfg.discovery:
             for dev in devices.values():
-                for topic, payload in discovery_messages(gateway, dev, cfg.discovery_prefix, self.availability_topic):
+                for topic, payload in discovery_messages(gateway, dev, cfg.discovery_prefix, self.availability_topic,
+                                                          cfg.ha_version):
                     self.state[topic] = json.dumps(payload, ensure_ascii=False, sort_keys=True)
 
     # ------------------------------------------------------------------ Sink

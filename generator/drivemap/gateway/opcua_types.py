@@ -33,7 +33,7 @@ UNECE: dict[str, str] = {
     "r/min": "M46", "rpm": "M46",
     "%": "P1",
     "°C": "CEL", "℃": "CEL", "degC": "CEL",
-    "°": "DD",
+    "°": "DD", "deg": "DD",
     "s": "SEC", "ms": "C26", "min": "MIN", "h": "HUR",
     "Ω": "OHM",
 }

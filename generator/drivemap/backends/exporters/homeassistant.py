@@ -457,15 +457,11 @@ def write_type(model: Model, reg: Register) -> str | None:
     return "holdings" if has(0x10) else None
 
 
-#: Device classes and the first release that has them (older ones reject the entity).
-DEVICE_CLASS_SINCE = {"reactive_energy": (2025, 6)}
-
-
 def _unit_keys(unit: str, version: tuple[int, int] = CURRENT) -> dict[str, Any]:
     unit = iv.unit_for(unit)
     out: dict[str, Any] = {"unit_of_measurement": unit}
     device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, None))
-    if device_class and version < DEVICE_CLASS_SINCE.get(device_class, OLDEST):
+    if device_class and not iv.device_class_known(device_class, version):
         device_class = None
     if device_class:
         out["device_class"] = device_class

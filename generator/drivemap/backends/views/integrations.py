@@ -22,7 +22,9 @@ from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, Strin
 from drivemap.runtime.spec import RegisterSpec
 
 __all__ = [
+    "device_class_known",
     "DEVICE_CLASSES",
+    "DEVICE_CLASS_SINCE",
     "UNIT_SPELLING",
     "Point",
     "Selection",
@@ -35,6 +37,15 @@ __all__ = [
     "tcp_endpoint",
     "unit_for",
 ]
+
+#: Device classes and the first Home Assistant release that has them (older ones reject the entity).
+DEVICE_CLASS_SINCE: dict[str, tuple[int, int]] = {"reactive_energy": (2025, 6)}
+
+
+def device_class_known(device_class: str, version: tuple[int, int] | None) -> bool:
+    """Whether Home Assistant ``version`` (None: the current release) has ``device_class``."""
+    return version is None or version >= DEVICE_CLASS_SINCE.get(device_class, (0, 0))
+
 
 #: unit -> (device_class, state_class) where the unit says it (Home Assistant and ESPHome share the names).
 DEVICE_CLASSES: dict[str, tuple[str | None, str | None]] = {
