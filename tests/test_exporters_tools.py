@@ -92,7 +92,8 @@ def test_home_assistant_check_config_accepts_hostile_text(tmp_path: Path) -> Non
 def test_pymodbus_simulator_serves_the_export(tmp_path: Path) -> None:
     """``pymodbus.simulator --json_file`` (pymodbus's own command) serves the export; the generated
     client reads the same values from it as from drivemap's simulator of the map."""
-    from tests.sim_helpers import _wait_port, export, free_port, read_back
+    from tests.sim_helpers import export, free_port, read_back
+    from tests.waits import wait_port as _wait_port
 
     tool = require("pymodbus-simulator")
     for model in MAPS:
