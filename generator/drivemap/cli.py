@@ -409,18 +409,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("model", nargs="?", metavar="MODEL|PATH")
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_examples)
-    s = sub.add_parser("export", help="export a model with an exporter plugin (--list shows them)", add_help=False)
-    s.add_argument("-h", "--help", action="store_true",
-                   help="show this help; with --format NAME the options of that exporter too")
-    s.add_argument("model", nargs="*", metavar="MODEL[:UNIT]",
-                   help="model id or map path; several MODEL:UNIT (ev:1 vfd1000:2) for devices sharing one line "
-                        "(--format homeassistant: one hub)")
-    s.add_argument("--format", default="json", help="exporter name (default: json)")
-    s.add_argument("-o", "--output", default=None, metavar="FILE|DIR", help="write here instead of stdout")
-    s.add_argument("--force", action="store_true", help="replace an output file changed since drivemap wrote it")
-    s.add_argument("--list", action="store_true", help="list the installed exporters")
-    _project_flags(s)
-    s.set_defaults(func=cmd_export, help_parser=s)
+    _export_parser(sub)
     s = sub.add_parser("new", help="scaffold MODEL.yaml in the project's maps folder")
     s.add_argument("model")
     s.add_argument("--dir", default=None, help="folder for the new map (default: the project's maps folder)")
@@ -446,7 +435,6 @@ def parser() -> argparse.ArgumentParser:
     from drivemap.onboard.draft.cli import add_parser as draft_parser
 
     draft_parser(sub)  # draft: a map from the register tables of a manual
-
     from drivemap.onboard.importers.cli import add_parser as import_parser
     from drivemap.onboard.probe_cli import add_parser as probe_parser
 
@@ -459,6 +447,22 @@ def parser() -> argparse.ArgumentParser:
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_gateway)
     return p
+
+
+def _export_parser(sub: Any) -> None:
+    """``drivemap export``: its own ``--help`` also lists the chosen exporter's options."""
+    s = sub.add_parser("export", help="export a model with an exporter plugin (--list shows them)", add_help=False)
+    s.add_argument("-h", "--help", action="store_true",
+                   help="show this help; with --format NAME the options of that exporter too")
+    s.add_argument("model", nargs="*", metavar="MODEL[:UNIT]",
+                   help="model id or map path; several MODEL:UNIT (ev:1 vfd1000:2) for devices sharing one line "
+                        "(--format homeassistant: one hub)")
+    s.add_argument("--format", default="json", help="exporter name (default: json)")
+    s.add_argument("-o", "--output", default=None, metavar="FILE|DIR", help="write here instead of stdout")
+    s.add_argument("--force", action="store_true", help="replace an output file changed since drivemap wrote it")
+    s.add_argument("--list", action="store_true", help="list the installed exporters")
+    _project_flags(s)
+    s.set_defaults(func=cmd_export, help_parser=s)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -210,15 +210,7 @@ def load_project(
     configured_docs = None if out else string("docs")
     docs_dir = (cwd / docs) if docs else (root / configured_docs if configured_docs else out_dir / "docs")
     pkg = package or string("package") or out_dir.name
-    if not _DOTTED.fullmatch(pkg) or any(part == "__pycache__" or keyword.iskeyword(part) for part in pkg.split(".")):
-        source = "--package" if package else (f"{prefix}package" if string("package") else f"the folder name of out ({out_dir.name!r})")
-        message = f"{prefix}package: {pkg!r} from {source} is not an importable name; set package"
-        if not package and not string("package") and not out and string("out"):  # the configured out's name
-            raise CompileError([Diagnostic(Location(display(where), _key_line(where, f"{prefix}out"), 1), message)])
-        if package or not string("package"):  # from the command line or a folder name: no line of a file says it
-            raise CompileError([Diagnostic(Location(display(out_dir), 1, 1), f"package: {pkg!r} from {source} is not "
-                                                                             "an importable name; pass --package or set package")])
-        raise _config_error(where, message)
+    _check_package(pkg, package, string("package"), out, string("out"), out_dir, where, prefix)
     mods = list(behaviours) if behaviours else (strings("behaviours") or [])
     for mod in mods:
         if not _DOTTED.fullmatch(mod):
@@ -235,6 +227,21 @@ def load_project(
         behaviours=tuple(mods),
         exports=_exports(table.get("exports"), root, where, prefix),
     )
+
+
+def _check_package(pkg: str, flag: str | None, configured: str | None, out: str | None, configured_out: str | None,
+                   out_dir: Path, where: Path, prefix: str) -> None:
+    """The generated package's name must be importable; the error points at what gave it."""
+    if _DOTTED.fullmatch(pkg) and not any(part == "__pycache__" or keyword.iskeyword(part) for part in pkg.split(".")):
+        return
+    source = "--package" if flag else (f"{prefix}package" if configured else f"the folder name of out ({out_dir.name!r})")
+    message = f"{prefix}package: {pkg!r} from {source} is not an importable name; set package"
+    if not flag and not configured and not out and configured_out:  # the configured out's name
+        raise CompileError([Diagnostic(Location(display(where), _key_line(where, f"{prefix}out"), 1), message)])
+    if flag or not configured:  # from the command line or a folder name: no line of a file says it
+        raise CompileError([Diagnostic(Location(display(out_dir), 1, 1), f"package: {pkg!r} from {source} is not "
+                                                                         "an importable name; pass --package or set package")])
+    raise _config_error(where, message)
 
 
 def _exports(value: Any, root: Path, where: Path, prefix: str) -> tuple[ExportEntry, ...]:

@@ -156,32 +156,7 @@ class PymodbusSimExporter(Exporter):
         for table, cells in bits.items():
             for cell, value in sorted(cells.items()):
                 sections["bits"].append({"addr": base[table] + cell, "value": value})
-        taken: set[tuple[str, int]] = set()
-        for point in sel.points:
-            reg = point.reg
-            if reg.bit_table:
-                continue
-            kind, a = section(reg), point.address
-            taken.update((reg.table, a + i) for i in range(reg.words))
-            at = base[reg.table] + a
-            if kind is None:
-                for i in range(reg.words):
-                    sections["uint16"].append({"addr": at + i, "value": words[reg.table][a + i]})
-            elif kind in ("float32", "float64"):
-                data = b"".join(words[reg.table][a + i].to_bytes(2, "big") for i in range(reg.words))
-                value = struct.unpack(">f" if kind == "float32" else ">d", data)[0]
-                sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
-            elif reg.words == 1:
-                sections[kind].append({"addr": at, "value": words[reg.table][a]})
-            else:
-                value = 0
-                for i in range(reg.words):
-                    value = (value << 16) | words[reg.table][a + i]
-                sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
-        for table, cells in words.items():  # readable reserved words
-            for w, value in sorted(cells.items()):
-                if (table, w) not in taken:
-                    sections["uint16"].append({"addr": base[table] + w, "value": value})
+        _register_sections(sel, words, base, sections)
         for items in sections.values():
             items.sort(key=lambda item: item["addr"] if isinstance(item["addr"], int) else item["addr"][0])
         write = [base[t] + a if n == 1 else [base[t] + a, base[t] + a + n - 1] for t, a, n in writable]
@@ -193,3 +168,35 @@ class PymodbusSimExporter(Exporter):
                          "action": {t: None for t in _TYPES}},
         }
         return {"setup": setup, "invalid": [], "write": write, **sections, "repeat": []}
+
+
+def _register_sections(sel: iv.Selection, words: dict[str, dict[int, int]], base: dict[str, int],
+                       sections: dict[str, list[Any]]) -> None:
+    """Each register's words into the section of its type (uint16, uint32, float32 ...), at its
+    address in the device block; readable reserved words as uint16."""
+    taken: set[tuple[str, int]] = set()
+    for point in sel.points:
+        reg = point.reg
+        if reg.bit_table:
+            continue
+        kind, a = section(reg), point.address
+        taken.update((reg.table, a + i) for i in range(reg.words))
+        at = base[reg.table] + a
+        if kind is None:
+            for i in range(reg.words):
+                sections["uint16"].append({"addr": at + i, "value": words[reg.table][a + i]})
+        elif kind in ("float32", "float64"):
+            data = b"".join(words[reg.table][a + i].to_bytes(2, "big") for i in range(reg.words))
+            value = struct.unpack(">f" if kind == "float32" else ">d", data)[0]
+            sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
+        elif reg.words == 1:
+            sections[kind].append({"addr": at, "value": words[reg.table][a]})
+        else:
+            value = 0
+            for i in range(reg.words):
+                value = (value << 16) | words[reg.table][a + i]
+            sections[kind].append({"addr": [at, at + reg.words - 1], "value": value})
+    for table, cells in words.items():  # readable reserved words
+        for w, value in sorted(cells.items()):
+            if (table, w) not in taken:
+                sections["uint16"].append({"addr": base[table] + w, "value": value})

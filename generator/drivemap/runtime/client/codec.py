@@ -30,6 +30,7 @@ from typing import Any, Generic, TypeVar
 from pymodbus.client.mixin import ModbusClientMixin
 
 from drivemap.runtime.client.display import allowed_text, check_values, display_text, register_text
+from drivemap.runtime.client.enums import DriveEnum
 from drivemap.runtime.client.steps import (
     STEP_TOLERANCE,
     _fits,
@@ -63,23 +64,6 @@ SCALE_FACTOR_LIMIT = 20
 
 #: Relative tolerance when comparing a float against min/max (binary floats such as 0.1).
 _EPS = 1e-9
-
-
-class DriveEnum(enum.IntEnum):
-    """Base of generated enums: a raw value the map does not name reads as a pseudo-member.
-
-    ``MotorState(99)`` gives ``<MotorState.UNKNOWN_99: 99>`` instead of raising, so a read never
-    fails on an undocumented value; writes still accept only the map's values.
-    """
-
-    @classmethod
-    def _missing_(cls, value: object) -> Any:
-        if not isinstance(value, int) or isinstance(value, bool):
-            return None
-        member = int.__new__(cls, value)
-        member._name_ = f"UNKNOWN_{value}"
-        member._value_ = value
-        return member
 
 
 def _digits(scale: float) -> int:

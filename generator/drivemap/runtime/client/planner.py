@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 from drivemap.runtime.alignment import aligned_limit
 from drivemap.runtime.spec import READ_CODES, DeviceSpec, PageSpec
@@ -324,6 +325,12 @@ def _layered(group: list[Unit], targets: Collection[Key], pages: list[PageSpec],
                 if s not in nxt or value[0] < nxt[s][0]:
                     nxt[s] = value
         states = nxt
+    return _cheapest(states, pages, targets)
+
+
+def _cheapest(states: dict[Any, tuple[int, tuple[Request, ...]]], pages: list[PageSpec],
+              targets: Collection[Key]) -> list[Request]:
+    """The requests of the cheapest final state, each trimmed of the units nobody asked for at its end."""
     best: tuple[int, tuple[Request, ...]] | None = None
     for state, (cost, closed) in states.items():
         final = closed + tuple((p, st[2]) for p, st in zip(pages, state, strict=True) if st is not None)
@@ -338,7 +345,6 @@ def _layered(group: list[Unit], targets: Collection[Key], pages: list[PageSpec],
         if items:
             out.append((page, tuple(items)))
     return out
-
 
 def plan_reads(spec: DeviceSpec, targets: Iterable[Key], holes: Collection[Hole] = ()) -> tuple[ReadRequest, ...]:
     """The fewest read requests that read every element in ``targets`` (see the module docstring),

@@ -39,20 +39,18 @@ from __future__ import annotations
 
 import math
 import os
-import struct
 import threading
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivemap.runtime.alignment import violation
-from drivemap.runtime.client.codec import raw_bounds
-from drivemap.runtime.client.display import is_allowed
 from drivemap.runtime.client.quirks import encode_read_reply
 from drivemap.runtime.sim import state as simstate
+from drivemap.runtime.sim.cells import ReadPlan, Refused, Slot, cell_names, gap_words, packer, swapped, word_shift
 from drivemap.runtime.sim.persist import Persistence, StateFileError
-from drivemap.runtime.sim.unit import SimulatorError, SimValue, Unit, to_value, unwire_words
+from drivemap.runtime.sim.unit import SimulatorError, SimValue, Unit
+from drivemap.runtime.sim.writes import WriteRequests
 from drivemap.runtime.spec import BitSpec, DeviceSpec, PageSpec, RegisterSpec
 
 if TYPE_CHECKING:
@@ -92,71 +90,7 @@ _STANDARD_MAX_QUANTITY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x06: 1,
 _READ_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input"}
 #: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
-_PACKERS: dict[int, Callable[..., bytes]] = {}
-#: (cells read, per word: (cell or None for a word read as 0, bit shift in the cell's raw value, swap bytes),
-#: whether any word swaps its bytes)
-_ReadPlan = tuple[tuple[str, ...], tuple[tuple[str | None, int, bool], ...], bool]
-
-
-def _packer(count: int) -> Callable[..., bytes]:
-    """``struct.Struct(">{count}H").pack``, made once per count."""
-    pack = _PACKERS.get(count)
-    if pack is None:
-        pack = _PACKERS[count] = struct.Struct(f">{count}H").pack
-    return pack
-
-
-class _Refused(Exception):
-    """Internal: the request hits an error case; the dialect decides the answer."""
-
-    def __init__(self, case: str, code: int | None = None) -> None:
-        super().__init__(case)
-        self.case = case
-        self.code = code  # the code the map names for this refusal (an alignment rule's), else by case
-
-
-@dataclass(frozen=True)
-class _Slot:
-    """One 16-bit address (one bit in a bit table) of one register cell."""
-
-    cell: str
-    reg: RegisterSpec
-    index: int
-    word: int  # 0 = first word on the wire
-
-
-def _cell_names(reg: RegisterSpec) -> Iterator[tuple[str, int]]:
-    for i in range(reg.count):
-        yield reg.element_name(i), i
-
-
-def _word_shift(reg: RegisterSpec, word: int) -> int:
-    """Bit shift in the raw value of the ``word``-th word on the wire."""
-    n = reg.words
-    if reg.bit_table or n == 1:
-        return 0
-    canonical = n - 1 - word if reg.word_order == "low_first" else word
-    return 16 * (n - 1 - canonical)
-
-
-def _gap_words(spec: DeviceSpec, documented: frozenset[tuple[str, int]]) -> frozenset[tuple[str, int]]:
-    """Undocumented words between two documented ones at most ``max_gap`` apart (the device reads them)."""
-    if not spec.max_gap:
-        return frozenset()
-    out: set[tuple[str, int]] = set()
-    for table in {t for t, _ in documented}:
-        addresses = sorted(a for t, a in documented if t == table)
-        for low, high in zip(addresses, addresses[1:], strict=False):
-            if 1 < high - low <= spec.max_gap + 1:
-                out.update((table, a) for a in range(low + 1, high))
-    return frozenset(out)
-
-
-def _swapped(word: int, swap: bool) -> int:
-    return ((word & 0xFF) << 8) | (word >> 8) if swap else word
-
-
-class Simulator(Persistence):
+class Simulator(WriteRequests, Persistence):
     """A simulated device: one register store per unit id, answering in the device's dialect.
 
     ``handle(unit_id, pdu)`` takes a request PDU (function code + data) and returns the response
@@ -198,30 +132,7 @@ class Simulator(Persistence):
         self.state_file = Path(state_file) if state_file is not None else None
         self._lock = threading.RLock()
         self._dirty = False
-        self._regs: dict[str, RegisterSpec] = {}
-        self._cells: dict[str, tuple[RegisterSpec, int]] = {}
-        self._by_address: dict[tuple[str, int], list[_Slot]] = {}
-        for reg in spec.registers:
-            self._regs[reg.name] = reg
-            for name, index in _cell_names(reg):
-                self._cells[name] = (reg, index)
-                start = reg.element_address(index)
-                for word in range(reg.words):
-                    self._by_address.setdefault((reg.table, start + word), []).append(_Slot(name, reg, index, word))
-        # (table, address) -> its slot when the first register there has no page (it always wins _resolve)
-        self._static: dict[tuple[str, int], _Slot] = {a: slots[0] for a, slots in self._by_address.items()
-                                                      if slots[0].reg.page is None}
-        # min_read blocks: (table, start, end); words inside that no register covers read as 0
-        self._blocks = tuple((r.table, r.address, r.address + r.min_read) for r in spec.registers
-                             if r.min_read is not None)
-        self._gap_words = _gap_words(spec, frozenset(self._by_address) | frozenset(
-            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1)))
-        # every selector a page depends on: the page state of a unit is their values
-        self._selectors: tuple[str, ...] = tuple(sorted(
-            {r.page.selector for r in spec.registers if r.page is not None}
-            | {r.page.selector for r in spec.reserved if r.page is not None}))
-        # (table, address, quantity, page state) -> read plan (see _read_plan)
-        self._read_plans: dict[tuple[str, int, int, tuple[int, ...]], _ReadPlan | str] = {}
+        self._build_index(spec)
         unit_ids = list(dict.fromkeys(int(u) for u in units))
         if not unit_ids:
             raise SimulatorError("a simulator needs at least one unit id")
@@ -232,6 +143,40 @@ class Simulator(Persistence):
         self._state: simstate.StateFile | None = None
         if self.state_file is not None:
             self._load_state(self.state_file)
+        self._apply_presets(presets)
+        for unit in self.units.values():
+            self.behaviour.on_start(unit)
+        self._dirty = False
+
+    def _build_index(self, spec: DeviceSpec) -> None:
+        """Which cell each word of each table belongs to, the pages, blocks and gaps (see :mod:`.cells`)."""
+        self._regs: dict[str, RegisterSpec] = {}
+        self._cells: dict[str, tuple[RegisterSpec, int]] = {}
+        self._by_address: dict[tuple[str, int], list[Slot]] = {}
+        for reg in spec.registers:
+            self._regs[reg.name] = reg
+            for name, index in cell_names(reg):
+                self._cells[name] = (reg, index)
+                start = reg.element_address(index)
+                for word in range(reg.words):
+                    self._by_address.setdefault((reg.table, start + word), []).append(Slot(name, reg, index, word))
+        # (table, address) -> its slot when the first register there has no page (it always wins _resolve)
+        self._static: dict[tuple[str, int], Slot] = {a: slots[0] for a, slots in self._by_address.items()
+                                                      if slots[0].reg.page is None}
+        # min_read blocks: (table, start, end); words inside that no register covers read as 0
+        self._blocks = tuple((r.table, r.address, r.address + r.min_read) for r in spec.registers
+                             if r.min_read is not None)
+        self._gap_words = gap_words(spec, frozenset(self._by_address) | frozenset(
+            (r.table, a) for r in spec.reserved for a in range(r.start, r.end + 1)))
+        # every selector a page depends on: the page state of a unit is their values
+        self._selectors: tuple[str, ...] = tuple(sorted(
+            {r.page.selector for r in spec.registers if r.page is not None}
+            | {r.page.selector for r in spec.reserved if r.page is not None}))
+        # (table, address, quantity, page state) -> read plan (see _read_plan)
+        self._read_plans: dict[tuple[str, int, int, tuple[int, ...]], ReadPlan | str] = {}
+
+    def _apply_presets(self, presets: Sequence[tuple[str, SimValue]]) -> None:
+        """The power-up values asked for, on every unit (checked against the map like a write)."""
         for name, value in presets:
             self._check_cell(name)
             for unit in self.units.values():
@@ -239,9 +184,6 @@ class Simulator(Persistence):
                 unit.unset.discard(name)
                 if name in unit.applied:
                     unit.applied[name] = unit.values[name]
-        for unit in self.units.values():
-            self.behaviour.on_start(unit)
-        self._dirty = False
 
     # ==== public API ========================================================================
     @property
@@ -386,7 +328,7 @@ class Simulator(Persistence):
                     return bytes([pdu[0] | 0x80, injected])
                 try:
                     return self._serve(unit, pdu[0], pdu[1:], broadcast=False)
-                except _Refused as refused:
+                except Refused as refused:
                     self._record(unit, refused.case)
                     answer = refused.code if refused.code is not None else self.exception_code(refused.case)
                     if answer is None and always_answer:
@@ -402,7 +344,7 @@ class Simulator(Persistence):
         for unit in self.units.values():
             try:
                 self._serve(unit, pdu[0], pdu[1:], broadcast=True)
-            except _Refused as refused:
+            except Refused as refused:
                 self._record(unit, refused.case)
 
     def _record(self, unit: Unit, case: str) -> None:
@@ -415,7 +357,7 @@ class Simulator(Persistence):
     def _serve(self, unit: Unit, code: int, data: bytes, *, broadcast: bool) -> bytes:
         fc = self.spec.function(code)
         if fc is None:
-            raise _Refused("illegal_function")
+            raise Refused("illegal_function")
         if code in (0x03, 0x04):
             return self._read(unit, fc.code, fc.max_quantity, data)
         if code in (0x01, 0x02):
@@ -430,7 +372,7 @@ class Simulator(Persistence):
             return self._write_coils(unit, fc.max_quantity, data, broadcast)
         if code == 0x08:
             return self._loopback(data)
-        raise _Refused("illegal_function")
+        raise Refused("illegal_function")
 
     def _max_quantity(self, code: int, limit: int | None) -> int:
         return limit if limit is not None else _STANDARD_MAX_QUANTITY.get(code, 125)
@@ -438,16 +380,16 @@ class Simulator(Persistence):
     def _read_request(self, code: int, limit: int | None, data: bytes) -> tuple[int, int]:
         """(address, quantity) of a read request, checked."""
         if len(data) != 4:
-            raise _Refused("bad_length")
+            raise Refused("bad_length")
         address = int.from_bytes(data[0:2], "big")
         quantity = int.from_bytes(data[2:4], "big")
         if not 1 <= quantity <= self._max_quantity(code, limit):
-            raise _Refused("illegal_quantity")
+            raise Refused("illegal_quantity")
         if address + quantity > 0x10000:
-            raise _Refused("illegal_address")
+            raise Refused("illegal_address")
         return address, quantity
 
-    def _plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan:
+    def _plan(self, unit: Unit, table: str, address: int, quantity: int) -> ReadPlan:
         selectors = self._selectors
         state = tuple(unit.values.get(sel, 0) for sel in selectors) if selectors else ()
         plan = self._read_plans.get((table, address, quantity, state))
@@ -457,14 +399,14 @@ class Simulator(Persistence):
                 self._read_plans.clear()
             self._read_plans[(table, address, quantity, state)] = plan
         if isinstance(plan, str):
-            raise _Refused(plan)
+            raise Refused(plan)
         return plan
 
     def _aligned(self, table: str, address: int, quantity: int, operation: str) -> None:
         """Refuse a request that breaks an alignment rule of the map with the rule's exception code."""
         broken = violation(self.spec, table, address, quantity, operation) if self.spec.alignment else None
         if broken is not None:
-            raise _Refused("illegal_address", broken[0].exception)
+            raise Refused("illegal_address", broken[0].exception)
 
     def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
@@ -473,10 +415,10 @@ class Simulator(Persistence):
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
         if swapping:
-            body = _packer(quantity)(*[0 if cell is None else _swapped((values[cell] >> shift) & 0xFFFF, swap)
+            body = packer(quantity)(*[0 if cell is None else swapped((values[cell] >> shift) & 0xFFFF, swap)
                                        for cell, shift, swap in words])
         else:
-            body = _packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
+            body = packer(quantity)(*[0 if cell is None else (values[cell] >> shift) & 0xFFFF
                                        for cell, shift, _ in words])
         if self.reply_quirks:
             return encode_read_reply(code, body, self.reply_quirks)
@@ -493,7 +435,7 @@ class Simulator(Persistence):
                 packed[i // 8] |= 1 << (i % 8)
         return bytes((code, len(packed))) + bytes(packed)
 
-    def _read_plan(self, unit: Unit, table: str, address: int, quantity: int) -> _ReadPlan | str:
+    def _read_plan(self, unit: Unit, table: str, address: int, quantity: int) -> ReadPlan | str:
         """What a read of ``quantity`` words at ``address`` of ``table`` returns in the unit's current pages.
 
         Either the refusal case or (cells read, per word (cell or None for a 0, shift, swap)).
@@ -514,131 +456,9 @@ class Simulator(Persistence):
             if not slot.reg.readable:
                 return "write_only"
             reg = slot.reg
-            words.append((slot.cell, _word_shift(reg, slot.word), reg.byte_order == "low_first" and not reg.bit_table))
+            words.append((slot.cell, word_shift(reg, slot.word), reg.byte_order == "low_first" and not reg.bit_table))
         cells = tuple(dict.fromkeys(cell for cell, _, _ in words if cell is not None))
         return cells, tuple(words), any(swap for _, _, swap in words)
-
-    def _write_single(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
-        if len(data) != 4:
-            raise _Refused("bad_length")
-        address = int.from_bytes(data[0:2], "big")
-        word = int.from_bytes(data[2:4], "big")
-        self._aligned("holding", address, 1, "write")
-        self._write(unit, address, [word], broadcast)
-        return bytes([0x06]) + data
-
-    def _write_multiple(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
-        if len(data) < 5:
-            raise _Refused("bad_length")
-        address = int.from_bytes(data[0:2], "big")
-        quantity = int.from_bytes(data[2:4], "big")
-        count = data[4]
-        if not 1 <= quantity <= self._max_quantity(0x10, limit):
-            raise _Refused("illegal_quantity")
-        if count != 2 * quantity or len(data) != 5 + count:
-            raise _Refused("bad_length")
-        words = [int.from_bytes(data[5 + 2 * i : 7 + 2 * i], "big") for i in range(quantity)]
-        if address + quantity > 0x10000:
-            raise _Refused("illegal_address")
-        self._aligned("holding", address, quantity, "write")
-        self._write(unit, address, words, broadcast)
-        return bytes([0x10]) + data[0:4]
-
-    def _write_coil(self, unit: Unit, data: bytes, broadcast: bool) -> bytes:
-        if len(data) != 4:
-            raise _Refused("bad_length")
-        address = int.from_bytes(data[0:2], "big")
-        value = int.from_bytes(data[2:4], "big")
-        if value not in (0x0000, 0xFF00):
-            raise _Refused("out_of_range")
-        self._write(unit, address, [1 if value else 0], broadcast, "coil")
-        return bytes([0x05]) + data
-
-    def _write_coils(self, unit: Unit, limit: int | None, data: bytes, broadcast: bool) -> bytes:
-        if len(data) < 5:
-            raise _Refused("bad_length")
-        address = int.from_bytes(data[0:2], "big")
-        quantity = int.from_bytes(data[2:4], "big")
-        count = data[4]
-        if not 1 <= quantity <= self._max_quantity(0x0F, limit):
-            raise _Refused("illegal_quantity")
-        if count != (quantity + 7) // 8 or len(data) != 5 + count:
-            raise _Refused("bad_length")
-        if address + quantity > 0x10000:
-            raise _Refused("illegal_address")
-        bits = [(data[5 + i // 8] >> (i % 8)) & 1 for i in range(quantity)]
-        self._write(unit, address, bits, broadcast, "coil")
-        return bytes([0x0F]) + data[0:4]
-
-    def _loopback(self, data: bytes) -> bytes:
-        if len(data) < 2:
-            raise _Refused("bad_length")
-        if int.from_bytes(data[0:2], "big") != 0:
-            raise _Refused("illegal_function")
-        return bytes([0x08]) + data
-
-    def _write(self, unit: Unit, address: int, words: list[int], broadcast: bool, table: str = "holding") -> None:
-        """Validate every word (coil), then apply all of them (a refused request changes nothing)."""
-        changes: list[tuple[str, RegisterSpec, int]] = []
-        i = 0
-        while i < len(words):
-            slot = self._resolve(unit, table, address + i)
-            if slot is None:
-                raise _Refused("illegal_address")
-            reg = slot.reg
-            if slot.word != 0 or i + reg.words > len(words):
-                raise _Refused("illegal_address")  # part of a multi-word register
-            if broadcast and not reg.broadcast:
-                raise _Refused("illegal_address")
-            if not reg.writable:
-                raise _Refused("read_only")
-            raw = words[i] if reg.bit_table else unwire_words(reg, words[i : i + reg.words])
-            changes.append((slot.cell, reg, raw))
-            i += reg.words
-        if any(self._refused_while_running(reg) for _, reg, _ in changes) and self.behaviour.is_running(unit):
-            raise _Refused("busy")
-        for _, reg, raw in changes:
-            if not self._in_range(unit, reg, raw):
-                raise _Refused("out_of_range")
-        for cell, reg, raw in changes:
-            unit.values[cell] = raw
-            if reg.storage == "eeprom":
-                self._dirty = True
-            if (
-                self.spec.configuration is not None
-                and reg.name == self.spec.configuration[0]
-                and raw == self.spec.configuration[1]
-            ):
-                unit.apply_configuration()
-            self.behaviour.on_write(unit, cell, raw)
-
-    def _refused_while_running(self, reg: RegisterSpec) -> bool:
-        """Documented refusals always; the manual's mere advice only when the option asks for it."""
-        return reg.refuse_while_running or (self.refuse_advised_while_running and reg.running_advice is not None)
-
-    def _in_range(self, unit: Unit, reg: RegisterSpec, raw: int) -> bool:
-        low, high = raw_bounds(reg)
-        if not low <= raw <= high:
-            return False
-        if reg.values and raw not in reg.not_available and not is_allowed(reg, to_value(reg, raw, unit._factor(reg))):
-            return False  # outside the map's value set
-        if raw in reg.not_available or reg.type in ("string", "bool"):
-            return True
-        if reg.enum_values and raw not in reg.enum_values:
-            return False
-        factor = unit._factor(reg)
-        value = to_value(reg, raw, factor)
-        if not isinstance(value, (int, float)):
-            return True
-        if value != value:  # NaN: only where the map sets no range
-            return reg.min is None and reg.max is None
-        step = abs(reg.scale) * (10.0 ** factor if factor is not None else 1.0)
-        tolerance = 0.0 if reg.type in ("f32", "f64") else step / 2
-        if reg.min is not None and value < reg.min - tolerance:
-            return False
-        if reg.max is not None and value > reg.max + tolerance:
-            return False
-        return True
 
     # ==== addresses ===========================================================================
     def _page_ok(self, unit: Unit, page: PageSpec | None) -> bool:
@@ -646,7 +466,7 @@ class Simulator(Persistence):
             return True
         return bool(unit.values.get(page.selector, 0) == page.value)
 
-    def _resolve(self, unit: Unit, table: str, address: int) -> _Slot | None:
+    def _resolve(self, unit: Unit, table: str, address: int) -> Slot | None:
         static = self._static.get((table, address))
         if static is not None:
             return static

@@ -1,0 +1,241 @@
+"""The device and protocol part of the model: the manual, ports, function codes, exceptions, timing,
+checksums, running state and reply quirks (what :class:`~drivemap.model.nodes.Model` holds as
+``device`` and ``protocol``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drivemap.model.rules import Alignment
+
+__all__ = [
+    "Checksum",
+    "CommError",
+    "CommandRef",
+    "Device",
+    "ExceptionCode",
+    "FunctionCode",
+    "LengthRange",
+    "LrcExample",
+    "Manual",
+    "PolicyCase",
+    "Port",
+    "PortSetting",
+    "Protocol",
+    "ReplyQuirk",
+    "RunningAdvice",
+    "RunningState",
+    "Timing",
+]
+
+
+@dataclass(frozen=True)
+class Manual:
+    file: str
+    document: str | None
+    revision: str | None
+    date: str | None
+    language: str
+    cross_check: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Device:
+    model: str
+    title: str
+    vendor: str | None
+    manual: Manual
+    coverage: str | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class PortSetting:
+    what: str
+    how: str
+    when: str | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class Port:
+    name: str
+    modes: tuple[str, ...]
+    default_mode: str | None
+    baudrates: tuple[int, ...]
+    default_baudrate: int | None
+    parity: tuple[str, ...]
+    default_parity: str | None
+    data_bits: tuple[int, ...]
+    stop_bits: tuple[int, ...]
+    default_stop_bits: int | None
+    fixed_unit: int | None
+    set_by: str
+    settings: tuple[PortSetting, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class LengthRange:
+    min: int
+    max: int
+
+
+@dataclass(frozen=True)
+class FunctionCode:
+    code: int
+    name: str
+    max_quantity: int | None
+    broadcast: bool | None
+    request_bytes: LengthRange | None
+    response_bytes: LengthRange | None
+    source: str
+    notes: str | None
+    broadcast_reason: str | None = None
+
+
+@dataclass(frozen=True)
+class ExceptionCode:
+    code: int
+    name: str
+    meaning: str
+    comm_errors: tuple[int, ...]
+    source: str
+    notes: str | None
+    #: False: assumed by the map (source "map choice"), not printed in the manual
+    documented: bool = True
+
+
+@dataclass(frozen=True)
+class CommError:
+    code: int
+    name: str
+    meaning: str
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class PolicyCase:
+    case: str
+    code: int | None
+    source: str
+    reason: str | None
+
+
+@dataclass(frozen=True)
+class Timing:
+    silent_interval_chars: float | None
+    silent_interval_floor_ms: float | None
+    silent_interval_floor_above_bps: int | None
+    processing_ms: tuple[float, float] | None
+    inter_frame_gap_ms: float | None
+    broadcast_gap_ms: float | None
+    response_timeout_ms: float | None
+    retries: int | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class LrcExample:
+    data: bytes
+    lrc: int
+    ascii: str | None
+    source: str
+
+
+@dataclass(frozen=True)
+class Checksum:
+    crc_first_byte_label: str
+    crc_second_byte_label: str | None
+    lrc_example: LrcExample | None
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class CommandRef:
+    register: str
+    value: int
+
+
+@dataclass(frozen=True)
+class RunningState:
+    """How the drive reports that it runs: ``register`` shows one of ``values`` (raw)."""
+
+    register: str
+    values: tuple[int, ...]
+    source: str
+    notes: str | None
+
+
+@dataclass(frozen=True)
+class RunningAdvice:
+    """Advice (not a refusal) the manual gives for writes while the drive runs."""
+
+    advice: str
+    instead: str | None
+    source: str
+
+    def text(self) -> str:
+        return self.advice + (f" (write {self.instead} instead)" if self.instead else "") + f" [{self.source}]"
+
+
+@dataclass(frozen=True)
+class ReplyQuirk:
+    """A non-standard reply form the device may send (``protocol.reply_quirks``)."""
+
+    quirk: str
+    source: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Protocol:
+    modes: tuple[str, ...]
+    unit_min: int
+    unit_max: int
+    unit_source: str
+    broadcast_address: int | None
+    ports: tuple[Port, ...]
+    function_codes: tuple[FunctionCode, ...]
+    exceptions: tuple[ExceptionCode, ...]
+    comm_errors: tuple[CommError, ...]
+    exception_policy: tuple[PolicyCase, ...]
+    comm_error_policy: tuple[PolicyCase, ...]
+    comm_error_history: str | None
+    timing: Timing
+    max_frame_bytes: int | None
+    configuration: CommandRef | None
+    checksum: Checksum | None
+    source: str
+    notes: str | None
+    running_state: RunningState | None = None
+    reply_quirks: tuple[ReplyQuirk, ...] = ()
+    max_gap: int = 0
+    """Undocumented words the read planner may read across (0: none)."""
+    alignment: tuple[Alignment, ...] = ()
+    """Rules on request start addresses and quantities (``protocol.alignment``)."""
+
+    def function(self, code: int) -> FunctionCode | None:
+        for fc in self.function_codes:
+            if fc.code == code:
+                return fc
+        return None
+
+    def policy(self, case: str) -> PolicyCase | None:
+        for item in self.exception_policy:
+            if item.case == case:
+                return item
+        return None
+
+    def comm_policy(self, case: str) -> PolicyCase | None:
+        for item in self.comm_error_policy:
+            if item.case == case:
+                return item
+        return None
