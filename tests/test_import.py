@@ -13,6 +13,7 @@ from helpers_live import ROOT, cli, no_traceback
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
+from drivemap.frontend.formats import CURRENT
 
 MAPS = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))
 #: the exporter's options for a map that leaves the line open (the same for both exports)
@@ -358,6 +359,10 @@ def test_import_cli_in_an_empty_folder(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.relative_to(work).as_posix() for p in work.rglob("*")) == ["maps", "maps/ev.yaml"]
     assert "wrote maps/ev.yaml" in proc.stdout and "review" in proc.stdout
+    written = (work / "maps" / "ev.yaml").read_text(encoding="utf-8")
+    assert f"\ndrivemap: {CURRENT}\n" in written  # the current map format: `drivemap migrate` has nothing to do
+    migrate = cli("migrate", cwd=work)
+    assert migrate.returncode == 0 and migrate.stdout == "", migrate.stdout + migrate.stderr
     validate = cli("validate", cwd=work)
     assert validate.returncode == 0 and "maps/ev.yaml: ok" in validate.stdout, validate.stderr
 

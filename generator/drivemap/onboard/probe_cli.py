@@ -232,6 +232,9 @@ def _summary(doc: MapDoc, plan: _Plan, prober: Prober, values: dict[str, dict[in
             print(f"  note: {chain.problem}", file=out)
     for block in blocks_of(values):
         print(f"  {block.table} {block.start}-{block.end} ({len(block.values)} {'bits' if block.table in ('coil', 'discrete') else 'words'})", file=out)
+    for table, words in sorted(prober.pairs_first.items()):
+        print(f"  {table}: single-word reads are refused where two words at an even address answer ({words} words "
+              "read in pairs): the device has alignment rules (protocol.alignment); review them", file=out)
     for table in plan.tables if chain is None else ():
         if table in prober.unsupported:
             print(f"  {table}: the device refuses the function (exception 01h)", file=out)

@@ -213,17 +213,19 @@ def _hvac_mode(ctx: Ctx, entry: Node, name: str) -> None:
 
 
 def arrays(ctx: Ctx, name: str, elements: dict[int, dict[str, Any]]) -> dict[str, Any]:
-    """One register from its entities: a single one, or elements 0..n-1 at a fixed stride."""
+    """One register from its entities: a single one, or elements i..i+n-1 at a fixed stride."""
     first = elements[min(elements)]
     reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group",)}}
     if len(elements) > 1:
         indexes = sorted(elements)
         addresses = [elements[i]["address"] for i in indexes]
         stride = addresses[1] - addresses[0]
-        if indexes != list(range(len(indexes))) or stride <= 0 or any(
+        if indexes != list(range(indexes[0], indexes[0] + len(indexes))) or stride <= 0 or any(
                 b - a != stride for a, b in zip(addresses, addresses[1:], strict=False)):
             raise located(ctx.path, None, f"{name}: elements {indexes} are not a numbered series at one stride")
         reg["count"] = len(indexes)
+        if indexes[0] != 0:  # the elements are named by the manual's numbers
+            reg["first_index"] = indexes[0]
         if stride != 1:
             reg["stride"] = stride
     reg["group"] = first["group"]
