@@ -129,11 +129,17 @@ def binary_sensor(ctx: Ctx, entry: Node) -> None:
     return None
 
 
+#: a switch's write_type -> the function code Home Assistant writes it with
+WRITE_TYPE_CODES = {"coil": 5, "coils": 15, "holding": 6, "holdings": 16}
+
+
 def switches(ctx: Ctx, entries: list[Node]) -> None:
     """Coil switches; holding switches grouped by address (several at one address: a write-only enum)."""
     by_address: dict[int, list[Node]] = {}
     for entry in entries:
         kind = str(entry.get("write_type", "holding"))
+        if kind in WRITE_TYPE_CODES:  # the function code the integration sends for it
+            ctx.doc.max_quantity.setdefault(WRITE_TYPE_CODES[kind], None)
         if kind in ("coil", "coils"):
             verify = "verify" in entry
             reg = {"table": "coil", "address": _address(ctx, entry), "type": "bool", "access": "rw" if verify else "w",
