@@ -266,6 +266,22 @@ def test_probe_keeps_to_the_maps_max_quantity(tmp_path: Path) -> None:
     assert max(int.from_bytes(pdu[3:5], "big") for _, pdu in requests) == 16
 
 
+def test_probe_reads_by_the_maps_alignment_rules(tmp_path: Path) -> None:
+    """sdm630's input registers take only even starts and quantities (whole floats): with --map the
+    probe reads them so from the start (no single-word read is refused) and finds every float."""
+    requests: list[tuple[float, bytes]] = []
+    with served("sdm630", requests) as (sim, where, _codes):
+        expected = {w for w in readable_words(sim.spec, sim.unit(1).values) if w[0] == "input" and w[1] <= 99}
+        proc = cli("probe", "--tcp", where, "--map", "sdm630", "--tables", "input", "--range", "0-99", "--rate",
+                   "100000", "--snapshot", str(tmp_path / "s.json"), "-o", str(tmp_path / "sdm630_probed.yaml"))
+    no_traceback(proc)
+    assert proc.returncode == 0, proc.stderr
+    assert snapshot_words(tmp_path / "s.json") == expected
+    reads = [(int.from_bytes(pdu[1:3], "big"), int.from_bytes(pdu[3:5], "big")) for _, pdu in requests if pdu[0] == 4]
+    assert reads and all(start % 2 == 0 and count % 2 == 0 for start, count in reads), [r for r in reads if r[0] % 2 or r[1] % 2]
+    assert "input: read in pairs at even addresses as the map's alignment rules ask" in proc.stdout, proc.stdout
+
+
 def test_probe_stops_when_the_device_goes_away(tmp_path: Path) -> None:
     with served("ev") as (sim, where, codes):
         answering = sim.handle

@@ -81,6 +81,8 @@ class Prober:
     silent_run: int = 0
     #: tables whose single-word reads are refused where even-aligned pairs answer -> words read in pairs
     pairs_first: dict[str, int] = field(default_factory=dict)
+    #: tables the map's alignment rules say to read in pairs only (``probe --map``): no one-word reads
+    pairs_only: set[str] = field(default_factory=set)
     _next_at: float = 0.0
 
     def read(self, table: str, address: int, count: int) -> list[int] | None:
@@ -168,6 +170,8 @@ class Prober:
         pending = set(range(address, end))
         if table in self.pairs_first:
             pending -= self._pairs(table, address, end, pending, into)
+        if table in self.pairs_only:
+            return  # the map's alignment rules: a one-word read is refused, so none is sent
         refused: set[int] = set()
         for a in sorted(pending):
             if table in self.unsupported:
