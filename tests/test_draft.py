@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
+from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.cells import parse_address, parse_bits, parse_enum, parse_type
 from drivemap.onboard.draft.cli import _time_limit
 from drivemap.onboard.draft.naming import snake
@@ -174,6 +175,10 @@ def test_xlsx_modicon_floats_arrays_and_refused_names(tmp_path: Path) -> None:
     assert (temp["address"], temp["type"], temp["scale"], temp["unit"]) == (6, "s16", 0.1, "°C")
     assert "read" not in regs  # a client attribute: the compiler refuses it and the draft renames it
     assert compile_map(out).registers
+    # written in the current map format (with what it requires), so `drivemap migrate` has nothing to do
+    doc = yaml.safe_load(out.read_text(encoding="utf-8"))
+    assert doc["drivemap"] == CURRENT
+    assert all(fc["broadcast_reason"] for fc in doc["protocol"]["function_codes"] if fc["broadcast"] is None)
 
 
 def test_xlsx_with_merged_cells_is_drafted_with_the_reason_listed(tmp_path: Path, capsys: Any) -> None:

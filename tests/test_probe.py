@@ -96,6 +96,9 @@ def test_probe_finds_every_readable_block_and_nothing_else(model: str, tmp_path:
     cells = {(r.table, r.address + i) for r in probed.registers for i in range(r.count)}
     assert cells == expected
     assert all(r.source.startswith("probe 20") and r.type in ("u16", "bool") for r in probed.registers)
+    # a device with alignment rules refuses single-word reads: the words it answers in pairs are said so
+    assert ("single-word reads are refused where two words at an even address answer" in proc.stdout) == any(
+        a.start_multiple == 2 for a in sim.spec.alignment), proc.stdout
 
 
 def fronius_values(registers: Any) -> dict[str, int]:
@@ -261,6 +264,22 @@ def test_probe_keeps_to_the_maps_max_quantity(tmp_path: Path) -> None:
                    "100000", "-o", str(tmp_path / "v2_probed.yaml"))
     assert proc.returncode == 0, proc.stderr
     assert max(int.from_bytes(pdu[3:5], "big") for _, pdu in requests) == 16
+
+
+def test_probe_reads_by_the_maps_alignment_rules(tmp_path: Path) -> None:
+    """sdm630's input registers take only even starts and quantities (whole floats): with --map the
+    probe reads them so from the start (no single-word read is refused) and finds every float."""
+    requests: list[tuple[float, bytes]] = []
+    with served("sdm630", requests) as (sim, where, _codes):
+        expected = {w for w in readable_words(sim.spec, sim.unit(1).values) if w[0] == "input" and w[1] <= 99}
+        proc = cli("probe", "--tcp", where, "--map", "sdm630", "--tables", "input", "--range", "0-99", "--rate",
+                   "100000", "--snapshot", str(tmp_path / "s.json"), "-o", str(tmp_path / "sdm630_probed.yaml"))
+    no_traceback(proc)
+    assert proc.returncode == 0, proc.stderr
+    assert snapshot_words(tmp_path / "s.json") == expected
+    reads = [(int.from_bytes(pdu[1:3], "big"), int.from_bytes(pdu[3:5], "big")) for _, pdu in requests if pdu[0] == 4]
+    assert reads and all(start % 2 == 0 and count % 2 == 0 for start, count in reads), [r for r in reads if r[0] % 2 or r[1] % 2]
+    assert "input: read in pairs at even addresses as the map's alignment rules ask" in proc.stdout, proc.stdout
 
 
 def test_probe_stops_when_the_device_goes_away(tmp_path: Path) -> None:

@@ -3,7 +3,8 @@
 :class:`Prober` sends only the four read function codes (01h-04h; :data:`READ_ONLY_CODES` is
 checked before every request), at most ``max_quantity`` words (bits) each and at most ``rate``
 requests per second. A read that is refused (any exception reply, or silence) is split in halves
-down to 8 words, then tried word by word, so every readable word in the swept ranges is found and
+down to 8 words (at even addresses), then tried word by word (a register refused on its own once
+more in its even-aligned pair), so every readable word in the swept ranges is found and
 no unreadable one is reported. A refused read whose halves both answer in full means the device
 takes fewer words per request: later reads use the smaller size.
 """
@@ -78,6 +79,10 @@ class Prober:
     refusals: dict[int, int] = field(default_factory=dict)
     unsupported: set[str] = field(default_factory=set)
     silent_run: int = 0
+    #: tables whose single-word reads are refused where even-aligned pairs answer -> words read in pairs
+    pairs_first: dict[str, int] = field(default_factory=dict)
+    #: tables the map's alignment rules say to read in pairs only (``probe --map``): no one-word reads
+    pairs_only: set[str] = field(default_factory=set)
     _next_at: float = 0.0
 
     def read(self, table: str, address: int, count: int) -> list[int] | None:
@@ -145,12 +150,54 @@ class Prober:
         if count == 1 or table in self.unsupported:
             return False
         if count <= _SINGLES_BELOW:
-            for a in range(address, address + count):
-                self._split(table, a, 1, into)
+            self._pairs_then_singles(table, address, count, into)
             return False
         half = count // 2
+        if count > 2 and (address + half) % 2:  # split at an even address: devices that need even starts
+            half += 1
         whole = self._split(table, address, half, into) & self._split(table, address + half, count - half, into)
         if whole:  # both halves answered: the device takes fewer words per request than asked
             self.max_quantity[table] = min(self.max_quantity[table], count - half)
         return False
 
+
+    def _pairs_then_singles(self, table: str, address: int, count: int, into: dict[int, int]) -> None:
+        """Word by word; a register refused on its own is tried again in the pair at an even address
+        that holds it. A device with alignment rules (even starts and quantities, whole 32-bit values)
+        refuses every single-word read: once such a pair answered where its word alone was refused,
+        the table is read in pairs first. A word is unreadable only when both reads were refused."""
+        end = address + count
+        pending = set(range(address, end))
+        if table in self.pairs_first:
+            pending -= self._pairs(table, address, end, pending, into)
+        if table in self.pairs_only:
+            return  # the map's alignment rules: a one-word read is refused, so none is sent
+        refused: set[int] = set()
+        for a in sorted(pending):
+            if table in self.unsupported:
+                return
+            values = self.read(table, a, 1)
+            if values is None:
+                refused.add(a)
+            else:
+                into[a] = values[0]
+        if refused and table in ("holding", "input") and table not in self.pairs_first:
+            recovered = self._pairs(table, address, end, refused, into) & refused
+            if recovered:
+                self.pairs_first[table] = self.pairs_first.get(table, 0)
+                self.pairs_first[table] += len(recovered)
+
+    def _pairs(self, table: str, address: int, end: int, wanted: set[int], into: dict[int, int]) -> set[int]:
+        """Read the even-aligned pairs that hold a ``wanted`` word; the addresses in ``address..end-1`` read."""
+        got: set[int] = set()
+        for pair in range(address - address % 2, end, 2):
+            if pair + 1 > 0xFFFF or not ({pair, pair + 1} & wanted):
+                continue
+            values = self.read(table, pair, 2)
+            if values is not None:
+                cells = {a: v for a, v in zip((pair, pair + 1), values, strict=False) if address <= a < end}
+                into.update(cells)
+                got |= set(cells)
+        if table in self.pairs_first:
+            self.pairs_first[table] += len(got)
+        return got

@@ -81,6 +81,8 @@ def cmd_probe(args: argparse.Namespace) -> int:
 
         target = load_target(args.like)
         plan.limits = map_limits(plan.limits, target.spec)
+        plan.paired = map_pairs(target.spec)
+        plan.limits.update({t: plan.limits[t] - plan.limits[t] % 2 for t in plan.paired if plan.limits[t] > 1})
     link = resolve_link(args, target)
     if link.retries is None:
         link = replace(link, retries=0)
@@ -89,6 +91,8 @@ def cmd_probe(args: argparse.Namespace) -> int:
     _check_outputs(args, plan.target)
     bus = open_bus(link)
     prober = Prober(bus, link.unit, dict(plan.limits), args.rate)
+    prober.pairs_first.update(dict.fromkeys(plan.paired, 0))
+    prober.pairs_only |= plan.paired
     try:
         values, chain = _sweep(prober, plan, args.sunspec)
     except ProbeSilence as exc:
@@ -106,6 +110,8 @@ class _Plan:
     def __init__(self, tables: list[str], ranges: list[tuple[int, int]], limits: dict[str, int], target: Path,
                  model: str) -> None:
         self.tables, self.ranges, self.limits, self.target, self.model = tables, ranges, limits, target, model
+        #: tables the map's alignment rules say to read in pairs at even addresses (--map)
+        self.paired: set[str] = set()
         self.date = datetime.date.today().isoformat()
 
 
@@ -133,6 +139,14 @@ def map_limits(limits: dict[str, int], spec: DeviceSpec) -> dict[str, int]:
         if fc is not None and fc.max_quantity:
             out[table] = min(out[table], fc.max_quantity)
     return out
+
+
+def map_pairs(spec: DeviceSpec) -> set[str]:
+    """The tables whose reads the map's alignment rules (``protocol.alignment``) want at even starts or
+    in even quantities, over the whole table: the probe reads them in pairs at even addresses only (a
+    rule on a block of the table leaves the probe to find out, as without --map)."""
+    return {rule.table for rule in spec.alignment if "read" in rule.operations and (rule.start, rule.end) == (0, 0xFFFF)
+            and 2 in (rule.start_multiple, rule.quantity_multiple)}
 
 
 def parse_ranges(text: str) -> list[tuple[int, int]]:
@@ -232,6 +246,13 @@ def _summary(doc: MapDoc, plan: _Plan, prober: Prober, values: dict[str, dict[in
             print(f"  note: {chain.problem}", file=out)
     for block in blocks_of(values):
         print(f"  {block.table} {block.start}-{block.end} ({len(block.values)} {'bits' if block.table in ('coil', 'discrete') else 'words'})", file=out)
+    for table, words in sorted(prober.pairs_first.items()):
+        if table in plan.paired:
+            print(f"  {table}: read in pairs at even addresses as the map's alignment rules ask ({words} words read in "
+                  "pairs)", file=out)
+        else:
+            print(f"  {table}: single-word reads are refused where two words at an even address answer ({words} "
+                  "words read in pairs): the device has alignment rules (protocol.alignment); review them", file=out)
     for table in plan.tables if chain is None else ():
         if table in prober.unsupported:
             print(f"  {table}: the device refuses the function (exception 01h)", file=out)

@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.fields import Context, Raw, draft_fields
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
@@ -190,7 +191,7 @@ def _protocol(source: Source, registers: list[Drafted]) -> dict[str, Any]:
 def _document(source: Source, model: str, groups: list[dict[str, Any]], registers: list[Drafted]) -> dict[str, Any]:
     enums = _enums(registers, source.name)
     return {
-        "drivemap": 1,
+        "drivemap": CURRENT,
         "device": {
             "model": model,
             "title": f"{model} (drafted from {source.name})",

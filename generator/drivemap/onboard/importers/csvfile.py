@@ -2,7 +2,8 @@
 
 drivemap's CSV (every column of :data:`drivemap.backends.exporters.csv.COLUMNS`) carries nearly every register
 fact: its rows come back as registers, ``name[i]`` rows as arrays (stride from the addresses, one
-default or one per element, ``param`` per element), ``enum_labels`` as enums, ``bits`` as bit fields.
+default or one per element, ``param`` per element), ``enum_labels`` as enums, ``bits`` as bit fields, ``values`` as value sets, ``precision``, and
+``display_name`` of an array's first element as ``first_index``.
 A vendor sheet is read by its header words (address / register, name / description / parameter,
 type / format, unit, scale / factor / resolution, access / R/W, function / table, min, max, default);
 a fact without a column stays out and is listed. Its table comes from a table or function-code column,
@@ -27,6 +28,7 @@ __all__ = ["import_csv", "read_rows"]
 
 _ELEMENT = re.compile(r"^([a-z][a-z0-9_]*)\[(\d+)\]$")
 _BIT = re.compile(r"^bits? (\d+)(?:-(\d+))? ([A-Z][A-Z0-9_]*): (.*)$", re.S)
+_ALLOWED = re.compile(r"^(.*?) \((.*)\)$", re.S)
 _FORMULA = ("=", "+", "-", "@")
 
 
@@ -112,6 +114,7 @@ def _register(doc: MapDoc, name: str, members: list[tuple[int, dict[str, str]]])
     _numbers(reg, row)
     _array(reg, members)
     _meaning(doc, reg, row)
+    _shown(reg, row)
     reg["group"] = snake(row["group"] or "registers", "group")
     doc.group(reg["group"], reg["group"])
     reg["source"] = _text(row["source"]) or doc.source
@@ -185,6 +188,31 @@ def _meaning(doc: MapDoc, reg: dict[str, Any], row: dict[str, str]) -> None:
         reg["command"] = {"value": int(row["command"])}
     if row["description"]:
         reg["description"] = _text(row["description"])
+
+
+def _shown(reg: dict[str, Any], row: dict[str, str]) -> None:
+    """``values`` (the value set), ``precision`` and the first element's ``display_name`` (``first_index``)."""
+    if row.get("values"):
+        reg["values"] = [_allowed(reg, item) for item in _text(row["values"]).split(" | ")]
+    if row.get("precision"):
+        reg["precision"] = int(row["precision"])
+    shown = _text(row.get("display_name", ""))
+    if reg.get("count") and shown != row["name"]:
+        match = re.fullmatch(re.escape(reg["name"]) + r" (\d+)", shown)
+        if not match:
+            raise ValueError(f"display_name {shown!r} is not the name and the element's number")
+        if int(match.group(1)) != 0:
+            reg["first_index"] = int(match.group(1))
+
+
+def _allowed(reg: dict[str, Any], item: str) -> dict[str, Any]:
+    """One ``value (label)`` of the ``values`` column, the value as the register's type has it."""
+    match = _ALLOWED.match(item)
+    value, label = (match.group(1), match.group(2)) if match else (item, None)
+    entry: dict[str, Any] = {"value": value if reg.get("type") == "string" else _number(value)}
+    if label is not None:
+        entry["label"] = label
+    return entry
 
 
 def _bit(text: str) -> dict[str, Any]:

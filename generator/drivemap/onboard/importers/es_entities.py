@@ -58,9 +58,23 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
     else:
         reg = _value(ctx, platform, item, table, name)
     if reg is not None:
+        _write_code(ctx, reg, item)
         reg.setdefault("group", _group(ctx, item))
         ctx.regs[name] = {"name": name, **reg, "source": f"{ctx.path.name}:{item.line}"}
     return None
+
+
+def _write_code(ctx: Ctx, reg: dict[str, Any], item: Node) -> None:
+    """The write function code ESPHome sends for a writable entity: the single one (06h / 05h) unless
+    ``use_write_multiple: true`` or the value spans several registers (10h / 0Fh)."""
+    if "w" not in reg.get("access", "") or reg["table"] not in ("holding", "coil"):
+        return
+    words = {"u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4}.get(reg.get("type", "u16"), 1)
+    if reg.get("type") == "string":
+        words = 2
+    single, multiple = (5, 15) if reg["table"] == "coil" else (6, 16)
+    code = multiple if item.get("use_write_multiple") is True or words > 1 else single
+    ctx.doc.max_quantity.setdefault(code, None)
 
 
 def _batch(ctx: Ctx, platform: str, item: Node) -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, load_yaml, located
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
 
 __all__ = ["import_esphome"]
 
@@ -60,6 +60,7 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     if len(paths) > 1:
         doc.review.skipped.extend(f"{p.name}: one ESPHome device per map (import it on its own)" for p in paths[1:])
     data = load_yaml(path)
+    doc.review.skipped.extend(left_out(path))
     if not isinstance(data, dict):
         raise located(path, None, "not an ESPHome configuration (a mapping with esphome:, modbus_controller:, ...)")
     node = str((data.get("esphome") or {}).get("name") or path.stem.split(".")[0])

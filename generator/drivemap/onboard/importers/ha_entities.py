@@ -129,11 +129,17 @@ def binary_sensor(ctx: Ctx, entry: Node) -> None:
     return None
 
 
+#: a switch's write_type -> the function code Home Assistant writes it with
+WRITE_TYPE_CODES = {"coil": 5, "coils": 15, "holding": 6, "holdings": 16}
+
+
 def switches(ctx: Ctx, entries: list[Node]) -> None:
     """Coil switches; holding switches grouped by address (several at one address: a write-only enum)."""
     by_address: dict[int, list[Node]] = {}
     for entry in entries:
         kind = str(entry.get("write_type", "holding"))
+        if kind in WRITE_TYPE_CODES:  # the function code the integration sends for it
+            ctx.doc.max_quantity.setdefault(WRITE_TYPE_CODES[kind], None)
         if kind in ("coil", "coils"):
             verify = "verify" in entry
             reg = {"table": "coil", "address": _address(ctx, entry), "type": "bool", "access": "rw" if verify else "w",
@@ -213,17 +219,19 @@ def _hvac_mode(ctx: Ctx, entry: Node, name: str) -> None:
 
 
 def arrays(ctx: Ctx, name: str, elements: dict[int, dict[str, Any]]) -> dict[str, Any]:
-    """One register from its entities: a single one, or elements 0..n-1 at a fixed stride."""
+    """One register from its entities: a single one, or elements i..i+n-1 at a fixed stride."""
     first = elements[min(elements)]
     reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group",)}}
     if len(elements) > 1:
         indexes = sorted(elements)
         addresses = [elements[i]["address"] for i in indexes]
         stride = addresses[1] - addresses[0]
-        if indexes != list(range(len(indexes))) or stride <= 0 or any(
+        if indexes != list(range(indexes[0], indexes[0] + len(indexes))) or stride <= 0 or any(
                 b - a != stride for a, b in zip(addresses, addresses[1:], strict=False)):
             raise located(ctx.path, None, f"{name}: elements {indexes} are not a numbered series at one stride")
         reg["count"] = len(indexes)
+        if indexes[0] != 0:  # the elements are named by the manual's numbers
+            reg["first_index"] = indexes[0]
         if stride != 1:
             reg["stride"] = stride
     reg["group"] = first["group"]

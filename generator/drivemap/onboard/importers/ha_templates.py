@@ -5,6 +5,12 @@
   from the entity name; with a labels mapping: the field's enum;
 * ``{% set sf = states('sensor.F') | int %}{% set v = states('sensor.X_raw') | float %}``: X's scale
   factor register F, and X's unit from the template entity.
+* ``{{ states('sensor.X_raw') }}`` (and a string's ``| regex_replace(...)`` that drops its NUL/space
+  padding): X's unit from the template entity; an availability ``(states('sensor.X_raw') | float(0)) != N``
+  says the raw value 0 means not available.
+* a ``select`` whose state maps ``[[value, option], ...]`` over ``states('sensor.X')`` and whose
+  option writes ``modbus.write_register``: X's value set (an option that is not the value and unit is
+  its label), writable with 06h (one word) or 10h (a list of words).
 
 Any other template is the user's own logic: listed, not imported.
 """
@@ -28,6 +34,11 @@ _LABELS = re.compile(r"^\{% set labels = (\{.*\}) %\}\{% set v = (.*) %\}\{\{ la
 _STATE = re.compile(r"^states\('(sensor\.[a-z0-9_]+)'\)$")
 _FIELD = re.compile(r"^\(\(\(states\('(sensor\.[a-z0-9_]+)'\) \| int\(0\)\) // (\d+)\) % (\d+)\) \| string$")
 _BIT = re.compile(r"^\{\{ \(\(states\('(sensor\.[a-z0-9_]+)'\) \| int\(0\)\) // (\d+)\) % (\d+)( == 1)? \}\}$")
+_PLAIN = re.compile(r"^\{\{ states\('(sensor\.[a-z0-9_]+)'\)( \| regex_replace\('\[\\x00 \]\+\$', ''\))? \}\}$")
+_UNAVAILABLE_0 = re.compile(r"\(states\('(sensor\.[a-z0-9_]+)'\) \| float\(0\)\) != ")
+_OPTIONS = re.compile(r"^\{% set opts = (\[.*\]) %\}\{% set v = states\('(sensor\.[a-z0-9_]+)'\)( \| float\(none\))? %\}"
+                      r"\{% for o in opts if o\[0\] == v %\}\{\{ o\[1\] \}\}\{% endfor %\}$", re.S)
+_WRITE = re.compile(r"^\{\{ (\{.*\})\[option\] \}\}$", re.S)
 _SCALED = re.compile(r"^\{% set sf = states\('(sensor\.[a-z0-9_]+)'\) \| int %\}"
                      r"\{% set v = states\('(sensor\.[a-z0-9_]+)'\) \| float %\}")
 
@@ -35,9 +46,9 @@ _SCALED = re.compile(r"^\{% set sf = states\('(sensor\.[a-z0-9_]+)'\) \| int %\}
 def apply_templates(ctx: Ctx, path: Path, block: Any) -> None:
     if not isinstance(block, dict):
         return
-    for kind in ("sensor", "binary_sensor"):
+    for kind in ("sensor", "binary_sensor", "select"):
         for entry in block.get(kind) or []:
-            if isinstance(entry, dict) and not _apply(ctx, entry):
+            if isinstance(entry, dict) and not (_select(ctx, entry) if kind == "select" else _apply(ctx, entry)):
                 ctx.doc.review.skipped.append(f"{path.name}: template {kind} {entry.get('name')!r} (the user's own "
                                               "logic, not a register fact)")
 
@@ -72,8 +83,52 @@ def _apply(ctx: Ctx, entry: dict[str, Any]) -> bool:
         return _bit(ctx, name, match.group(1), int(match.group(2)), int(match.group(3)), None)
     match = _SCALED.match(state)
     if match:
-        return _scaled(ctx, entry, match.group(1), match.group(2))
+        return _scaled(ctx, entry, match.group(1), match.group(2)) and _available(ctx, entry, match.group(2))
+    match = _PLAIN.match(state)
+    if match:
+        reg = _register(ctx, match.group(1))
+        if reg is None:
+            return False
+        if entry.get("unit_of_measurement") and reg.get("type") != "string":
+            reg["unit"] = str(entry["unit_of_measurement"])
+        return _available(ctx, entry, match.group(1))
     return False
+
+
+def _available(ctx: Ctx, entry: dict[str, Any], raw: str) -> bool:
+    """An availability that is false while the raw value is 0: 0 means not available."""
+    reg = _register(ctx, raw)
+    if reg is None:
+        return False
+    found = _UNAVAILABLE_0.search(str(entry.get("availability", "")))
+    if found and found.group(1) == raw and 0 not in reg.get("not_available", []):
+        reg["not_available"] = [0, *reg.get("not_available", [])]
+    return True
+
+
+def _select(ctx: Ctx, entry: dict[str, Any]) -> bool:
+    """drivemap's template select: the register's value set and its write function code."""
+    match = _OPTIONS.match(str(entry.get("state", "")))
+    actions = entry.get("select_option")
+    action = actions[0] if isinstance(actions, list) and len(actions) == 1 and isinstance(actions[0], dict) else {}
+    data: dict[str, Any] = action["data"] if isinstance(action.get("data"), dict) else {}
+    write = _WRITE.match(str(data.get("value", "")))
+    reg = _register(ctx, match.group(2)) if match else None
+    if match is None or write is None or reg is None:
+        return False
+    try:
+        pairs, words = json.loads(match.group(1)), json.loads(write.group(1))
+    except ValueError:
+        return False
+    values = []
+    for value, text in pairs:
+        shown = str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
+        plain = f"{shown} {reg['unit']}" if reg.get("unit") and not isinstance(value, str) else shown
+        values.append({"value": value, **({} if text == plain else {"label": text})})
+    reg.update(access="rw", values=values)
+    multiple = any(isinstance(w, list) for w in words.values())
+    ctx.doc.max_quantity.setdefault(16 if multiple else 6, None)
+    return True
 
 
 def _enum(ctx: Ctx, name: str, entity: str, labels: dict[int, str]) -> bool:

@@ -26,7 +26,7 @@ from typing import Any
 
 from drivemap.onboard.importers.ha_templates import apply_templates
 from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, load_yaml, located
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
 
 __all__ = ["import_homeassistant"]
 
@@ -87,6 +87,7 @@ def import_homeassistant(doc: MapDoc, paths: list[Path]) -> str | None:
     templates: list[tuple[Path, Any]] = []
     for path in paths:
         data = load_yaml(path)
+        doc.review.skipped.extend(left_out(path))
         hubs.extend((path, hub) for hub in _hubs(path, data))
         if isinstance(data, dict) and isinstance(data.get("template"), list):
             templates.extend((path, block) for block in data["template"])

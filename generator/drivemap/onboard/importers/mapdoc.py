@@ -19,6 +19,7 @@ from typing import Any
 import yaml
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.frontend.formats import CURRENT
 from drivemap.frontend.project import display
 
 __all__ = ["MapDoc", "Review", "safe", "snake", "unique_name", "upper", "write_map"]
@@ -168,7 +169,7 @@ class MapDoc:
     def data(self) -> dict[str, Any]:
         codes = sorted(self.max_quantity) or [3]
         doc: dict[str, Any] = {
-            "drivemap": 1,
+            "drivemap": CURRENT,
             "device": {
                 "model": self.model, "title": self.title, "vendor": self.vendor,
                 "manual": {"file": self.manual_file, "document": None, "revision": None, "date": None,

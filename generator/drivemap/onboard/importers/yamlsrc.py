@@ -15,7 +15,7 @@ import yaml
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 
-__all__ = ["Node", "Tagged", "load_yaml", "located", "renamed"]
+__all__ = ["Node", "Tagged", "left_out", "load_yaml", "located", "renamed"]
 
 _MAX_BYTES = 8 * 1024 * 1024
 
@@ -86,3 +86,14 @@ def load_yaml(path: Path) -> Any:
         raise CompileError([Diagnostic(Location(shown, line, col), f"not YAML: {exc.problem or exc}")]) from None
     except (yaml.YAMLError, RecursionError) as exc:
         raise CompileError([Diagnostic(Location(shown, 1, 1), f"not YAML: {exc}")]) from None
+
+
+def left_out(path: Path) -> list[str]:
+    """The registers a drivemap export says it left out (its ``# not exported...`` comment lines), each
+    as ``file:line: text``: the file cannot carry them, so the map built from it lacks them."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+    return [f"{path.name}:{n}: {line.lstrip()[2:]} (the export left it out: add it from the manual)"
+            for n, line in enumerate(lines, 1) if line.lstrip().startswith("# not exported")]
