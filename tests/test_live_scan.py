@@ -23,8 +23,9 @@ def test_scan_tcp_finds_units_and_the_map_that_fits() -> None:
     assert [u["unit"] for u in doc["units"]] == [3, 7] and doc["probes"] == 9
     for unit in doc["units"]:
         fits = {f["model"]: f["fits"] for f in unit["fits"]}
-        assert fits == {"vfd1000": True, "ev": False, "v2": False, "edx": False, "sdm630": False,
-                        "fronius_symo_hybrid": False}
+        assert fits["vfd1000"] is True
+        assert not any(fit for model, fit in fits.items() if model != "vfd1000"), fits
+        assert {"ev", "v2", "edx", "sdm630", "fronius_symo_hybrid"} <= set(fits)
     assert "at most 9 probes" in proc.stderr
 
 
