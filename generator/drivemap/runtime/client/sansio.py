@@ -17,29 +17,24 @@ requests are counted in ``Stats.split_reads`` and ``Stats.extra_requests``.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, Literal, TypeVar
+from typing import Literal, TypeVar
 
 from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.bit_message import (
-    ReadCoilsRequest,
-    ReadDiscreteInputsRequest,
     WriteMultipleCoilsRequest,
     WriteSingleCoilRequest,
 )
 from pymodbus.pdu.diag_message import ReturnQueryDataRequest
 from pymodbus.pdu.register_message import (
-    ReadHoldingRegistersRequest,
-    ReadInputRegistersRequest,
     WriteMultipleRegistersRequest,
     WriteSingleRegisterRequest,
 )
 
 from drivemap.runtime.alignment import refuse_misaligned
 from drivemap.runtime.client.advice import warn_if_running
-from drivemap.runtime.client.codec import Codec, raw_to_words, words_to_raw
+from drivemap.runtime.client.codec import raw_to_words, words_to_raw
 from drivemap.runtime.client.exchange import Exchange, Stats
 from drivemap.runtime.client.planner import (
     Hole,
@@ -52,11 +47,11 @@ from drivemap.runtime.client.planner import (
 )
 from drivemap.runtime.client.runner import Op, arun, arun_replay, run, run_replay
 from drivemap.runtime.client.tables import SpecTables, spec_tables
+from drivemap.runtime.client.wire import ILLEGAL_ADDRESS, READ_REQUESTS, Deferred, RawItem, reply_words
 from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,
     DriveError,
-    InexactValue,
     InvalidArgument,
     InvalidValue,
     NotBroadcastable,
@@ -74,37 +69,6 @@ log = logging.getLogger("drivemap")
 
 T = TypeVar("T")
 PagePolicy = Literal["raise", "switch"]
-
-#: The request class of each read function code.
-READ_REQUESTS: dict[int, type[ModbusPDU]] = {
-    0x01: ReadCoilsRequest, 0x02: ReadDiscreteInputsRequest,
-    0x03: ReadHoldingRegistersRequest, 0x04: ReadInputRegistersRequest,
-}
-#: Exception code that makes the client split a read (02h, illegal data address).
-ILLEGAL_ADDRESS = 0x02
-
-
-@dataclasses.dataclass(frozen=True)
-class Deferred:
-    """A value to write whose raw value needs its scale factor, read just before the write."""
-
-    value: Any
-    codec: Codec[Any]
-    #: round a value between two steps to the nearer (an explicit request); else it is refused
-    round: bool = False
-
-    def encode(self, factor: int | None) -> int:
-        """The raw value given the scale factor's raw value."""
-        try:
-            return self.codec.encode_scaled(self.value, factor)
-        except InexactValue as exc:
-            if not self.round or exc.rounded_raw is None:
-                raise
-            return exc.rounded_raw
-
-
-RawItem = tuple[Key, "int | Deferred"]
-
 
 # ----------------------------------------------------------------------------- core
 class Core:
@@ -196,7 +160,7 @@ class Core:
                                expect_reply=not self.broadcast)
         if reply is None or reply.isError():
             reply = self.raise_for(reply, code)
-        return _reply_words(reply, code, address, count)
+        return reply_words(reply, code, address, count)
 
     def _write_request(self, table: str, address: int, words: list[int]) -> tuple[ModbusPDU, int]:
         """The write request for ``words`` at ``address`` (the single-write function for one word or
@@ -257,7 +221,7 @@ class Core:
                     yield from self._split(req, out)
                     continue
                 reply = self.raise_for(reply, code)
-            self._decode(req, reply.registers if code > 2 else _reply_words(reply, code, req.address, req.count),
+            self._decode(req, reply.registers if code > 2 else reply_words(reply, code, req.address, req.count),
                          out)
         return out
 
@@ -341,7 +305,7 @@ class Core:
                 self.raise_for(reply, req.code)
             return True
         reply = self.raise_for(reply, req.code)
-        self._decode(req, reply.registers if req.code > 2 else _reply_words(reply, req.code, req.address, req.count),
+        self._decode(req, reply.registers if req.code > 2 else reply_words(reply, req.code, req.address, req.count),
                      out)
         return False
 
@@ -522,19 +486,6 @@ class Core:
         if value != data:
             raise TransportError(f"loopback echoed {value!r}, sent {data:#06x}")
         return data
-
-
-def _reply_words(reply: ModbusPDU, code: int, address: int, count: int) -> list[int]:
-    """The words of a read reply; for 01h/02h its first ``count`` bits as 0/1."""
-    if code <= 0x02:
-        bits = reply.bits
-        if len(bits) < count:
-            raise TransportError(f"asked {count} bits at 0x{address:04X}, got {len(bits)}")
-        return [1 if b else 0 for b in bits[:count]]
-    registers = reply.registers
-    if len(registers) != count:
-        raise TransportError(f"asked {count} registers at 0x{address:04X}, got {len(registers)}")
-    return list(registers)
 
 
 __all__ = ["Core", "Deferred", "Op", "PagePolicy", "READ_REQUESTS", "RawItem", "SpecTables", "arun", "arun_replay",

@@ -3,10 +3,12 @@ check address."; the message names the address or device and what is wrong with 
 
 from __future__ import annotations
 
+import ipaddress
 import os
+import socket
 import termios
 
-__all__ = ["why_not_listening"]
+__all__ = ["why_not_listening", "is_loopback"]
 
 
 def why_not_listening(tcp: tuple[str, int] | None, serial: str | None, baudrate: int, exc: Exception) -> str:
@@ -28,3 +30,18 @@ def why_not_listening(tcp: tuple[str, int] | None, serial: str | None, baudrate:
     finally:
         os.close(fd)
     return f"cannot open {device} at {baudrate} Bd ({exc})"
+
+
+def is_loopback(host: str) -> bool:
+    """True when every address ``host`` names is a loopback address."""
+    if host in ("localhost", "localhost.localdomain"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(str(info[4][0]).split("%")[0]).is_loopback for info in infos)

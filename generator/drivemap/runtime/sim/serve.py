@@ -31,8 +31,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
-import socket
 import threading
 import time
 from types import TracebackType
@@ -45,7 +43,7 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
 from drivemap.runtime.client.bus import sleep_until
-from drivemap.runtime.sim.listen import why_not_listening
+from drivemap.runtime.sim.listen import is_loopback, why_not_listening
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 from drivemap.runtime.sim.tcp import SimTcpServer
 
@@ -485,18 +483,3 @@ class ThreadedSimServer:
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
         self.stop()
-
-
-def is_loopback(host: str) -> bool:
-    """True when every address ``host`` names is a loopback address."""
-    if host in ("localhost", "localhost.localdomain"):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        pass
-    try:
-        infos = socket.getaddrinfo(host, None)
-    except OSError:
-        return False
-    return bool(infos) and all(ipaddress.ip_address(str(info[4][0]).split("%")[0]).is_loopback for info in infos)

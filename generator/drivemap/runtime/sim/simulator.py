@@ -48,6 +48,7 @@ from drivemap.runtime.alignment import violation
 from drivemap.runtime.client.quirks import encode_read_reply
 from drivemap.runtime.sim import state as simstate
 from drivemap.runtime.sim.cells import ReadPlan, Refused, Slot, cell_names, gap_words, packer, swapped, word_shift
+from drivemap.runtime.sim.dialect import CASES, FALLBACK, READ_TABLES, STANDARD_CODES, STANDARD_MAX_QUANTITY
 from drivemap.runtime.sim.persist import Persistence, StateFileError
 from drivemap.runtime.sim.unit import SimulatorError, SimValue, Unit
 from drivemap.runtime.sim.writes import WriteRequests
@@ -67,27 +68,6 @@ __all__ = [
 ]
 
 #: Standard Modbus exception code of every error case (used when the map names no code).
-STANDARD_CODES: dict[str, int] = {
-    "illegal_function": 0x01,
-    "illegal_address": 0x02,
-    "illegal_quantity": 0x03,
-    "out_of_range": 0x03,
-    "read_only": 0x02,
-    "write_only": 0x02,
-    "busy": 0x06,
-    "bad_length": 0x03,
-}
-CASES = tuple(STANDARD_CODES)
-_FALLBACK = {
-    "write_only": "illegal_address",
-    "read_only": "illegal_address",
-    "bad_length": "illegal_quantity",
-    "busy": "out_of_range",
-}
-#: Largest quantity a standard Modbus PDU can carry, per function code (when the map gives none).
-_STANDARD_MAX_QUANTITY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x06: 1, 0x0F: 1968, 0x10: 123}
-#: The table each read function code reads.
-_READ_TABLES = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input"}
 #: Read plans kept per simulator (table, address, quantity, page state); the cache starts over when full.
 _MAX_READ_PLANS = 4096
 class Simulator(WriteRequests, Persistence):
@@ -296,7 +276,7 @@ class Simulator(WriteRequests, Persistence):
             for item in self.spec.exception_policy:
                 if item.case == current:
                     return item.code
-            current = _FALLBACK.get(current)
+            current = FALLBACK.get(current)
         return STANDARD_CODES[case]
 
     # ==== request handling ====================================================================
@@ -375,7 +355,7 @@ class Simulator(WriteRequests, Persistence):
         raise Refused("illegal_function")
 
     def _max_quantity(self, code: int, limit: int | None) -> int:
-        return limit if limit is not None else _STANDARD_MAX_QUANTITY.get(code, 125)
+        return limit if limit is not None else STANDARD_MAX_QUANTITY.get(code, 125)
 
     def _read_request(self, code: int, limit: int | None, data: bytes) -> tuple[int, int]:
         """(address, quantity) of a read request, checked."""
@@ -410,8 +390,8 @@ class Simulator(WriteRequests, Persistence):
 
     def _read(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
-        self._aligned(_READ_TABLES[code], address, quantity, "read")
-        cells, words, swapping = self._plan(unit, _READ_TABLES[code], address, quantity)
+        self._aligned(READ_TABLES[code], address, quantity, "read")
+        cells, words, swapping = self._plan(unit, READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
         if swapping:
@@ -426,7 +406,7 @@ class Simulator(WriteRequests, Persistence):
 
     def _read_bits(self, unit: Unit, code: int, limit: int | None, data: bytes) -> bytes:
         address, quantity = self._read_request(code, limit, data)
-        cells, words, _ = self._plan(unit, _READ_TABLES[code], address, quantity)
+        cells, words, _ = self._plan(unit, READ_TABLES[code], address, quantity)
         self.behaviour.on_read(unit, list(cells))
         values = unit.values
         packed = bytearray((quantity + 7) // 8)
