@@ -11,8 +11,8 @@ range check calls it, so the client, the CLI and the gateway refuse such a value
 from __future__ import annotations
 
 import math
-import struct
 
+from drivemap.runtime.client.steps import shortest_f32_text
 from drivemap.runtime.errors import NotAllowedValue
 from drivemap.runtime.spec import RegisterSpec
 
@@ -67,19 +67,6 @@ def check_values(spec: RegisterSpec, value: object) -> None:
                           tuple(v for v, _ in spec.values))
 
 
-def _shortest_f32(value: float) -> str:
-    """The shortest decimal text that reads back as the same f32 (``230.2`` for 230.1999969482422)."""
-    try:
-        target = struct.pack(">f", value)
-    except (OverflowError, struct.error):
-        return repr(value)
-    for digits in range(1, 10):
-        text = f"{value:.{digits}g}"
-        if struct.pack(">f", float(text)) == target:
-            return repr(float(text))  # 12000.0, not 1.2e+04 (repr keeps the same shortest digits)
-    return repr(value)
-
-
 def display_text(value: object, precision: int | None = None, *, single: bool = False) -> str:
     """A value as people read it: ``precision`` decimals when the map gives them, else the shortest
     text that reads back as the same value (as an f32 when ``single``: ``230.2``, not
@@ -90,7 +77,7 @@ def display_text(value: object, precision: int | None = None, *, single: bool = 
         return str(value)
     if precision is not None:
         return f"{value:.{precision}f}"
-    return _shortest_f32(value) if single else repr(value)
+    return shortest_f32_text(value) if single else repr(value)
 
 
 def register_text(spec: RegisterSpec, value: object) -> str:
