@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -20,36 +21,61 @@ def test_import_linter_contracts_hold() -> None:
     assert "BROKEN" not in proc.stdout and "KEPT" in proc.stdout
 
 
-def test_validate_renders_nothing() -> None:
-    """``drivemap validate`` runs the exporters' checks without Jinja, templates, views or in-memory code."""
+def _modules_after(args: list[str]) -> tuple[int, list[str]]:
     script = (
         "import json, sys\n"
         "from drivemap.cli import main\n"
-        "code = main(['validate', 'maps/ev.yaml', 'maps/sdm630.yaml'])\n"
+        f"code = main({args!r})\n"
         "print(json.dumps([code, sorted(sys.modules)]))\n"
     )
     proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=120)
     code, modules = json.loads(proc.stdout.splitlines()[-1])
-    assert code == 0, proc.stderr
+    return code, modules
+
+
+def test_validate_imports_nothing_from_backends_or_templates() -> None:
+    """``drivemap validate`` is the front end and the model: no back end, no Jinja, no template."""
+    code, modules = _modules_after(["validate", "maps/ev.yaml", "maps/sdm630.yaml", "maps/fronius_symo_hybrid.yaml"])
+    assert code == 0
+    assert [m for m in modules if m.startswith(("drivemap.backends", "jinja2", "drivemap.build"))] == []
+    assert "drivemap.model.build" in modules and "drivemap.frontend.checks" in modules  # it did validate
+
+
+def test_validate_with_exporters_renders_nothing() -> None:
+    """``--exporter`` runs the exporters' checks: data and name rules, no Jinja, no views, no rendering."""
+    code, modules = _modules_after(["validate", "--exporter", "python", "--exporter", "docs", "maps/ev.yaml"])
+    assert code == 0
     rendering = [m for m in modules if m.startswith(("jinja2", "drivemap.backends.render"))
                  or (m.startswith("drivemap.backends.views.") and m != "drivemap.backends.views.format")]
     assert rendering == []
     assert "drivemap.backends.python.namecheck" in modules  # the python exporter's checks did run
 
 
-def test_a_name_clash_is_still_refused_by_validate(tmp_path: Path) -> None:
-    """The generated-name checks moved to the python exporter's hook; validate still runs them."""
+def test_a_name_clash_is_refused_where_the_python_exporter_runs(tmp_path: Path) -> None:
+    """The map language allows ``read_all``; the generated client cannot hold it: ``build`` and
+    ``validate --exporter python`` refuse it (located), plain ``validate`` accepts it, nothing is written."""
     text = (ROOT / "maps" / "v2.yaml").read_text(encoding="utf-8")
     first = text.index("  - name: ", text.index("\nregisters:"))
-    end = text.index("\n", first)
-    clashing = text[:first] + "  - name: read_all" + text[end:]
+    name = text[first + len("  - name: "):text.index("\n", first)]
     bad = tmp_path / "v2.yaml"
-    bad.write_text(clashing, encoding="utf-8")
-    proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "validate", str(bad)], cwd=tmp_path,
-                          capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 1
-    assert "register name 'read_all' clashes with a client attribute" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    bad.write_text(re.sub(rf"\b{name}\b", "read_all", text), encoding="utf-8")
+    line = text[:first].count("\n") + 1
+
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "drivemap.cli", *args], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=120)
+
+    assert run("validate", "v2.yaml").returncode == 0
+    for args in (("validate", "--exporter", "python", "v2.yaml"), ("build", "v2.yaml"),
+                 ("validate", "--exporter", "all", "v2.yaml")):
+        proc = run(*args)
+        assert proc.returncode == 1, args
+        assert proc.stderr.startswith(f"v2.yaml:{line}:"), proc.stderr
+        assert "register name 'read_all' clashes with a client attribute" in proc.stderr
+        assert "Traceback" not in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v2.yaml"]
+    proc = run("validate", "--exporter", "nosuch", "v2.yaml")
+    assert proc.returncode == 1 and "unknown exporter 'nosuch'" in proc.stderr and "Traceback" not in proc.stderr
 
 
 @pytest.mark.parametrize(("old", "new", "name"), [

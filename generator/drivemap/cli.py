@@ -22,6 +22,7 @@ from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.nodes import Model
 
 if TYPE_CHECKING:
+    from drivemap.backends.exporters.base import Exporter
     from drivemap.backends.output import Change
 
 
@@ -47,14 +48,15 @@ def _project(args: argparse.Namespace, maps: Sequence[str] | None = None) -> Pro
     )
 
 
-def _compile(files: Sequence[Path]) -> tuple[list[Model], list[Diagnostic]]:
+def _compile(files: Sequence[Path], exporters: Sequence[Exporter] | None = None) -> tuple[list[Model], list[Diagnostic]]:
+    """Compile every map with the checks of ``exporters`` (None: the ones ``build`` writes)."""
     from drivemap.compiler import compile_map
 
     models: list[Model] = []
     errors: list[Diagnostic] = []
     for path in files:
         try:
-            models.append(compile_map(path))
+            models.append(compile_map(path, exporters))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
     first: dict[str, Model] = {}
@@ -76,12 +78,12 @@ def _model_line(path: str) -> int:
     return next((n for n, line in enumerate(lines, 1) if line.strip().startswith("model:")), 1)
 
 
-def _project_models(project: Project) -> list[Model]:
+def _project_models(project: Project, exporters: Sequence[Exporter] | None = None) -> list[Model]:
     files = project.map_files()
     if not files:
         where = ", ".join(display(m) for m in project.maps)
         raise CompileError([Diagnostic(Location(where, 1, 1), "no maps found (run `drivemap new MODEL`, or set maps)")])
-    models, errors = _compile(files)
+    models, errors = _compile(files, exporters)
     if errors:
         raise CompileError(errors)
     return models
@@ -112,10 +114,28 @@ def _summary(model: Model) -> str:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     project = _project(args, args.paths)
-    models = _project_models(project)
+    models = _project_models(project, _checking_exporters(args.exporter or []))
     for m in models:
         print(f"{m.path}: ok ({_summary(m)})")
     return 0
+
+
+def _checking_exporters(names: Sequence[str]) -> list[Exporter]:
+    """The exporters whose ``validate`` hooks ``drivemap validate --exporter`` runs (none: the front end only)."""
+    if not names:
+        return []
+    from drivemap.backends.exporters import available, load
+
+    if "all" in names:
+        found = available()
+        names = ["python", "docs", *(n for n in found if n not in ("python", "docs"))]
+        return [found[n]() for n in names]
+    chosen = {n: load(n) for n in dict.fromkeys(names)}
+    unknown = [n for n, cls in chosen.items() if cls is None]
+    if unknown:
+        raise UsageError("drivemap validate", f"unknown exporter {unknown[0]!r} (installed: "
+                                              f"{', '.join(available())}; or all)")
+    return [cls() for cls in chosen.values() if cls is not None]
 
 
 def cmd_build(args: argparse.Namespace) -> int:
@@ -392,8 +412,14 @@ def parser() -> argparse.ArgumentParser:
     p = _Parser(prog="drivemap", description="Register-map compiler for Modbus drives.")
     p.add_argument("--version", action="version", version=f"drivemap {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    s = sub.add_parser("validate", help="validate maps (default: the project's maps)")
+    s = sub.add_parser("validate", help="validate maps (default: the project's maps)",
+                       description="Check maps: the schema and the semantic checks of the map language. The "
+                                   "exporters' own checks (the generated Python names, the docs anchors) run where "
+                                   "an exporter writes (build, check, export) or here with --exporter.")
     s.add_argument("paths", nargs="*", metavar="PATH", help="map files or folders")
+    s.add_argument("--exporter", action="append", default=None, metavar="NAME",
+                   help="also run this exporter's checks (repeatable; `all`: every installed exporter, "
+                        "`python` and `docs`: what build writes)")
     _project_flags(s, out=False)
     s.set_defaults(func=cmd_validate)
     for name, func, text in (("build", cmd_build, "validate, verify examples, write the generated package and docs"),

@@ -1,8 +1,10 @@
 """The pipeline: load -> schema -> semantic checks -> the exporters' checks -> immutable model.
 
-The front end (:mod:`drivemap.frontend`) knows no back end; the exporters' ``validate`` hooks (the
+The front end (:mod:`drivemap.frontend`) knows no back end. The exporters' ``validate`` hooks (the
 python exporter's generated names, the docs exporter's anchors) run here, on the checked document,
-and render nothing.
+and render nothing; they run for the exporters a verb writes (``build``: python and docs), and
+``drivemap validate`` runs only the front end unless it is asked for exporters (``--exporter``), so
+this module imports no back end until a hook is wanted.
 """
 
 from __future__ import annotations
@@ -12,18 +14,17 @@ import sys
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from drivemap.backends.export import export
-from drivemap.backends.exporters.base import Exporter
-from drivemap.backends.exporters.docs import DocsExporter
-from drivemap.backends.exporters.python import PythonExporter
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import checks, family, formats, schema
 from drivemap.frontend.load import MAX_REGISTERS, Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
+
+if TYPE_CHECKING:
+    from drivemap.backends.exporters.base import Exporter
 
 #: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does
 #: not have is looked up here.
@@ -36,7 +37,10 @@ def display_path(path: str | os.PathLike[str]) -> str:
 
 
 def default_exporters() -> tuple[Exporter, ...]:
-    """The exporters whose checks every map passes: the outputs ``drivemap build`` always writes."""
+    """The exporters whose checks a compiled map passes by default: the outputs ``drivemap build`` always writes."""
+    from drivemap.backends.exporters.docs import DocsExporter
+    from drivemap.backends.exporters.python import PythonExporter
+
     return (PythonExporter(), DocsExporter())
 
 
@@ -150,4 +154,6 @@ def load_model(name: str, project: Project | None = None) -> Model:
 
 def export_model(name: str) -> dict[str, Any]:
     """Compile the map of a model id or path and return its export contract (``--format json``)."""
+    from drivemap.backends.export import export
+
     return export(load_model(name))

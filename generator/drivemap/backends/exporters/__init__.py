@@ -7,7 +7,7 @@ import sys
 
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 
-__all__ = ["BUILTIN", "Exporter", "OptionError", "Options", "available", "get"]
+__all__ = ["BUILTIN", "Exporter", "OptionError", "Options", "available", "get", "load"]
 
 #: The built-in exporters (also registered as entry points of the drivemap distribution).
 BUILTIN: dict[str, str] = {
@@ -44,6 +44,14 @@ def available() -> dict[str, type[Exporter]]:
             print(f"drivemap: warning: exporter plugin {entry.name!r} ({entry.value}) cannot be loaded: {exc}",
                   file=sys.stderr)
     return dict(sorted(found.items()))
+
+
+def load(name: str) -> type[Exporter] | None:
+    """The exporter ``name`` (a built-in, else an installed plugin), importing no other exporter; None if unknown."""
+    if name in BUILTIN:
+        return _load(BUILTIN[name])
+    entry = next((e for e in importlib.metadata.entry_points(group="drivemap.exporters") if e.name == name), None)
+    return available().get(name) if entry is not None else None
 
 
 def get(name: str) -> Exporter | None:
