@@ -25,7 +25,11 @@ FIELDS = ("type", "scale", "unit", "access", "min", "max")
 
 
 class NoTable(Exception):
-    """The draft found no register table (the verb's "no register table found" error)."""
+    """The draft found no register table (the verb's "no register table found" error), after ``seconds``."""
+
+    def __init__(self, message: str, seconds: float) -> None:
+        super().__init__(message)
+        self.seconds = seconds
 
 
 @dataclass
@@ -36,6 +40,8 @@ class Drafted:
     data: dict[str, Any]
     model: Any
     seconds: float
+    skipped: int = 0
+    """Rows the draft skipped (and listed in its summary)."""
 
 
 @dataclass
@@ -61,6 +67,7 @@ class Score:
     lists_total: int = 0
     lists_wrong: list[str] = field(default_factory=list)
     not_exact: list[str] = field(default_factory=list)
+    exact_names: list[str] = field(default_factory=list)
 
 
 def make_draft(document: Path, model_id: str, pages: tuple[int, int] | None = None, max_pages: int = 400,
@@ -78,7 +85,7 @@ def make_draft(document: Path, model_id: str, pages: tuple[int, int] | None = No
     result = draft(source, model_id)
     if not result.registers:
         why = f" ({len(result.skipped)} rows skipped: {result.skipped[0].reason})" if result.skipped else ""
-        raise NoTable(f"no register table found: no table with an address column{why}")
+        raise NoTable(f"no register table found: no table with an address column{why}", time.perf_counter() - started)
     text, errors = settle(result, "", f"{model_id}.yaml")
     if errors:
         raise RuntimeError(f"{model_id}: the draft does not validate: {errors[0].format()}")
@@ -89,7 +96,7 @@ def make_draft(document: Path, model_id: str, pages: tuple[int, int] | None = No
     doc = load_text(text, f"{model_id}.yaml")
     _, statuses = checks.check(doc)
     model = build_model(f"{model_id}.yaml", doc.data, statuses, {})  # type: ignore[arg-type]
-    return Drafted(text, doc.data, model, seconds)
+    return Drafted(text, doc.data, model, seconds, len(result.skipped))
 
 
 def _key(reg: Any, i: int, offset: int = 0, table: str | None = None) -> tuple[str, int]:
@@ -168,6 +175,7 @@ def _compare_one(s: Score, reg: Any, mine: dict[tuple[str, int], Any], entry: di
                 exact = False
     if exact and all(mine[k].type == reg.type and float(mine[k].scale) == float(reg.scale) for k in keys):
         s.exact += 1
+        s.exact_names.append(reg.name)
     else:
         s.not_exact.append(f"{reg.name} ({first.type} x{first.scale} vs {reg.type} x{reg.scale})")
 
