@@ -219,7 +219,7 @@ def _measure_row(section: Section, m: Measured) -> None:
     assert e is not None
     section.rows.append(Row(TITLE, f"{d['file']}: registers exact", s.exact / s.proven, "—", None,
                             f"{s.exact}/{s.proven}; wrong fields written {len(s.wrong_stated)}; hand edits {e.hand} "
-                            f"(+{sum(e.systematic.values())} map choices); {m.drafted.seconds:.1f} s"))
+                            f"(+{sum(e.systematic.values())} map choices); {m.drafted.seconds:.2f} s"))
 
 
 def run(quick: bool = False, folder: Path | None = None, manifest: Path = MANIFEST) -> Section:

@@ -147,3 +147,23 @@ def test_a_document_finished_as_drafted_is_exact_with_no_hand_edits(tmp_path: Pa
     row = next(r for r in section.rows if r.name == "dev.csv: registers exact")
     assert row.ratio == 1.0 and "hand edits 0 (+0 map choices)" in row.absolute, row.absolute
     assert next(r for r in section.rows if r.name == "wrong fields written").met is True
+
+
+def test_sunspec_comparison_lists_what_is_missed_and_why() -> None:
+    import sunspecprobe
+
+    def cell(name: str, **kw: Any) -> dict[str, Any]:
+        return {"name": name, "register": name, "type": "u16", "words": 1, "scale register": None, "access": "r",
+                "unit": None, "not available": (), "scale": 1.0, **kw}
+
+    proven = {("holding", 212): cell("f_store"), ("holding", 40000): cell("marker"),
+              ("holding", 40002): cell("w", **{"scale register": 40003}), ("holding", 40003): cell("w_sf", type="s16"),
+              ("holding", 40004): cell("volts", access="r")}
+    probed = {("holding", 40000): cell("marker"), ("holding", 40002): cell("w"),
+              ("holding", 40003): cell("w_sf", type="s16"), ("holding", 40004): cell("volts", access="rw"),
+              ("holding", 40009): cell("pad")}
+    r = sunspecprobe.compare(proven, probed, 40000)
+    assert (r["same"], r["sunspec"], r["registers_same"], r["registers"]) == (3, 4, 3, 5)
+    assert r["outside"] == ["f_store"] and r["absent"] == [] and r["extra"] == ["pad"]
+    assert r["differ"]["scale register"] == [("w", None, 40003)] and r["differ"]["access"] == [("volts", "rw", "r")]
+    assert "probed 'rw', proven 'r': 1 (volts)" in sunspecprobe._pairs(r["differ"]["access"])
