@@ -243,7 +243,11 @@ def run(quick: bool = False, folder: Path | None = None, manifest: Path = MANIFE
                                     f"0: {exc}; {exc.seconds:.1f} s"))
             read = " ".join(doc["draft_args"]) or "whole document"
             other.append(f"* {doc['title']} {doc['revision']} ({doc['format']}, {read}): `drivemap draft` drafts "
-                         f"nothing in {exc.seconds:.1f} s: {exc}. No finished map.")
+                         f"nothing in {exc.seconds:.1f} s: {exc}." + ("" if doc.get("map") else " No finished map."))
+            continue
+        except RuntimeError as exc:  # the draft does not validate: a defect of the tool, reported as such
+            section.rows.append(Row(TITLE, f"{doc['file']}: draft", None, "validates", False, str(exc)))
+            other.append(f"* {doc['title']} {doc['revision']}: {exc}.")
             continue
         _measure_row(section, m)
         if m.chosen is None:
