@@ -21,6 +21,7 @@ compared with the proven map, element address by element address:
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import subprocess
 import sys
 import tempfile
@@ -173,6 +174,9 @@ def run(quick: bool = False) -> Section:
     r = compare(proven, probed, base)
     _rows(section, r, seconds, codes)
     section.detail = _detail(r, proc, out)
+    if importlib.util.find_spec("sunspec2") is None:
+        section.detail.append("\npysunspec2 is not installed (`pip install 'drivemap[sunspec]'`): the probe wrote each "
+                              "model as its ID, L and raw words, so names, types and scale registers are not recovered.")
     return section
 
 
