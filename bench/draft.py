@@ -21,19 +21,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from common import ROOT, Row, Section  # noqa: E402
+from draftscore import Score, compare, make_draft  # noqa: E402
 
 SEEDS = {"edx": "004_698379178adcef99.txt", "v2": "003_81ad9a58587804cf.txt",
          "vfd1000": "002_65caa110b92ac236.txt", "ev": "001_47d2095fcebbe4cf.txt"}
-FIELDS = ("type", "scale", "unit", "access", "min", "max")
 
 
 def manuals_folder() -> Path | None:
@@ -43,136 +40,10 @@ def manuals_folder() -> Path | None:
     return None
 
 
-@dataclass
-class Score:
-    model: str
-    proven: int
-    exact: int
-    fields_right: int
-    wrong_stated: list[str]
-    defaulted: int
-    extra: int
-    seconds: float
-    drafted: int
-
-    @property
-    def edits(self) -> int:
-        return (self.proven - self.found) + self.field_edits + self.extra
-
-    found: int = 0
-    field_edits: int = 0
-    not_found: list[str] = field(default_factory=list)
-    lists_right: int = 0
-    lists_total: int = 0
-    lists_wrong: list[str] = field(default_factory=list)
-    not_exact: list[str] = field(default_factory=list)
-
-
-def _cells(model: Any) -> dict[tuple[str, int], Any]:
-    out = {}
-    for r in model.registers:
-        for i in range(r.count):
-            out[(r.table, r.address + i * (r.stride or 1))] = r
-    return out
-
-
-def _value(reg: Any, key: str) -> Any:
-    value = getattr(reg, key, None)
-    return float(value) if key == "scale" and value is not None else value
-
-
-def _comparable(registers: Any, cells: dict[tuple[str, int], Any]) -> list[Any]:
-    """The proven registers to compare: where several pages share an address, the draft (which holds one
-    register per address) is compared with the page whose register it matches best; the others count
-    as not found."""
-    by_key: dict[tuple[str, int], list[Any]] = {}
-    for reg in registers:
-        by_key.setdefault((reg.table, reg.address), []).append(reg)
-    out = []
-    for key, regs in by_key.items():
-        mine = cells.get(key)
-        if len(regs) == 1 or mine is None:
-            out += regs
-            continue
-        out.append(max(regs, key=lambda r: sum(_value(mine, f) == _value(r, f) for f in FIELDS)))
-    return out
-
-
-def _values(model: Any, reg: Any) -> set[int] | None:
-    if reg.enum is None:
-        return None
-    return {v.value for e in model.enums if e.name == reg.enum for v in e.values}
-
-
-def _compare_lists(s: Score, reg: Any, mine: Any, proven: Any, drafted: Any) -> None:
-    """Enum values and bit offsets of a proven register that has them: right when the draft has the same
-    set, wrong when the draft writes a different one, missing when it writes none."""
-    for kind, theirs, ours in (("enum", _values(proven, reg), _values(drafted, mine)),
-                               ("bits", {b.offset for b in reg.bits} or None, {b.offset for b in mine.bits} or None)):
-        if theirs is None:
-            continue
-        s.lists_total += 1
-        if ours == theirs:
-            s.lists_right += 1
-        elif ours is not None:
-            s.lists_wrong.append(f"{reg.name}.{kind}: drafted {sorted(ours)}, proven {sorted(theirs)}")
-
-
 def score(model_id: str, document: Path) -> Score:
     from drivemap.compiler import compile_map
-    from drivemap.frontend.load import load_text
-    from drivemap.model.build import build_model
-    from drivemap.onboard.draft.assemble import draft
-    from drivemap.onboard.draft.read import read_document
-    from drivemap.onboard.draft.writer import compile_text, settle
 
-    started = time.perf_counter()
-    source = read_document(document)
-    result = draft(source, model_id)
-    text, errors = settle(result, "", f"{model_id}.yaml")
-    seconds = time.perf_counter() - started
-    if errors:
-        raise RuntimeError(f"{model_id}: the draft does not validate: {errors[0].format()}")
-    assert not compile_text(text, f"{model_id}.yaml")
-    doc = load_text(text, f"{model_id}.yaml")
-    from drivemap.frontend import checks
-
-    _, statuses = checks.check(doc)
-    drafted = build_model(f"{model_id}.yaml", doc.data, statuses, {})  # type: ignore[arg-type]
-    stated = {(str(e.get("table", "holding")), int(e["address"]) + i * int(e.get("stride", 1))): e
-              for e in doc.data["registers"] for i in range(int(e.get("count", 1)))}
-    proven = compile_map(ROOT / "maps" / f"{model_id}.yaml")
-    cells = _cells(drafted)
-    s = Score(model_id, len(proven.registers), 0, 0, [], 0, 0, seconds, len(drafted.registers))
-    for reg in _comparable(proven.registers, cells):
-        keys = [(reg.table, reg.address + i * (reg.stride or 1)) for i in range(reg.count)]
-        if not all(k in cells for k in keys):
-            s.not_found.append(reg.name)
-            continue
-        s.found += 1
-        mine = cells[keys[0]]
-        entry = stated[keys[0]]
-        s.fields_right += 1
-        exact = True
-        for key in FIELDS:
-            same = _value(mine, key) == _value(reg, key)
-            s.fields_right += same
-            if not same:
-                s.field_edits += 1
-                if key in entry:
-                    s.wrong_stated.append(f"{reg.name}.{key}: drafted {_value(mine, key)!r}, proven {_value(reg, key)!r}")
-                else:
-                    s.defaulted += 1
-                if key in ("type", "scale"):
-                    exact = False
-        _compare_lists(s, reg, mine, proven, drafted)
-        if exact and all(cells[k].type == reg.type and float(cells[k].scale) == float(reg.scale) for k in keys):
-            s.exact += 1
-        else:
-            s.not_exact.append(f"{reg.name} ({mine.type} x{mine.scale} vs {reg.type} x{reg.scale})")
-    proven_cells = _cells(proven)
-    s.extra = sum(1 for r in drafted.registers if (r.table, r.address) not in proven_cells)
-    return s
+    return compare(model_id, compile_map(ROOT / "maps" / f"{model_id}.yaml"), make_draft(document, model_id))
 
 
 def run(quick: bool = False) -> Section:

@@ -7,8 +7,10 @@ Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire effic
 virtual serial line, (4) simulator throughput vs a plain pymodbus SimDevice server, (5) compiler
 scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports, (7)
 gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clients of 100 to 50k registers, (9) draft
-recovery (`drivemap draft` on the seed manuals against the proven maps). Every figure is the median of several bounded rounds; only
-127.0.0.1 and ptys are used.
+recovery (`drivemap draft` on the seed manuals against the proven maps), (10) draft recovery on public documents
+(bench/public_docs.json; the documents from $DRIVEMAP_PUBLIC_DOCS, default ~/.cache/drivemap/public-docs), (11) the
+SunSpec probe of the Fronius simulator against the proven map. Every figure is the median of several bounded rounds;
+only 127.0.0.1 and ptys are used.
 """
 
 from __future__ import annotations
@@ -31,7 +33,9 @@ import gateway as gateway_bench  # noqa: E402
 import imports  # noqa: E402
 import overhead  # noqa: E402
 import planning  # noqa: E402
+import publicdocs  # noqa: E402
 import simthroughput  # noqa: E402
+import sunspecprobe  # noqa: E402
 import wire  # noqa: E402
 from common import Row, Section, machine  # noqa: E402
 
@@ -135,6 +139,31 @@ the proven map (goal 0). **Defaulted, differs**: fields the draft leaves out and
 differs from the proven map (found in the review). **Hand edits**: registers to add + fields to change +
 drafted registers the proven map does not have. Where pages share an address, the draft's one register
 is compared with the page it matches best. Tool time is reading, drafting and the in-memory compile.""",
+    "Draft recovery, public documents": """\
+`bench/publicdocs.py`: the public register documents of devices not in this repository listed in
+`bench/public_docs.json` (title, revision, format, where each is published, sha256, size, the draft's
+arguments, the map it was finished into). The documents are vendor files without a redistribution
+licence and are not in the repository: the bench reads them from `$DRIVEMAP_PUBLIC_DOCS` (default
+`~/.cache/drivemap/public-docs`) and measures only a file whose sha256 is the manifest's; any other
+gives a "not measured" row. Each is drafted in memory with the verb's code and arguments and compared
+with the shipped map as in section "Draft recovery" (`bench/draftscore.py`). **Map choices**: the
+finished map's systematic choices (manifest `map_choices`: WattNode numbers registers from 1, address
+= printed - 1, and is read as holding registers; the Delta pages name no table, read as holding
+registers), applied to every drafted register before comparing; their edits are counted apart.
+**Exact at the printed address and table**: exact registers for which the choices changed nothing.
+**Hand edits**: finished registers the draft lacks (added) + drafted registers not kept (dropped) +
+register fields written, changed or removed from draft to map (all but address, table, label, source,
+notes, group). **Map-level edits**: top-level keys of `device` and `protocol` that differ, and the
+enums, groups, reserved ranges, known issues and examples that differ. Tool time is reading, drafting
+and the in-memory compile (the time from document to a validated map).""",
+    "SunSpec probe recovery": """\
+`bench/sunspecprobe.py`: the generated Fronius Symo Hybrid simulator on 127.0.0.1, its SunSpec marker,
+model IDs and lengths preset (the shipped map gives them no value), and `drivemap probe --sunspec`
+against it in a subprocess; the map the probe writes is compared with `maps/fronius_symo_hybrid.yaml`
+element address by element address. **Cells recovered**: same holding address, type, width and
+scale-factor register. The other fields are compared on the cells both maps have and every difference
+is listed with both values: the probe's map takes them from the SunSpec models (pysunspec2), the proven
+map from Fronius' documents.""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
@@ -269,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
                     choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
-                             "draft"],
+                             "draft", "publicdocs", "sunspec"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -286,6 +315,8 @@ def main(argv: list[str] | None = None) -> int:
         ("gateway", "Gateway scale (20 lines x 10 drives, MQTT)", lambda: gateway_bench.run(args.quick)),
         ("imports", "Import time of a generated client", lambda: imports.run(args.quick)),
         ("draft", "Draft recovery (seed manuals vs proven maps)", lambda: draft_bench.run(args.quick)),
+        ("publicdocs", publicdocs.TITLE, lambda: publicdocs.run(args.quick)),
+        ("sunspec", sunspecprobe.TITLE, lambda: sunspecprobe.run(args.quick)),
     ]
     sections: list[Section] = []
     for key, title, fn in plan:
