@@ -216,3 +216,20 @@ def test_discovery_leaves_out_device_classes_the_configured_release_lacks(tmp_pa
     bad = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '24.3'}")
     with pytest.raises(CompileError, match="ha_version"):
         meter_classes(bad)
+
+
+@pytest.mark.parametrize("unit", ["V", "r/min", "RPM", "VAr", "kVArh", "℃", "degC", "min", "h", "VAh", "Ω", "%/s"])
+def test_discovery_and_the_home_assistant_export_read_one_unit_table(unit: str) -> None:
+    """The gateway's discovery and the ``homeassistant`` export spell a unit and name its device class alike."""
+    from dataclasses import replace
+
+    from drivemap.backends.exporters.homeassistant import _unit_keys
+    from drivemap.gateway.discovery import unit_info
+
+    reg = replace(compile_map(ROOT / "maps" / "vfd1000.yaml").registers[0], unit=unit, scale=1.0, offset=0.0,
+                  precision=None)
+    found = unit_info(reg)
+    exported = _unit_keys(unit)
+    assert found["unit_of_measurement"] == exported["unit_of_measurement"]
+    assert found.get("device_class") == exported.get("device_class")
+    assert found["state_class"] == exported.get("state_class", "measurement")

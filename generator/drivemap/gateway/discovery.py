@@ -36,44 +36,6 @@ from drivemap.gateway.device import PRESS, Device
 from drivemap.gateway.valuesets import value_options
 from drivemap.model.nodes import Model, Register
 
-#: Units the map may print -> (Home Assistant unit, device_class, state_class).
-_UNITS: dict[str, tuple[str, str | None, str]] = {
-    "V": ("V", "voltage", "measurement"),
-    "mV": ("mV", "voltage", "measurement"),
-    "A": ("A", "current", "measurement"),
-    "mA": ("mA", "current", "measurement"),
-    "Hz": ("Hz", "frequency", "measurement"),
-    "W": ("W", "power", "measurement"),
-    "kW": ("kW", "power", "measurement"),
-    "Wh": ("Wh", "energy", "total_increasing"),
-    "kWh": ("kWh", "energy", "total_increasing"),
-    "°C": ("°C", "temperature", "measurement"),
-    "℃": ("°C", "temperature", "measurement"),
-    "degC": ("°C", "temperature", "measurement"),
-    "s": ("s", "duration", "measurement"),
-    "ms": ("ms", "duration", "measurement"),
-    "min": ("min", "duration", "measurement"),
-    "h": ("h", "duration", "measurement"),
-    "%": ("%", None, "measurement"),
-    # Home Assistant's unit of rotational speed is "rpm" (homeassistant.const.REVOLUTIONS_PER_MINUTE);
-    # it has no device class for it.
-    "r/min": ("rpm", None, "measurement"),
-    "rpm": ("rpm", None, "measurement"),
-    "VA": ("VA", "apparent_power", "measurement"),
-    "kVA": ("kVA", "apparent_power", "measurement"),
-    "var": ("var", "reactive_power", "measurement"),
-    "VAr": ("var", "reactive_power", "measurement"),
-    "kvar": ("kvar", "reactive_power", "measurement"),
-    "kVAr": ("kvar", "reactive_power", "measurement"),
-    "varh": ("varh", "reactive_energy", "total_increasing"),
-    "VArh": ("varh", "reactive_energy", "total_increasing"),
-    "kvarh": ("kvarh", "reactive_energy", "total_increasing"),
-    "kVArh": ("kvarh", "reactive_energy", "total_increasing"),
-    # Home Assistant has no device class for apparent energy: a total without one.
-    "VAh": ("VAh", None, "total_increasing"),
-    "kVAh": ("kVAh", None, "total_increasing"),
-}
-
 
 def precision(reg: Register) -> int | None:
     """Decimals to show of ``reg``'s values: the map's ``precision`` when it gives one, else the
@@ -93,7 +55,8 @@ def unit_info(reg: Register, ha_version: tuple[int, int] | None = None) -> dict[
     (device classes Home Assistant ``ha_version`` does not know are left out)."""
     out: dict[str, Any] = {"state_class": "measurement"}
     if reg.unit is not None:
-        unit, device_class, state_class = _UNITS.get(reg.unit, (reg.unit, None, "measurement"))
+        unit = iv.unit_for(reg.unit)
+        device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, "measurement"))
         out = {"unit_of_measurement": unit, "state_class": state_class}
         if device_class and iv.device_class_known(device_class, ha_version):
             out["device_class"] = device_class

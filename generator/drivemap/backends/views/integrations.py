@@ -71,11 +71,13 @@ DEVICE_CLASSES: dict[str, tuple[str | None, str | None]] = {
     "%": (None, "measurement"),
     "s": ("duration", "measurement"),
     "ms": ("duration", "measurement"),
+    "min": ("duration", "measurement"),
+    "h": ("duration", "measurement"),
 }
 
 #: A map's unit -> the spelling Home Assistant and ESPHome use (their device classes accept only it).
 UNIT_SPELLING: dict[str, str] = {"r/min": "rpm", "RPM": "rpm", "VAr": "var", "kVAr": "kvar", "VAr h": "varh",
-                                 "VArh": "varh", "kVArh": "kvarh"}
+                                 "VArh": "varh", "kVArh": "kvarh", "℃": "°C", "degC": "°C"}
 
 
 def unit_for(unit: str) -> str:
