@@ -34,6 +34,26 @@ def test_client_refuses_a_value_between_two_steps_and_accepts_binary_float_decim
     assert 0 < STEP_TOLERANCE < 1e-3
 
 
+def test_client_refuses_what_an_f32_cannot_hold_and_takes_what_it_prints() -> None:
+    """One rule for every client (the gateway's too): the single nearest the value must read as it."""
+    from drivemap.runtime.client.codec import IeeeCodec
+    from drivemap.runtime.spec import RegisterSpec
+
+    codec = IeeeCodec(RegisterSpec(name="setpoint", address=0, type="f32", unit="Hz"))
+    single = struct.unpack(">f", struct.pack(">f", 30.2))[0]
+    assert codec.encode(30.2) == codec.encode(single) == int.from_bytes(struct.pack(">f", 30.2), "big")
+    for value in (15, 0.1, 16777216, -2.5e-3):
+        assert codec.decode(codec.encode(value)) == struct.unpack(">f", struct.pack(">f", value))[0]
+    for value, nearest in ((30.123456789, 30.123457), (16777217, 16777216.0), (0.123456789, 0.12345679)):
+        with pytest.raises(InexactValue) as info:
+            codec.encode(value)
+        assert info.value.nearest == (nearest,) and info.value.rounded == nearest
+        assert info.value.rounded_raw == int.from_bytes(struct.pack(">f", value), "big")
+        assert "not representable as f32" in str(info.value) and "refused, not rounded" in str(info.value)
+    double = IeeeCodec(RegisterSpec(name="total", address=0, type="f64"))
+    assert double.decode(double.encode(30.123456789)) == 30.123456789  # a double holds every Python float
+
+
 def test_client_refuses_a_scale_factor_step_with_the_nearest_values() -> None:
     fronius = package("fronius_symo_hybrid")
     codec = fronius.CODECS["pf_setpoint"]

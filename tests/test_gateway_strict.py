@@ -10,8 +10,9 @@ from typing import Any
 import pytest
 
 from drivemap.gateway.device import Device
-from drivemap.gateway.payload import MAX_PAYLOAD_BYTES, shortest_f32
+from drivemap.gateway.payload import MAX_PAYLOAD_BYTES
 from drivemap.gateway.service import Gateway
+from drivemap.runtime.client.steps import shortest_f32
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, ValueOutOfRange
 from tests.helpers_gateway import write_config
 

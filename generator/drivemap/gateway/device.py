@@ -12,8 +12,8 @@ precision is for people, JSON and OPC UA carry the value whole.
 Commands are parsed and checked here, before they are queued: the register must exist, be
 writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
 and bounded (:mod:`drivemap.gateway.payload`), must have the register's type, and must pass the
-codec's checks (range, enum membership, representability) and the gateway's own exactness check (a
-value the register cannot hold exactly is refused, never rounded). A register with a value set takes
+codec's checks (range, enum membership, representability, exactness: a value the register cannot
+hold exactly is refused, never rounded). A register with a value set takes
 a value of the set by option text, label or value (:mod:`drivemap.gateway.valuesets`). Everything that fails raises a
 typed :class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
 """
@@ -33,7 +33,6 @@ from typing import Any
 from drivemap.gateway.config import DeviceConfig, PollGroup
 from drivemap.gateway.payload import (
     bool_word,
-    check_exact,
     index_word,
     integer_word,
     number,
@@ -178,9 +177,7 @@ class Device:
         if acc.codec.scale_key is not None:
             acc.codec.check(value)
             return Command(self, acc.name, acc, None, text, source, value=value)
-        raw = acc.codec.encode(value)
-        if not (reg.enum or reg.bits or isinstance(value, (bool, enum.Enum))):
-            check_exact(acc.codec, value, raw)
+        raw = acc.codec.encode(value)  # exact or refused (InexactValue): the codec's one rule
         return Command(self, acc.name, acc, raw, text, source)
 
     def parse_value(self, reg: Register, acc: Any, text: str) -> Any:

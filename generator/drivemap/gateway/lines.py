@@ -23,7 +23,6 @@ from typing import Any, Protocol
 
 from drivemap.gateway.config import BusConfig
 from drivemap.gateway.device import Command, Device, PollState
-from drivemap.gateway.payload import check_exact
 from drivemap.runtime.client.codec import OptionalCodec
 from drivemap.runtime.errors import DriveError, TransportError
 
@@ -219,16 +218,14 @@ class Line:
 
     async def _scaled_raw(self, cmd: Command) -> int:
         """The raw value of a command for a register scaled by a scale-factor register: the factor read
-        now, the value encoded with it and refused unless it reads back exactly."""
+        now, the value encoded with it (refused unless it is a whole number of steps at that factor)."""
         codec = cmd.accessor.codec
         inner = codec.inner if isinstance(codec, OptionalCodec) else codec
         assert inner.scale_key is not None
         factor = await cmd.device.client.accessor(inner.scale_key[0]).read_raw()
         if cmd.value is None:
             return int(codec.encode(None))
-        raw = int(codec.encode_scaled(cmd.value, factor))
-        check_exact(inner, cmd.value, raw, factor, scaled=True)
-        return raw
+        return int(codec.encode_scaled(cmd.value, factor))  # exact at this factor or refused (InexactValue)
 
     async def _read_back(self, device: Device, name: str) -> None:
         if name not in device.cfg.publish:

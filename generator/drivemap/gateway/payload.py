@@ -5,9 +5,10 @@ bytes of UTF-8 and nests at most :data:`MAX_DEPTH` levels of JSON arrays/objects
 on the raw text before ``json.loads`` (which recurses) sees it. NaN and Infinity are refused. Bools
 are ``true``/``false``/``on``/``off``/``1``/``0`` (any case; JSON ``true``/``false``); a single bit
 is 0, 1, true or false; integers are integers (a float only when it is a whole number); indexes
-and numbers in names are ASCII digits. What is accepted is written exactly: :func:`check_exact`
-refuses a value the register cannot hold exactly (``12.345`` at a resolution of 0.01) and names the
-nearest values it can hold; the gateway never rounds.
+and numbers in names are ASCII digits. What is accepted is written exactly: the register's codec
+refuses a value the register cannot hold exactly (``12.345`` at a resolution of 0.01, ``30.123456789``
+in an f32) with :class:`~drivemap.runtime.errors.InexactValue` naming the nearest values it can hold;
+the gateway never rounds.
 """
 
 from __future__ import annotations
@@ -17,8 +18,6 @@ import math
 import re
 from typing import Any
 
-from drivemap.runtime.client.codec import IeeeCodec, OptionalCodec
-from drivemap.runtime.client.display import display_text
 from drivemap.runtime.errors import InvalidValue, ValueOutOfRange
 
 #: The longest command payload (bytes); a bit-field object of every field of a 64-bit register fits.
@@ -128,43 +127,3 @@ def number(register: str, value: Any, *, integer: bool) -> int | float:
             raise ValueOutOfRange(f"{register}: {value} is not a whole number (the register holds integers)")
         return int(value)
     return value
-
-
-def shortest_f32(value: float) -> float:
-    """The shortest decimal that reads back as the same IEEE-754 single (230.2, not 230.1999969482422):
-    the runtime's display rule (:func:`drivemap.runtime.client.display.display_text`) as a number."""
-    if not math.isfinite(value):
-        return value
-    return float(display_text(value, single=True))
-
-
-def _close(a: float, b: float) -> bool:
-    return a == b or math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-12)
-
-
-def check_exact(codec: Any, value: Any, raw: int, factor: int | None = None, *, scaled: bool = False) -> None:
-    """Refuse ``value`` when ``raw`` does not read back as exactly ``value`` (the codec rounded it);
-    ``scaled``: the register is scaled by a scale-factor register whose raw value is ``factor``."""
-    inner = codec.inner if isinstance(codec, OptionalCodec) else codec
-    if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
-        return
-    name = inner.spec.name
-
-    def decode(r: int) -> Any:
-        return inner.decode_scaled(r, factor) if scaled else inner.decode(r)
-
-    back = decode(raw)
-    if isinstance(inner, IeeeCodec):
-        if inner.spec.type == "f32" and shortest_f32(back) == value or back == value:
-            return
-        raise ValueOutOfRange(f"{name}: {value} is not representable as {inner.spec.type} "
-                              f"(the nearest is {shortest_f32(back) if inner.spec.type == 'f32' else back})")
-    if not isinstance(back, (int, float)) or _close(float(back), float(value)):
-        return
-    near = sorted({decode(r) for r in (raw - 1, raw, raw + 1)})
-    below = [v for v in near if v < value]
-    above = [v for v in near if v > value]
-    nearest = " and ".join(str(v) for v in (below[-1:] + above[:1]))
-    step = f"{inner.spec.scale} x 10^{factor}" if scaled else f"{inner.spec.scale}"
-    raise ValueOutOfRange(f"{name}: {value} is not a value the register holds exactly (resolution "
-                          f"{step}); the nearest are {nearest}")

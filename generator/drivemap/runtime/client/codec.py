@@ -37,6 +37,7 @@ from drivemap.runtime.client.steps import (
     _offset_text,
     _short,
     _unit,
+    exact_f32,
     exact_raw,
     number_text,
     shortest_f32_text,
@@ -211,6 +212,8 @@ class IeeeCodec(Codec[float]):
         self._check_range(number)
 
     def encode(self, value: float) -> int:
+        """The raw words of ``value``; a value the float type cannot hold as written is refused
+        (:class:`InexactValue`, see :func:`~drivemap.runtime.client.steps.exact_f32`), never rounded to its nearest neighbour."""
         self.check(value)
         number = float(value)
         if not self._plain:
@@ -220,7 +223,10 @@ class IeeeCodec(Codec[float]):
         except (OverflowError, struct.error) as exc:
             raise ValueOutOfRange(f"{self.spec.name}: {value}{_unit(self.spec)} is not representable as "
                                   f"{self.spec.type}") from exc
-        return join_words(words)
+        raw = join_words(words)
+        if self.spec.type == "f32":
+            exact_f32(self.spec, float(value), number, raw, self.decode(raw))
+        return raw
 
 
 class StringCodec(Codec[str]):

@@ -92,6 +92,25 @@ def exact_raw(spec: RegisterSpec, value: float, step: float, offset: float, digi
 
 
 
+def exact_f32(spec: RegisterSpec, value: float, number: float, raw: int, back: float) -> None:
+    """Refuse ``value`` when the single nearest its raw number ``number`` (``value`` less the offset,
+    over the scale) does not read as that number: the register would show another value.
+    ``raw`` and ``back`` are that single's bits and the value it reads as. 30.2 is taken (its single
+    prints as 30.2, and 30.200000762939453, the single itself, is taken too); 30.123456789 is refused
+    (its single prints as 30.123457)."""
+    if math.isnan(number) or math.isinf(number):
+        return
+    single = _f32(number)
+    shown = shortest_f32(single)
+    if number in (single, shown) or math.isclose(shown, number, rel_tol=1e-12, abs_tol=0.0):
+        return  # the single itself (a value read back), or the decimal it prints as
+    nearest = shortest_f32(back) if spec.scale == 1 and spec.offset == 0 else back
+    raise InexactValue(
+        f"{spec.name}: {number_text(value)}{_unit(spec)} is not representable as f32 (a single holds about 7 "
+        f"significant digits); nearest representable: {number_text(nearest)}{_unit(spec)} (refused, not rounded)",
+        (nearest,), nearest, raw)
+
+
 def _f32(value: float) -> float:
     return float(struct.unpack("<f", struct.pack("<f", value))[0])
 
@@ -120,4 +139,4 @@ def shortest_f32(value: float) -> float:
     return float(shortest_f32_text(value)) if math.isfinite(value) else value
 
 
-__all__ = ["STEP_TOLERANCE", "exact_raw", "number_text", "shortest_f32", "shortest_f32_text"]
+__all__ = ["STEP_TOLERANCE", "exact_f32", "exact_raw", "number_text", "shortest_f32", "shortest_f32_text"]
