@@ -47,13 +47,13 @@ def _growatt_like(path: Path) -> Path:
     pdf = FPDF()
     pdf.set_font("Helvetica", size=8)
     pdf.add_page()
-    pdf.cell(text="4.1 Holding Reg", new_x="LMARGIN", new_y="NEXT")
+    pdf.cell(text="4.1HoldingReg", new_x="LMARGIN", new_y="NEXT")
     _table(pdf, [["Registe\nrNO.", "Variable\nName", "Description", "Unit", "Initial\nvalue"],
                  ["00", "OnOff", "Remote On/Off", "", "1"],
                  ["06", "PmaxH", "Normal power(high)", "0.1VA", ""],
                  ["07", "PmaxL", "Normal power(low)", "0.1VA", ""],
                  ["3239-3\n249", "Reserve", "Reserve", "", ""]], (16, 30, 50, 16, 16))
-    pdf.cell(text="4.2 Input Reg", new_x="LMARGIN", new_y="NEXT")
+    pdf.cell(text="4.2InputReg", new_x="LMARGIN", new_y="NEXT")
     # "VariableName" spans two grid columns; each number cell spans the first two: the name sits
     # in the third grid column, under no header text of its own.
     _table(pdf, [["NO.", ("VariableName", 2, 1), "Description", "Unit", "Note"],

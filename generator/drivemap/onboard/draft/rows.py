@@ -32,9 +32,9 @@ _CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "acces
 def table_kind(text: str) -> str | None:
     """The Modbus table a heading or function-code cell names; None when it names none or several."""
     found = set()
-    if re.search(r"\b(?:0x)?0?4\s*[hH]\b|\b0x04\b|input\s+reg|輸入寄存器|输入寄存器|FC\s*0?4\b", text, re.I):
+    if re.search(r"\b(?:0x)?0?4\s*[hH]\b|\b0x04\b|input\s*reg|輸入寄存器|输入寄存器|FC\s*0?4\b", text, re.I):
         found.add("input")
-    if re.search(r"\b(?:0x)?0?3\s*[hH]\b|\b0x03\b|holding\s+reg|保持寄存器|保持暂存器|保持暫存器|FC\s*0?3\b", text, re.I):
+    if re.search(r"\b(?:0x)?0?3\s*[hH]\b|\b0x03\b|holding\s*reg|保持寄存器|保持暂存器|保持暫存器|FC\s*0?3\b", text, re.I):
         found.add("holding")
     if re.search(r"\bcoils?\b|\b0?1\s*[hH]\b.*coil|線圈|线圈", text, re.I):
         found.add("coil")
