@@ -18,7 +18,7 @@ import yaml
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
-from drivemap.onboard.draft.cells import signed_hint
+from drivemap.onboard.draft.cells import parse_bits, signed_hint
 from drivemap.onboard.draft.naming import snake
 
 
@@ -194,3 +194,13 @@ def test_signed_is_a_word(text: str, signed: bool) -> None:
 ])
 def test_names_split_words_run_together_in_camel_case(text: str, name: str) -> None:
     assert snake(text, "x") == name
+
+
+def test_a_bit_list_run_into_one_line_is_split_at_each_bit() -> None:
+    """A PDF cell's lines read as one: each label ends where the next ``BitN`` starts."""
+    assert parse_bits("Bit0:SPIenable Bit1:AutoTestStart Bit2:LVFRTenable Bit3:FreqDerating Enable") == [
+        (0, "SPIenable"), (1, "AutoTestStart"), (2, "LVFRTenable"), (3, "FreqDerating Enable")]
+    assert parse_bits("Bit0：Resved; Bit5：bDischargeEn； Bit6：ForceDischrEn；") == [
+        (0, "Resved"), (5, "bDischargeEn"), (6, "ForceDischrEn")]
+    assert parse_bits("Bit0~7:minutes; Bit8~12:hour; Bit13~15:reserved") is None  # fields, not flags
+    assert parse_bits("Bit0-3:read:1;SetGPRS IPSuccessed Bit4-7:GPRSstatus") is None

@@ -168,7 +168,9 @@ _ENUM_VALUE_FIRST = re.compile(
     r"\s*[:：=]\s*(?P<l>[^,;:\n=]+?)(?=\s*(?:[,;\n]|$|\s-?\d{1,5}\s*[:：=]|\s[0-9A-F]{1,4}H\s*:))")
 _ENUM_LABEL_FIRST = re.compile(
     r"(?:^|[,;(\n])\s*(?P<l>[A-Za-z][A-Za-z /_-]{0,40}?)\s*=\s*(?P<v>-?\d{1,5})(?=\s*(?:[,;\n)]|$))")
-_BIT_ITEM = re.compile(r"(?:^|[\s,;])bit[ \t]*(?P<b>\d{1,2})[ \t]*[:：=-][ \t]*(?P<l>[^,;\n]+)", re.I)
+_BIT_ITEM = re.compile(r"(?:^|[\s,;；])bit[ \t]*(?P<b>\d{1,2})(?![ \t]*[-~～][ \t]*\d)[ \t]*[:：=-][ \t]*"
+                       r"(?P<l>[^,;；\n]+?)(?=[ \t]*(?:[,;；\n]|$|bits?[ \t]*\d))", re.I)
+"""``bit3: label``; a label ends at the next ``bitN`` (a list run into one line); ``bit0~7:`` is a field."""
 _SCALE_LIKE = re.compile(rf"^\s*{_NUMBER}\s*[A-Za-z%°/]*\s*$")
 
 
