@@ -129,6 +129,7 @@ def _finish(d: Drafted, document: str, names: set[str]) -> None:
     e = d.entry
     address = int(str(e["address"]))
     base = str(e.pop("series_base", "") or e.get("label") or e.get("param") or "")
+    base = re.sub(r"\((high|low|middle|hi|lo|msb|lsb)\)", r" \1", base, flags=re.I)  # a pair's halves keep theirs
     base = re.sub(r"\([^()]*\)|（[^（）]*）|\*\d?", " ", base).strip() or base
     e["name"] = unique(snake(base, f"reg_{address:04x}"), names)
     e["source"] = f"{document} {d.where}"

@@ -29,6 +29,7 @@ class Address:
 def parse_address(text: str) -> Address | None:
     """``00E6H``, ``0x1A``, ``1A2Bh``, ``40001``, ``0100`` (radix left to the column) -> Address."""
     t = text.strip().strip("()[]").strip()
+    t = t[:-1] if re.fullmatch(r"\d{1,6}\.", t) else t  # "0." of a numbered list of registers
     t = t.replace("O", "0") if re.fullmatch(r"[0-9A-FO]{4}[hH]", t) else t
     m = _HEX_MARKED.match(t)
     if m:
@@ -38,6 +39,15 @@ def parse_address(text: str) -> Address | None:
     if _BARE_HEX.match(t) and re.search(r"[A-Fa-f]", t):
         return Address(text, int(t, 16), None, True)
     return None
+
+
+def parse_address_pair(text: str) -> tuple[Address, Address] | None:
+    """``1001, 1002``: the two addresses of one two-register row (consecutive or not: the caller checks)."""
+    m = re.fullmatch(r"\s*([^,;/&\s]+)\s*[,;/&]\s*([^,;/&\s]+)\s*", text)
+    if not m:
+        return None
+    first, second = parse_address(m.group(1)), parse_address(m.group(2))
+    return (first, second) if first is not None and second is not None else None
 
 
 def is_address_range(text: str) -> bool:
@@ -79,8 +89,10 @@ _TYPE_WORDS: tuple[tuple[str, str], ...] = (
     (r"\b(?:string|ascii|char|text|str)\b", "string"),
     (r"\b(?:bool|boolean|bit)\b", "bool"),
 )
-_SIGNED_HINT = re.compile(r"sign attached|signed|有符号|附符号|带符号|帶符號|有號|附符號|two'?s complement", re.I)
-_UNSIGNED_HINT = re.compile(r"unsigned|无符号|無符號", re.I)
+_SIGNED_HINT = re.compile(r"(?<![A-Za-z])(?:sign attached|signed)(?![A-Za-z])|有符号|附符号|带符号|帶符號|有號|附符號|"
+                          r"two'?s complement", re.I)
+"""Whole words only: "Assigned", "Designed" say nothing about a sign."""
+_UNSIGNED_HINT = re.compile(r"(?<![A-Za-z])unsigned(?![A-Za-z])|无符号|無符號", re.I)
 _WIDTH = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4, "bool": 1}
 
 
@@ -156,7 +168,9 @@ _ENUM_VALUE_FIRST = re.compile(
     r"\s*[:：=]\s*(?P<l>[^,;:\n=]+?)(?=\s*(?:[,;\n]|$|\s-?\d{1,5}\s*[:：=]|\s[0-9A-F]{1,4}H\s*:))")
 _ENUM_LABEL_FIRST = re.compile(
     r"(?:^|[,;(\n])\s*(?P<l>[A-Za-z][A-Za-z /_-]{0,40}?)\s*=\s*(?P<v>-?\d{1,5})(?=\s*(?:[,;\n)]|$))")
-_BIT_ITEM = re.compile(r"(?:^|[\s,;])bit[ \t]*(?P<b>\d{1,2})[ \t]*[:：=-][ \t]*(?P<l>[^,;\n]+)", re.I)
+_BIT_ITEM = re.compile(r"(?:^|[\s,;；])bit[ \t]*(?P<b>\d{1,2})(?![ \t]*[-~～][ \t]*\d)[ \t]*[:：=-][ \t]*"
+                       r"(?P<l>[^,;；\n]+?)(?=[ \t]*(?:[,;；\n]|$|bits?[ \t]*\d))", re.I)
+"""``bit3: label``; a label ends at the next ``bitN`` (a list run into one line); ``bit0~7:`` is a field."""
 _SCALE_LIKE = re.compile(rf"^\s*{_NUMBER}\s*[A-Za-z%°/]*\s*$")
 
 

@@ -37,6 +37,10 @@ _RADIX_HEX = re.compile(r"hex|\(h\)|16\s*进制|16\s*進位|十六", re.I)
 _RADIX_DEC = re.compile(r"\bdec|十进制|十進位|10\s*进制|10\s*進位", re.I)
 
 
+_REGISTER_FACTS = {"type", "unit", "scale", "access", "range", "default", "min", "max", "length"}
+"""Columns that make a table headed ``NO. | Name | ...`` a register list rather than a numbered list."""
+
+
 @dataclass
 class Layout:
     """Column roles of one table (or one repeated group of a side-by-side table)."""
@@ -46,16 +50,18 @@ class Layout:
     radix: str | None = None
     """``hex`` or ``dec`` when the header says it."""
     header_row: int | None = None
+    header_rows: int = 1
+    """2 when the header goes on in the next row (``Data`` / ``format``)."""
 
 
 def role_of(text: str) -> str | None:
+    """The role a header cell names; a word broken over two lines (``Registe`` / ``rNO.``) is read whole."""
     low = re.sub(r"\s+", " ", text.strip().lower())
     low = re.sub(r"(?<=[\u4e00-\u9fff]) (?=[\u4e00-\u9fff])", "", low)
-    if not low:
-        return None
-    for role, pattern in _ROLES:
-        if re.search(pattern, low, re.I):
-            return role
+    for candidate in (low, low.replace(" ", "")):
+        for role, pattern in _ROLES:
+            if candidate and re.search(pattern, candidate, re.I):
+                return role
     return None
 
 
@@ -78,6 +84,10 @@ def _layout_of(header: list[str], offset: int = 0) -> Layout:
     if "name" not in layout.roles and "description" in layout.roles:
         layout.roles["name"] = layout.roles.pop("description")
         layout.headers["name"] = layout.headers.pop("description")
+    if "address" not in layout.roles and re.fullmatch(r"\s*no\.?\s*", layout.headers.get("param", ""), re.I) \
+            and "name" in layout.roles and set(layout.roles) & _REGISTER_FACTS:
+        layout.roles["address"] = layout.roles.pop("param")  # "NO. | Variable Name | ... | Unit": the register number
+        layout.headers["address"] = layout.headers.pop("param")
     return layout
 
 
@@ -97,20 +107,44 @@ def _groups(header: list[str]) -> list[tuple[int, list[str]]]:
     return [(0, cells)]
 
 
-def find_layouts(rows: list[list[str]]) -> list[Layout]:
-    """Layouts from the header row among the first rows; [] if none names an address column."""
+def header_index(rows: list[list[str]]) -> int | None:
+    """The header row among the first rows: the one naming an address column and the most roles."""
     best: tuple[int, int] | None = None
     for index, row in enumerate(rows[:4]):
-        roles = {role_of(c) for c in row} - {None}
+        roles = set(_layout_of(row).roles)
         if ("address" in roles or {"hi_byte", "lo_byte"} <= roles) and len(roles) >= 2:
             if best is None or len(roles) > best[1]:
                 best = (index, len(roles))
-    if best is None:
+    return None if best is None else best[0]
+
+
+def _two_row_header(header: list[str], below: list[str]) -> list[str] | None:
+    """The header joined with the row below it when that row goes on with the header's words: every
+    cell of it makes a role with the header cell above, and the roles change but are no fewer
+    (``Data`` + ``format``: a type column, not a description)."""
+    texts = [(i, c.strip()) for i, c in enumerate(below) if c.strip()]
+    if not texts or any(parse_address(c) is not None for _, c in texts):
+        return None
+    joined = [f"{h} {below[i]}".strip() if i < len(below) else h for i, h in enumerate(header)]
+    if len(below) > len(header) or any(role_of(joined[i]) is None for i, _ in texts):
+        return None
+    before, after = set(_layout_of(header).roles), set(_layout_of(joined).roles)
+    if after == before or len(after) < len(before) or not after & {"address", "hi_byte"}:
+        return None
+    return joined
+
+
+def find_layouts(rows: list[list[str]]) -> list[Layout]:
+    """Layouts from the header row among the first rows; [] if none names an address column."""
+    index = header_index(rows)
+    if index is None:
         return []
+    header = rows[index]
+    joined = _two_row_header(header, rows[index + 1]) if index + 1 < len(rows) else None
     layouts = []
-    for offset, cells in _groups(rows[best[0]]):
+    for offset, cells in _groups(joined or header):
         layout = _layout_of(cells, offset)
-        layout.header_row = best[0]
+        layout.header_row, layout.header_rows = index, 2 if joined else 1
         layouts.append(layout)
     return layouts
 

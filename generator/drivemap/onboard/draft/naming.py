@@ -10,6 +10,8 @@ import unicodedata
 from drivemap.onboard.draft.tables import Drafted
 
 _WORD = re.compile(r"[A-Za-z][A-Za-z0-9]*|[0-9]+")
+_CAMEL = re.compile(r"(?<=[a-z]{2})(?=[A-Z])|(?<=[A-Za-z][0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z]{2})")
+"""Word starts inside a run of letters: ``InverterStatus``, ``PV1Curr``, ``PpvH``, ``DCBus`` (not ``kWh``)."""
 _SERIES = re.compile(r"^(?P<base>.*?\D)\s*(?:no\.?\s*)?(?P<n>\d{1,3})\s*$", re.I)
 
 
@@ -17,6 +19,7 @@ def snake(text: str, fallback: str) -> str:
     """``Phase 1 line to neutral volts`` -> ``phase_1_line_to_neutral_volts``; ``fallback`` if no ASCII word."""
     ascii_text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode()
     ascii_text = ascii_text.replace("%", " percent ").replace("&", " and ")
+    ascii_text = _CAMEL.sub(" ", ascii_text)
     words = [w.lower() for w in _WORD.findall(ascii_text)]
     name = "_".join(words)[:56].strip("_")
     if not name or not name[0].isalpha():

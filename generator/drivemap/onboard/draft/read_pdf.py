@@ -1,14 +1,17 @@
 """PDF documents through pdfplumber: ruled tables with the page text above them; pages without a
-ruled table are read as text (:mod:`.read_text`). A table whose first row is not a header and that
-has as many columns as the table that ended the previous page continues it."""
+ruled table are read as text (:mod:`.read_text`). Cells are put under the header they stand under
+(:mod:`.pdf_grid`). A table without a header on the page after a table continues it when its rows are
+as wide, or when it stands in the same frame (laid out then under the header it continues)."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from drivemap.onboard.draft.columns import find_layouts
+from drivemap.onboard.draft.pdf_grid import Box, Grid, grid_of, realign, relay, same_frame
 from drivemap.onboard.draft.read_text import read_text
 from drivemap.onboard.draft.tables import DraftError, Row, Table
 
@@ -31,11 +34,27 @@ def _open(path: Path) -> Any:
         raise DraftError(f"not a readable PDF ({detail})") from None
 
 
-def _page_tables(page: Any, number: int) -> list[Table]:
-    tables: list[Table] = []
+@dataclass
+class _Found:
+    """A ruled table of a page with its header geometry, its rows' cell edges and its left/right edges."""
+
+    table: Table
+    grid: Grid | None
+    boxes: list[list[Box | None]]
+    frame: Box
+
+
+def _page_tables(page: Any, number: int) -> list[_Found]:
+    tables: list[_Found] = []
     for k, found in enumerate(page.find_tables(), 1):
-        rows = [Row([(c or "").replace("\n", " ").strip() for c in r], number, i)
-                for i, r in enumerate(found.extract(), 1) if any((c or "").strip() for c in r)]
+        texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
+        boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]
+        frame = (found.bbox[0], found.bbox[2])
+        grid = grid_of(texts, boxes, frame)
+        if grid is not None:
+            realign(texts, boxes, grid)
+        kept = [i for i, r in enumerate(texts) if any(r)]
+        rows = [Row(texts[i], number, i + 1, table=f"p.{number} table {k}") for i in kept]
         if not rows:
             continue
         top = found.bbox[1]
@@ -43,18 +62,52 @@ def _page_tables(page: Any, number: int) -> list[Table]:
             above = page.crop((0, max(0.0, top - CONTEXT_HEIGHT), page.width, max(top, 0.1))).extract_text() or ""
         except ValueError:
             above = ""
-        for row in rows:
-            row.table = f"p.{number} table {k}"
-        tables.append(Table(None, rows, number, None, above, label=f"p.{number} table {k}"))
+        table = Table(None, rows, number, None, above, label=f"p.{number} table {k}")
+        tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
 
 
-def _continues(prev: Table, table: Table) -> bool:
-    if prev.page is None or table.page != prev.page + 1:
-        return False
+class _Joiner:
+    """The tables read so far; a headerless table on the next page is joined to the table it goes on from:
+    the last one if its rows are as wide, else the last one with a header if it stands in its frame
+    (tables between them on its last page, such as a cell drawn apart, do not break it)."""
+
+    def __init__(self) -> None:
+        self.tables: list[Table] = []
+        self.last_page: int | None = None
+        self.framed: tuple[Table, Grid] | None = None
+        """The last table with a header, and the header's geometry."""
+        self.framed_page: int | None = None
+
+    def add(self, found: _Found) -> None:
+        table = found.table
+        prev = self.tables[-1] if self.tables else None
+        headerless = not find_layouts([r.cells for r in table.rows])
+        if prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
+            prev.rows.extend(table.rows)
+            self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
+        elif self.framed is not None and headerless and self._next(self.framed_page, table) \
+                and same_frame(self.framed[1], found.frame):
+            laid = relay([r.cells for r in table.rows], found.boxes, self.framed[1])
+            for row, cells in zip(table.rows, laid, strict=True):
+                row.cells = cells
+            self.framed[0].rows.extend(table.rows)
+            self.framed_page = table.page
+        else:
+            self.tables.append(table)
+            if found.grid is not None:
+                self.framed, self.framed_page = (table, found.grid), table.page
+        self.last_page = table.page
+
+    @staticmethod
+    def _next(page: int | None, table: Table) -> bool:
+        return page is not None and table.page == page + 1
+
+
+def _fits(prev: Table, table: Table) -> bool:
+    """A headerless table whose rows are as wide as the rows of a table with a header goes on from it."""
     width = {len(r.cells) for r in prev.rows}
-    return bool(find_layouts([r.cells for r in prev.rows])) and not find_layouts([r.cells for r in table.rows]) \
-        and {len(r.cells) for r in table.rows} <= width
+    return bool(find_layouts([r.cells for r in prev.rows])) and {len(r.cells) for r in table.rows} <= width
 
 
 def _selected(count: int, pages: tuple[int, int] | None, max_pages: int, notes: list[str]) -> range:
@@ -73,7 +126,8 @@ def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int,
              seconds: float) -> tuple[list[Table], str, int, list[str]]:
     """(tables, text, pages read, notes) of a PDF."""
     notes: list[str] = []
-    tables: list[Table] = []
+    joiner = _Joiner()
+    tables = joiner.tables
     texts: list[str] = []
     loose: list[str] = []
     deadline = time.monotonic() + seconds
@@ -93,11 +147,8 @@ def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int,
                 continue
             read += 1
             texts.append(text)
-            for table in found:
-                if tables and _continues(tables[-1], table):
-                    tables[-1].rows.extend(table.rows)
-                else:
-                    tables.append(table)
+            for one in found:
+                joiner.add(one)
             loose.append("" if found else text)
     finally:
         pdf.close()

@@ -14,6 +14,7 @@ from drivemap.onboard.draft.cells import (
     bit_index,
     is_address_range,
     parse_address,
+    parse_address_pair,
     parse_enum,
     trailing_access,
 )
@@ -22,16 +23,18 @@ from drivemap.onboard.draft.fields import Raw
 from drivemap.onboard.draft.tables import Row, Skipped, Table
 from drivemap.onboard.draft.units import parse_scale
 
-RESERVED = re.compile(r"reserved|not used|unused|spare|保留|预备|預備|未使用|備用|备用|n/a", re.I)
+RESERVED = re.compile(r"(?<![A-Za-z])(?:reserved|not used|unused|spare|n/a)(?![A-Za-z])|保留|预备|預備|未使用|備用|备用",
+                      re.I)
+"""Whole words only: "transparent" holds no "spare"."""
 _CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code")
 
 
 def table_kind(text: str) -> str | None:
     """The Modbus table a heading or function-code cell names; None when it names none or several."""
     found = set()
-    if re.search(r"\b(?:0x)?0?4\s*[hH]\b|\b0x04\b|input\s+reg|輸入寄存器|输入寄存器|FC\s*0?4\b", text, re.I):
+    if re.search(r"\b(?:0x)?0?4\s*[hH]\b|\b0x04\b|input\s*reg|輸入寄存器|输入寄存器|FC\s*0?4\b", text, re.I):
         found.add("input")
-    if re.search(r"\b(?:0x)?0?3\s*[hH]\b|\b0x03\b|holding\s+reg|保持寄存器|保持暂存器|保持暫存器|FC\s*0?3\b", text, re.I):
+    if re.search(r"\b(?:0x)?0?3\s*[hH]\b|\b0x03\b|holding\s*reg|保持寄存器|保持暂存器|保持暫存器|FC\s*0?3\b", text, re.I):
         found.add("holding")
     if re.search(r"\bcoils?\b|\b0?1\s*[hH]\b.*coil|線圈|线圈", text, re.I):
         found.add("coil")
@@ -83,6 +86,12 @@ class _Column:
         return address.dec_value, None
 
 
+def _parts(cell: str) -> list[str]:
+    """The addresses of an address cell: both of a two-register row (``1001, 1002``)."""
+    pair = parse_address_pair(cell)
+    return [pair[0].text, pair[1].text] if pair is not None else [cell]
+
+
 def _cell(row: Row, layout: Layout, role: str) -> str:
     i = layout.roles.get(role)
     return row.cells[i].strip() if i is not None and i < len(row.cells) else ""
@@ -102,10 +111,11 @@ class GridReader:
 
     def __init__(self, table: Table, layout: Layout, kind: str | None, access: str | None) -> None:
         self.table, self.layout, self.kind, self.access = table, layout, kind, access
-        start = (layout.header_row or 0) + (0 if layout.header_row is None else 1)
+        start = (layout.header_row or 0) + (0 if layout.header_row is None else layout.header_rows)
         self.rows = table.rows[start:]
-        cells = [_cell(r, layout, "address") for r in self.rows]
+        cells = [part for r in self.rows for part in _parts(_cell(r, layout, "address"))]
         self.column = _Column(cells, layout.radix, layout.headers.get("address", ""))
+        self.words: int | None = None
         self.raws: list[Raw] = []
         self.skipped: list[Skipped] = []
         self.mode = "text"
@@ -114,7 +124,7 @@ class GridReader:
         return row.where()
 
     def address_of(self, row: Row) -> tuple[int | None, str | None, str]:
-        self.found_at = self.layout.roles.get("address")
+        self.found_at, self.words = self.layout.roles.get("address"), None
         if "address" not in self.layout.roles:
             a = _hi_lo(row, self.layout)
             return (a.hex_value, None, a.text) if a else (None, None, "")
@@ -128,9 +138,20 @@ class GridReader:
                 self.found_at = col + 1
                 return b.hex_value, None, cell
         if a is None:
-            return None, None, text
+            return self._pair(text)
         value, table = self.column.read(a)
         return value, table, text
+
+    def _pair(self, text: str) -> tuple[int | None, str | None, str]:
+        """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
+        pair = parse_address_pair(text)
+        if pair is None:
+            return None, None, text
+        (first, table), (second, other) = self.column.read(pair[0]), self.column.read(pair[1])
+        if first is None or second != first + 1 or table != other:
+            return None, None, text
+        self.words = 2
+        return first, table, text
 
     def run(self) -> None:
         for row in self.rows:
@@ -153,6 +174,9 @@ class GridReader:
                 self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), "address range (reserved block)"))
             elif text:
                 self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), f"address {text!r} not readable"))
+            elif not self.raws and len([c for c in row.cells if c.strip()]) >= 2:
+                self.skipped.append(Skipped(self.where(row), " | ".join(c for c in row.cells if c.strip()),
+                                            "no address in the address column"))
             return
         self.mode = "text"
         self.start(row, value, table)
@@ -163,6 +187,8 @@ class GridReader:
             name = next((c.strip() for c in row.cells[self.found_at + 1:] if c.strip()), "")
         cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
         cells["length_header"] = self.layout.headers.get("length", "")
+        if self.words is not None and not cells["length"]:
+            cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
         if RESERVED.fullmatch(name.strip(" ()（）*")) or (not name and RESERVED.search(cells["description"])):
             self.skipped.append(Skipped(self.where(row), everything, "reserved"))
