@@ -18,7 +18,7 @@ from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 from drivemap.onboard.importers.yamlsrc import Node, located
 
-__all__ = ["MISSING", "field", "load_json", "objects"]
+__all__ = ["MISSING", "field", "load_json", "objects", "plain"]
 
 _MAX_BYTES = 32 * 1024 * 1024
 #: :func:`field`'s marker for "the key may be absent": the default is returned then
@@ -94,3 +94,12 @@ def objects(path: Path, node: Any, key: str, where: str) -> list[Node]:
         if not isinstance(item, dict):
             raise located(path, node, f"{where}: {key}[{i}] must be an object")
     return list(items)
+
+
+def plain(value: Any) -> Any:
+    """``value`` with every :class:`Node` a plain dict (what the map writer represents)."""
+    if isinstance(value, dict):
+        return {key: plain(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [plain(item) for item in value]
+    return value

@@ -19,7 +19,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from drivemap.onboard.importers.jsonsrc import field, load_json, objects
+from drivemap.onboard.importers.jsonsrc import field, load_json, objects, plain
 from drivemap.onboard.importers.mapdoc import MapDoc
 from drivemap.onboard.importers.modeljson_parts import example, known_issue, protocol
 from drivemap.onboard.importers.yamlsrc import located
@@ -65,6 +65,9 @@ def import_model_json(doc: MapDoc, path: Path) -> str:
     for i, item in enumerate(objects(path, data, "identity", "the export")):
         doc.identity.append(_identity(path, item, f"identity[{i}]"))
     doc.review.notes.append(_NOT_CARRIED)
+    for key in ("registers", "reserved", "known_issues", "identity", "examples"):
+        setattr(doc, key, plain(getattr(doc, key)))
+    doc.protocol = plain(doc.protocol)
     return str(model)
 
 
@@ -115,8 +118,9 @@ def _register(path: Path, doc: MapDoc, elements: list[Any], where: str, name: st
         if value not in allowed:
             raise located(path, first, f"{where}: '{key}' must be one of {', '.join(allowed)}, not {value!r}")
     addresses = [field(path, e, "address", "int", where) for e in elements]
-    for e in elements:
-        field(path, e, "length", "int", where)
+    for e, address in zip(elements, addresses, strict=True):
+        if not 0 <= address <= 0xFFFF or not 1 <= field(path, e, "length", "int", where) <= 256:
+            raise located(path, e, f"{where}: address must be 0..65535 and length 1..256")
     reg: dict[str, Any] = {"name": name, "table": table, "address": addresses[0]}
     if len(elements) > 1:
         reg["count"] = len(elements)
@@ -232,10 +236,11 @@ def _reserved(path: Path, doc: MapDoc, items: list[Any], held: Held) -> None:
     for i, item in enumerate(items):
         where = f"reserved[{i}]"
         start, end = field(path, item, "start", "int", where), field(path, item, "end", "int", where)
+        if not 0 <= start <= end <= 0xFFFF:
+            raise located(path, item, f"{where}: start and end must be addresses 0..65535, start first")
         table = field(path, item, "table", "str", where, default=None, nullable=True)
         entry: dict[str, Any] = {} if table in (None, "holding") else {"table": table}
-        entry |= {"start": start, "end": end,
-                                 "readable": field(path, item, "readable", "bool", where, nullable=True)}
+        entry |= {"start": start, "end": end, "readable": field(path, item, "readable", "bool", where, nullable=True)}
         if field(path, item, "writable", "bool", where, default=False):
             entry["writable"] = True
         page = field(path, item, "page", "object", where, default=None, nullable=True)

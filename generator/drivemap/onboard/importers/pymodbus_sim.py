@@ -45,11 +45,14 @@ def import_pymodbus_sim(doc: MapDoc, path: Path) -> str | None:
     doc.title = field(path, note, "title", "str", "drivemap", default=f"pymodbus simulator device {name}")
     _server(path, doc, data, name)
     tables = _tables(path, field(path, device, "setup", "object", f"device {name}"))
+    if len(tables) == 1:
+        doc.review.notes.append("shared blocks: the simulator serves each word in every table; imported as holding "
+                                "registers (which tables the device really has is not stated)")
     writable, ranges = _writable(path, device)
     cells: list[tuple[str, int, dict[str, Any]]] = []
     for kind in ("bits", "uint16", "uint32", "float32", "float64", "string"):
         for item in objects(path, device, kind, f"device {name}"):
-            cells += _cell(path, kind, item, tables, _default(device, kind))
+            cells += _cell(path, kind, item, tables, _default(path, device, kind))
     cells.sort(key=lambda c: (c[0], c[1]))
     taken: dict[tuple[str, int], int] = {}
     spans = {(c[2]["_cells"][0], c[2]["_cells"][-1]) for c in cells}
@@ -82,7 +85,7 @@ def _server(path: Path, doc: MapDoc, data: Any, name: str) -> None:
     if comm == "serial":
         framer = field(path, server, "framer", "str", "server", default="rtu")
         baud = field(path, server, "baudrate", "int", "server", default=None, nullable=True)
-        bits, stop = server.get("bytesize"), server.get("stopbits")
+        bits, stop = (v if type(v) is int else None for v in (server.get("bytesize"), server.get("stopbits")))
         parity = _PARITY.get(str(server.get("parity")))
         doc.port = {"name": "serial", "modes": [framer if framer in ("rtu", "ascii") else "rtu"], "default_mode": None,
                     "baudrates": [baud] if baud else [], "default_baudrate": baud,
@@ -100,12 +103,15 @@ def _server(path: Path, doc: MapDoc, data: Any, name: str) -> None:
 def _tables(path: Path, setup: Any) -> list[tuple[int, int, str]]:
     """The blocks as (first cell, end cell, table); one holding block when they are shared."""
     sizes = [(field(path, setup, key, "int", "setup", default=0), table) for key, table in _BLOCKS]
-    if field(path, setup, "shared blocks", "bool", "setup", default=True):
+    shared = field(path, setup, "shared blocks", "bool", "setup", default=True)
+    for size, table in sizes:
+        if not 0 <= size <= (0x1000 if table in ("coil", "discrete") and not shared else 0x10000):
+            raise located(path, setup, f"setup: the {table} block size {size} is not one of a Modbus table "
+                                       "(0..65536 words, 0..4096 cells of 16 bits)")
+    if shared:
         return [(0, max(size for size, _ in sizes), "holding")]
     out, base = [], 0
     for size, table in sizes:
-        if size < 0:
-            raise located(path, setup, f"setup: the {table} block size is negative")
         out.append((base, base + size, table))
         base += size
     return out
@@ -139,9 +145,10 @@ def _span(path: Path, where: Any, addr: Any) -> tuple[int, int]:
     raise located(path, where, f"addr {addr!r}: a cell number or [first, last]")
 
 
-def _default(device: Any, kind: str) -> Any:
-    values = device.get("setup", {}).get("defaults", {}).get("value", {}) if isinstance(device.get("setup"), dict) else {}
-    return values.get(kind) if isinstance(values, dict) else None
+def _default(path: Path, device: Any, kind: str) -> Any:
+    """The value pymodbus gives a cell of ``kind`` without one (setup.defaults.value), None if unstated."""
+    defaults = field(path, device["setup"], "defaults", "object", "setup", default={})
+    return field(path, defaults, "value", "object", "setup.defaults", default={}).get(kind)
 
 
 def _cell(path: Path, kind: str, item: Node, tables: list[tuple[int, int, str]],
