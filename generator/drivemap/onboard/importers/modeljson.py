@@ -48,7 +48,7 @@ def import_model_json(doc: MapDoc, path: Path) -> str:
     model = field(path, data, "model", "str", "the export")
     doc.title = field(path, data, "title", "str", "the export") or doc.title
     doc.protocol = protocol(path, field(path, data, "protocol", "object", "the export"))
-    group = doc.group("registers", "Registers")
+    group = doc.group("imported", "Imported registers")
     entries = objects(path, data, "registers", "the export")
     held = _registers(path, doc, entries, group)
     _reserved(path, doc, objects(path, data, "reserved", "the export"), held)

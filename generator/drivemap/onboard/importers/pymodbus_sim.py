@@ -54,6 +54,9 @@ def import_pymodbus_sim(doc: MapDoc, path: Path) -> str | None:
         for item in objects(path, device, kind, f"device {name}"):
             cells += _cell(path, kind, item, tables, _default(path, device, kind))
     cells.sort(key=lambda c: (c[0], c[1]))
+    if any(table in ("coil", "discrete") for table, _, _ in cells):
+        doc.review.notes.append("each bits cell holds 16 coils or discrete inputs, all imported: which of them the "
+                                "device has is not stated (a writable cell makes all 16 writable)")
     taken: dict[tuple[str, int], int] = {}
     spans = {(c[2]["_cells"][0], c[2]["_cells"][-1]) for c in cells}
     for table, address, reg in cells:
