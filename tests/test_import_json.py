@@ -130,4 +130,10 @@ def test_json_entries_of_a_wrong_shape_are_located(tmp_path: Path, capsys: pytes
     code, _, err = run(capsys, "import", "json", str(source), "-o", str(tmp_path / "vfd1000.yaml"))
     assert code == 0, err
     assert compile_map(tmp_path / "vfd1000.yaml").reserved[0].table == "input"
+    code, _, err = run(capsys, "import", "json", str(broken), str(source), "-o", str(tmp_path / "x.yaml"))
+    assert code == 1 and f"{source}:1:1: error: one file per import for this format" in err
+    two = tmp_path / "two.json"
+    two.write_text(json.dumps({"device_list": {"a": {}, "b": {}}}), encoding="utf-8")
+    code, _, err = run(capsys, "import", "pymodbus-sim", str(two), "-o", str(tmp_path / "x.yaml"))
+    assert code == 1 and f"{two}:1:17: error: device_list has 2 devices (a, b): import a configuration of one" in err
     assert not (tmp_path / "x.yaml").exists()
