@@ -7,6 +7,7 @@ import json
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 from helpers_live import ROOT, cli, no_traceback
@@ -312,6 +313,26 @@ Register Address;Parameter;Data Type;Units;Scale Factor;R/W;Function code
 """
 
 
+SIM = {
+    "server_list": {"boiler": {"comm": "serial", "port": "/dev/ttyUSB0", "framer": "rtu", "baudrate": 19200,
+                               "bytesize": 8, "parity": "E", "stopbits": 1, "device_id": 3,
+                               "broadcast_enable": True}},
+    "device_list": {"boiler": {
+        "setup": {"co size": 1, "di size": 0, "ir size": 4, "hr size": 20, "shared blocks": False,
+                  "type exception": True, "defaults": {"value": {"bits": 0, "uint16": 0, "uint32": 0,
+                                                                 "float32": 0.0, "float64": 0.0, "string": " "}}},
+        "invalid": [], "repeat": [],
+        "write": [0, [7, 8], [9, 10], 11, 12],
+        "bits": [{"addr": 0, "value": 5}],
+        "uint16": [{"addr": 1, "value": 65535}, {"addr": 2}, {"addr": 9, "value": 1}, {"addr": 10, "value": 2}],
+        "uint32": [{"addr": [5, 6], "value": 70000}],
+        "float32": [{"addr": [7, 8], "value": 0.1}],
+        "float64": [],
+        "string": [{"addr": [11, 12], "value": "AB1 "}],
+    }},
+}
+
+
 def test_vendor_sheet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     sheet = tmp_path / "inverter.csv"
     sheet.write_text(VENDOR, encoding="utf-8")
@@ -425,18 +446,49 @@ def test_mangled_sources_end_in_located_errors_never_a_traceback(tmp_path: Path,
 
     rng = random.Random(25)
     sources = {"homeassistant": [HA], "esphome": [ESPHOME], "csv": [VENDOR],
-               "sunspec": [(Path(sunspec2.__file__).parent / "models/json/model_160.json").read_text("utf-8")]}
-    for i in range(60):
+               "sunspec": [(Path(sunspec2.__file__).parent / "models/json/model_160.json").read_text("utf-8")],
+               "json": [export(capsys, "delta_vfd_el_w", "json"), export(capsys, "v2", "json")],
+               "pymodbus-sim": [export(capsys, "delta_vfd_el_w", "pymodbus-sim"), json.dumps(SIM, indent=1)]}
+    for i in range(100):
         fmt = rng.choice(sorted(sources))
         lines = rng.choice(sources[fmt]).splitlines()
         for _ in range(rng.randint(1, 4)):
             k = rng.randrange(len(lines))
             key = lines[k].split(":", 1)[0] if ":" in lines[k] else ""
-            lines[k] = f"{key}: {rng.choice(JUNK)}" if key and rng.random() < 0.7 else rng.choice(JUNK)
-        source = tmp_path / f"s{i}.{ {'csv': 'csv', 'sunspec': 'json'}.get(fmt, 'yaml') }"
+            comma = "," if fmt in ("json", "pymodbus-sim") and lines[k].endswith(",") else ""  # often still JSON
+            lines[k] = f"{key}: {rng.choice(JUNK)}{comma}" if key and rng.random() < 0.7 else rng.choice(JUNK)
+        source = tmp_path / f"s{i}.{ {'csv': 'csv', 'homeassistant': 'yaml', 'esphome': 'yaml'}.get(fmt, 'json') }"
         source.write_text("\n".join(lines) + "\n", encoding="utf-8")
         argv = ["import", fmt, f"{source}:48" if fmt == "sunspec" else str(source), "-o", str(tmp_path / "o" / "m.yaml"),
                 "--force", *(["--word-order", "high_first"] if fmt == "csv" else [])]
         code, _, err = run(capsys, *argv)
         assert code in (0, 1), (source, err)
         assert code == 0 or re.search(r"^\S+:\d+:\d+: error: ", err, re.M), (source, err)
+    for i in range(80):  # well-formed JSON of the wrong shape: values replaced by others, keys dropped
+        fmt = rng.choice(["json", "pymodbus-sim"])
+        data = json.loads(rng.choice(sources[fmt]))
+        for _ in range(rng.randint(1, 3)):
+            box, key = rng.choice(slots(data))
+            if isinstance(box, dict) and rng.random() < 0.2:
+                del box[key]
+            else:
+                box[key] = json.loads(rng.choice(SHAPES))
+        source = tmp_path / f"shape{i}.json"
+        source.write_text(json.dumps(data, indent=1), encoding="utf-8")
+        code, _, err = run(capsys, "import", fmt, str(source), "-o", str(tmp_path / "o" / "m.yaml"), "--force")
+        assert code in (0, 1), (source, err)
+        assert code == 0 or re.search(r"^\S+:\d+:\d+: error: ", err, re.M), (source, err)
+        assert "cannot import an entry of this file" not in err, (source, err)  # each shape has its own message
+
+
+SHAPES = ["null", "-1", "\"x\"", "[]", "{}", "1e999", "99999999", "true", "[[]]", "0.5", "\"\"", "[1, 2]", "{\"a\": 1}"]
+
+
+def slots(node: object) -> list[tuple[Any, Any]]:
+    """Every (container, key or index) of a JSON document."""
+    out: list[tuple[Any, Any]] = []
+    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, value in items:
+        out.append((node, key))
+        out += slots(value)
+    return out

@@ -2,7 +2,9 @@
 
 FORMAT is ``homeassistant`` (a ``modbus:`` YAML, exported or hand-written), ``esphome``
 (``modbus_controller`` entities), ``sunspec`` (SunSpec model JSON files or model numbers, laid out from
-``--base``; numbers need ``drivemap[sunspec]``) or ``csv`` (drivemap's CSV export or a vendor sheet).
+``--base``; numbers need ``drivemap[sunspec]``), ``csv`` (drivemap's CSV export or a vendor sheet),
+``json`` (drivemap's JSON export: the normalized model) or ``pymodbus-sim`` (a pymodbus simulator
+configuration: its tables, addresses, cell types and values).
 The map validates as written; a fact the source does not state stays out (or null) and is listed in
 the review printed after it. The map goes to ``-o`` or the project's maps folder as ``MODEL.yaml``,
 never over an existing file unless ``--force``.
@@ -21,11 +23,11 @@ from drivemap.onboard.importers.mapdoc import MapDoc, model_id, snake, target_pa
 
 __all__ = ["FORMATS", "add_parser"]
 
-FORMATS = ("homeassistant", "esphome", "sunspec", "csv")
+FORMATS = ("homeassistant", "esphome", "sunspec", "csv", "json", "pymodbus-sim")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("import", help="a map from Home Assistant, ESPHome, SunSpec or CSV definitions",
+    p = sub.add_parser("import", help="a map from Home Assistant, ESPHome, SunSpec, CSV, JSON or pymodbus simulator definitions",
                        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("format", metavar="FORMAT", help=f"one of {', '.join(FORMATS)}")
@@ -101,6 +103,14 @@ def _run(args: argparse.Namespace, doc: MapDoc, paths: list[Path]) -> str | None
 
         import_sunspec(doc, args.files, args.base)
         return None
+    if args.format == "json":
+        from drivemap.onboard.importers.modeljson import import_model_json
+
+        return import_model_json(doc, paths[0]) if _one(paths) else None
+    if args.format == "pymodbus-sim":
+        from drivemap.onboard.importers.pymodbus_sim import import_pymodbus_sim
+
+        return import_pymodbus_sim(doc, paths[0]) if _one(paths) else None
     if args.format == "homeassistant":
         from drivemap.onboard.importers.homeassistant import import_homeassistant
 
@@ -108,6 +118,14 @@ def _run(args: argparse.Namespace, doc: MapDoc, paths: list[Path]) -> str | None
     from drivemap.onboard.importers.esphome import import_esphome
 
     return import_esphome(doc, paths)
+
+
+def _one(paths: list[Path]) -> bool:
+    """A json or pymodbus-sim import reads one file (one device)."""
+    if len(paths) > 1:
+        raise CompileError([Diagnostic(Location(display(paths[1]), 1, 1),
+                                       "one file per import for this format (it describes one device)")])
+    return True
 
 
 def _summary(doc: MapDoc, target: Path) -> None:
@@ -119,5 +137,6 @@ def _summary(doc: MapDoc, target: Path) -> None:
         print("review (not stated by the source, or left out):")
         for line in lines:
             print(line)
-    print("the protocol section (unit ids, serial line, timing, exceptions) is null where the source is silent")
+    if doc.protocol is None:
+        print("the protocol section (unit ids, serial line, timing, exceptions) is null where the source is silent")
     print(f"next: drivemap validate {shown}; drivemap verify {doc.model} --tcp HOST (against the device)")

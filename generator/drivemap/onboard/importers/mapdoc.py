@@ -113,6 +113,13 @@ class MapDoc:
     timing: dict[str, Any] = field(default_factory=dict)
     #: address ranges the source says read (as 0) but names nothing at
     reserved: list[dict[str, Any]] = field(default_factory=list)
+    #: the broadcast unit id the source states (pymodbus-sim's broadcast_enable: 0)
+    broadcast_address: int | None = None
+    #: a whole protocol section the source states (drivemap's JSON export), used as it is
+    protocol: dict[str, Any] | None = None
+    known_issues: list[dict[str, Any]] = field(default_factory=list)
+    identity: list[dict[str, Any]] = field(default_factory=list)
+    examples: list[dict[str, Any]] = field(default_factory=list)
     _names: set[str] = field(default_factory=set)
 
     def name(self, wanted: str) -> str:
@@ -136,6 +143,10 @@ class MapDoc:
         names: set[str] = set()
         rows = [{"value": v, "name": unique_name(upper(label, f"value_{v}"), names), "label": label}
                 for v, label in values]
+        return self.enum_rows(wanted, rows)
+
+    def enum_rows(self, wanted: str, rows: list[dict[str, Any]]) -> str:
+        """An enum of schema rows (value, name, label); the same rows under the same name are one enum."""
         key = camel(wanted)
         existing = self.enums.get(key)
         if existing is not None and existing["values"] == rows:
@@ -177,7 +188,7 @@ class MapDoc:
                 "coverage": f"What {self.source} states; every other fact is null and listed for review.",
                 "source": self.source,
             },
-            "protocol": self._protocol(codes),
+            "protocol": self.protocol or self._protocol(codes),
         }
         if self.notes:
             doc["device"]["notes"] = self.notes
@@ -187,7 +198,10 @@ class MapDoc:
         doc["registers"] = self.registers
         if self.reserved:
             doc["reserved"] = self.reserved
-        doc["examples"] = []
+        for key in ("known_issues", "identity"):
+            if getattr(self, key):
+                doc[key] = getattr(self, key)
+        doc["examples"] = self.examples
         return doc
 
     def _protocol(self, codes: list[int]) -> dict[str, Any]:
@@ -195,7 +209,7 @@ class MapDoc:
             "modes": list(dict.fromkeys([*self.modes, *(self.port["modes"] if self.port else ["rtu"])])),
             "unit_ids": {"min": self.unit_min, "max": self.unit_max, "source": self.unit_source or self.source,
                          "notes": "" if self.unit_source else "Not stated by the source: the Modbus range 1-247."},
-            "broadcast_address": None,
+            "broadcast_address": self.broadcast_address,
             "ports": [self.port or self._placeholder_port()],
             "function_codes": [{"code": c, "name": CODE_NAMES[c], "max_quantity": self.max_quantity.get(c),
                                 "broadcast": None, "broadcast_reason": "not stated by the source",
