@@ -108,14 +108,17 @@ def test_export_contract(model: str) -> None:
         assert reg["storage"] in ("eeprom", "ram", "volatile", None)
         assert isinstance(reg["broadcast"], bool)
     for item in data["reserved"]:
-        assert set(item) == {"start", "end", "readable", "writable", "page", "kind", "source"}
+        assert set(item) == {"start", "end", "readable", "writable", "page", "table", "kind", "source"}
+        assert item["table"] in ("holding", "input", "coil", "discrete")
         assert item["kind"] in ("reserved", "unlabeled", "not_listed")
         assert item["start"] <= item["end"] and item["readable"] in (True, False, None)
     for issue in data["known_issues"]:
         assert set(issue) == {"title", "source", "printed", "corrected", "chosen", "reason", "affects"}
     for ex in data["examples"]:
-        assert set(ex) == {"name", "source", "mode", "request", "response", "status", "erratum"}
-        for frame in (ex["request"], ex["response"]):
+        assert set(ex) == {"name", "source", "mode", "request", "response", "status", "erratum", "corrected_request",
+                           "corrected_response"}
+        assert (ex["corrected_request"] is not None or ex["corrected_response"] is not None) == (ex["status"] == "erratum")
+        for frame in (ex["request"], ex["response"], ex["corrected_request"], ex["corrected_response"]):
             if frame is not None and ex["mode"] == "rtu":
                 assert " " not in frame and frame == frame.upper()
             if frame is not None and ex["mode"] == "ascii":

@@ -83,6 +83,7 @@ def export(model: Model) -> dict[str, Any]:
                 "readable": r.readable,
                 "writable": r.writable,
                 "page": {"selector": r.page.selector, "value": r.page.value} if r.page else None,
+                "table": r.table,
                 "kind": r.kind,
                 "source": r.source,
             }
@@ -100,6 +101,8 @@ def export(model: Model) -> dict[str, Any]:
                 "response": export_form(ex.response, ex.mode),
                 "status": ex.status,
                 "erratum": ex.erratum,
+                "corrected_request": export_form(ex.corrected_request, ex.mode),
+                "corrected_response": export_form(ex.corrected_response, ex.mode),
             }
             for ex in model.examples
         ],

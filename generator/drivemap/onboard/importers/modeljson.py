@@ -3,14 +3,14 @@
 The export carries the protocol section whole, every register element (``name[i]`` rows become an
 array again: count and stride from the addresses, one default or one per element, ``param`` per
 element), enums as name -> value, bit fields as name/offset/width, reserved ranges, known issues,
-identity checks and the examples' frames. What it does not carry stays out and is listed for review:
+identity checks and the examples' frames (an erratum's corrected ones too). What it does not carry
+stays out and is listed for review:
 the device's vendor, manual and coverage; each register's label, description, group, source, notes,
 value set, precision, write delay, command and running advice; enum, value and bit labels (the names
-stand in); enum names (named after the register); each reserved range's table (holding, the map
-language's default, unless an entry states ``table``: a range that would overlap a holding register
-there is left out); an example's
-meaning beyond what its frames state, its preset and notes; the corrected frames of an erratum
-example and the note of an illegible one (such examples are left out).
+stand in); enum names (named after the register); a reserved range's table where an export made
+before it carried ``table`` leaves it out (holding, the map language's default; a range that would
+overlap a holding register there is left out); an example's meaning beyond what its frames state,
+its preset and notes; the note of an illegible example (such an example is left out).
 """
 
 from __future__ import annotations

@@ -102,32 +102,54 @@ def _resolve(node: dict[str, Any], value: Any) -> dict[str, Any]:
 
 
 def example(path: Path, item: Any, where: str, proto: dict[str, Any], review: Review) -> dict[str, Any] | None:
-    """The map's example from the export's (None: left out and listed for review)."""
+    """The map's example from the export's (None: left out and listed for review). An erratum example
+    comes back with its printed frames, its corrected ones and the reason; its meaning is what the
+    frames on the line (the corrected ones) state."""
     name = field(path, item, "name", "str", where)
     mode = field(path, item, "mode", "str", where)
     status = field(path, item, "status", "str", where)
-    if status != "verified" or field(path, item, "erratum", "str", where, default=None, nullable=True):
-        why = "its corrected frames" if status == "erratum" else f"what makes it {status}"
-        review.skipped.append(f"example {name} ({status}): the export does not carry {why}; add it from the map")
+    reason = field(path, item, "erratum", "str", where, default=None, nullable=True)
+    if status not in ("verified", "erratum") or (status == "erratum") != (reason is not None):
+        review.skipped.append(f"example {name} ({status}): the export does not carry what makes it {status}; "
+                              "add it from the map")
         return None
     out: dict[str, Any] = {"name": name, "source": field(path, item, "source", "str", where), "mode": mode}
     parsed: dict[str, frames.Frame | None] = {}
-    for part in ("request", "response"):
-        text = field(path, item, part, "str", where, nullable=True)
-        if text is not None and mode == "rtu":
-            text = " ".join(text[i:i + 2] for i in range(0, len(text), 2))
-        try:
-            parsed[part] = None if text is None else frames.parse(text, mode)
-        except frames.FrameSyntaxError as exc:
-            raise located(path, item, f"{where}: {part}: {exc}") from None
-        out[part] = text
-    meaning = _meaning(parsed["request"], parsed["response"], proto)
+    corrected: dict[str, str] = {}
+    for part in ("request", "response", "corrected_request", "corrected_response"):
+        text = _frame_text(path, item, part, where, mode, parsed)
+        if part.startswith("corrected_"):
+            if text is not None:
+                corrected[part.removeprefix("corrected_")] = text
+        else:
+            out[part] = text
+    if reason is not None and not corrected:
+        review.skipped.append(f"example {name} (erratum): the export carries no corrected frame; add it from the map")
+        return None
+    wire = {part: parsed.get(f"corrected_{part}") or parsed[part] for part in ("request", "response")}
+    meaning = _meaning(wire["request"], wire["response"], proto)
     if meaning is None:
         review.skipped.append(f"example {name}: a function no map operation names (read, write, write_multiple, "
                               "loopback)")
         return None
     out["meaning"] = meaning
+    if reason is not None:
+        out["erratum"] = {**corrected, "reason": reason}
     return out
+
+
+def _frame_text(path: Path, item: Any, part: str, where: str, mode: str,
+                parsed: dict[str, frames.Frame | None]) -> str | None:
+    """One frame of an example in the map's form (rtu: hex bytes with spaces), parsed into ``parsed``."""
+    default: dict[str, Any] = {"default": None} if part.startswith("corrected_") else {}
+    text: str | None = field(path, item, part, "str", where, nullable=True, **default)
+    if text is not None and mode == "rtu":
+        text = " ".join(text[i:i + 2] for i in range(0, len(text), 2))
+    try:
+        parsed[part] = None if text is None else frames.parse(text, mode)
+    except frames.FrameSyntaxError as exc:
+        raise located(path, item, f"{where}: {part}: {exc}") from None
+    return text
 
 
 def _meaning(request: frames.Frame | None, response: frames.Frame | None, proto: dict[str, Any]) -> dict[str, Any] | None:
