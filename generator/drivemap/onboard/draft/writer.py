@@ -80,13 +80,10 @@ def _key_at(text: str, line: int) -> str | None:
 
 
 def _exporter_problems(doc: Any) -> list[Diagnostic]:
-    """The exporters' checks (generated names, docs anchors) where ``compile_map`` runs them after the
-    semantic checks; where it has none, ``checks.check`` made them already."""
-    hooks = getattr(compiler, "default_exporters", None)
-    if hooks is None:
-        return []
+    """The checks of the exporters ``drivemap build`` runs (generated names, docs anchors), so that a
+    draft builds as written, not only validates."""
     return [Diagnostic(doc.positions.at(where), message)
-            for exporter in hooks() for where, message, _options in exporter.validate(doc.data)]
+            for exporter in compiler.default_exporters() for where, message, _options in exporter.validate(doc.data)]
 
 
 def compile_text(text: str, path: str) -> list[Diagnostic]:
