@@ -24,7 +24,7 @@ def _default(value: float | str | None) -> float | int | str | bool | None:
 def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
     enum = None
     if reg.enum:
-        enum = {v.name: v.value for v in model.enum(reg.enum).values}
+        enum = {v.name: v.value for v in model.enum(reg.enum).members}
     bits = [{"name": b.name, "offset": b.offset, "width": b.width} for b in reg.bits] or None
     out = []
     for i in range(reg.count):

@@ -59,7 +59,7 @@ def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str,
     codec = session.target.codecs[reg.name]
     out: list[tuple[str, int]] = []
     if reg.enum is not None:
-        others = [v for v in session.target.model.enum(reg.enum).values if v.value != original]
+        others = [v for v in session.target.model.enum(reg.enum).members if v.value != original]
         if others:
             out.append((f"{others[0].name}", others[0].value))
         return out

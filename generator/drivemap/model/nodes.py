@@ -36,7 +36,17 @@ from drivemap.model.protocol import (
 from drivemap.model.rules import Alignment, AllowedValue
 from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
 from drivemap.runtime.names import camel
-from drivemap.runtime.spec import BIT_TABLES, FLOAT_TYPES, READ_CODES, SIGNED_TYPES, TYPE_WORDS
+from drivemap.runtime.spec import (
+    BIT_TABLES,
+    FLOAT_TYPES,
+    READ_CODES,
+    SIGNED_TYPES,
+    TYPE_WORDS,
+    BitSpec,
+    EnumMemberSpec,
+    EnumSpec,
+    PageSpec,
+)
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
@@ -89,39 +99,28 @@ def is_keyword(name: str) -> bool:
 
 
 @dataclass(frozen=True)
-class EnumValue:
-    value: int
-    name: str
-    label: str
-    notes: str | None
+class EnumValue(EnumMemberSpec):
+    """A member of an enum: the runtime's :class:`EnumMemberSpec` and the map's notes."""
+
+    notes: str | None = None
 
 
 @dataclass(frozen=True)
-class Enum:
-    name: str
-    values: tuple[EnumValue, ...]
-    source: str
-    notes: str | None
+class Enum(EnumSpec):
+    """A named set of values: the runtime's :class:`EnumSpec` whose members keep their notes."""
+
+    members: tuple[EnumValue, ...]
 
 
 @dataclass(frozen=True)
-class Bit:
-    name: str
-    offset: int
-    width: int
-    label: str
-    enum: str | None
-    notes: str | None
+class Bit(BitSpec):
+    """A bit field of a register: the runtime's :class:`BitSpec` and the map's notes."""
 
-    @property
-    def mask(self) -> int:
-        return ((1 << self.width) - 1) << self.offset
+    notes: str | None = None
 
 
-@dataclass(frozen=True)
-class Page:
-    selector: str
-    value: int
+#: A register's page (selector register and value): the runtime's class as it is.
+Page = PageSpec
 
 
 @dataclass(frozen=True)

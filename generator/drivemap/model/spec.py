@@ -8,23 +8,22 @@ Nothing here renders or executes generated text.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import types
+from typing import Any, TypeVar
 
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.dynamic import client_package
 from drivemap.runtime.sim.model import ModelSimulator, simulator_main
 from drivemap.runtime.spec import (
     AlignmentSpec,
-    BitSpec,
     CommErrorSpec,
     DeviceSpec,
-    EnumMemberSpec,
     EnumSpec,
     ExceptionSpec,
     FunctionSpec,
     IdentitySpec,
-    PageSpec,
     PolicySpec,
     RegisterSpec,
     ReservedSpec,
@@ -32,7 +31,29 @@ from drivemap.runtime.spec import (
     TimingSpec,
 )
 
-__all__ = ["load_package", "register_spec", "spec_from_model"]
+__all__ = ["load_package", "project", "register_spec", "spec_from_model"]
+
+_T = TypeVar("_T")
+
+
+def _runtime_class(cls: type) -> type:
+    """The runtime spec class a model class is (or extends)."""
+    return next(c for c in cls.__mro__ if c.__module__ == DeviceSpec.__module__)
+
+
+def _projected(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return project(value, _runtime_class(type(value)))
+    if isinstance(value, tuple):
+        return tuple(_projected(v) for v in value)
+    return value
+
+
+def project(node: object, cls: type[_T]) -> _T:
+    """``node`` (a model node, which extends the runtime class ``cls``) as a plain ``cls``: the
+    fields the runtime declares, nested nodes projected likewise; the compile-time extras are dropped."""
+    return cls(**{f.name: _projected(getattr(node, f.name)) for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+                  if f.init})
 
 
 def _num(value: float | None) -> int | float | None:
@@ -54,7 +75,7 @@ def _default(value: float | str | None) -> int | float | str | bool | None:
 
 def register_spec(model: Model, reg: Register) -> RegisterSpec:
     """The runtime description of one register (or array) of ``model``."""
-    enum_values = tuple(v.value for v in model.enum(reg.enum).values) if reg.enum else ()
+    enum_values = tuple(v.value for v in model.enum(reg.enum).members) if reg.enum else ()
     return RegisterSpec(
         name=reg.name, address=reg.address, type=reg.type, table=reg.table, access=reg.access,
         count=reg.count, stride=reg.stride, word_order=reg.word_order,
@@ -62,8 +83,7 @@ def register_spec(model: Model, reg: Register) -> RegisterSpec:
         min=_num(reg.min), max=_num(reg.max), defaults=tuple(_default(d) for d in reg.defaults),
         reflect=reg.reflect, storage=reg.storage, write_delay_ms=_num(reg.write_delay_ms),
         enum=reg.enum, enum_values=enum_values,
-        bits=tuple(BitSpec(b.name, b.offset, b.width, b.label, b.enum) for b in reg.bits),
-        page=PageSpec(reg.page.selector, reg.page.value) if reg.page else None,
+        bits=_projected(reg.bits), page=reg.page,
         command_value=reg.command_value, broadcast=reg.broadcast, refuse_while_running=reg.refuse_while_running,
         param=reg.param, source=reg.source,
         running_advice=reg.running_advice.text() if reg.running_advice else None,
@@ -95,13 +115,6 @@ def _timing(model: Model) -> TimingSpec:
     )
 
 
-def _enums(model: Model) -> tuple[EnumSpec, ...]:
-    return tuple(
-        EnumSpec(e.name, tuple(EnumMemberSpec(v.value, v.name, v.label) for v in e.values), e.source, e.notes)
-        for e in model.enums
-    )
-
-
 def spec_from_model(model: Model) -> DeviceSpec:
     """The runtime's description of ``model``: registers, dialect, timing, enums (no YAML, no generated code)."""
     p = model.protocol
@@ -114,7 +127,7 @@ def spec_from_model(model: Model) -> DeviceSpec:
         timing=_timing(model),
         registers=tuple(register_spec(model, r) for r in model.registers),
         reserved=tuple(ReservedSpec(r.start, r.end, r.readable,
-                                    PageSpec(r.page.selector, r.page.value) if r.page else None, r.table)
+                                    r.page, r.table)
                        for r in model.reserved),
         comm_errors=tuple(CommErrorSpec(c.code, c.name, c.meaning) for c in p.comm_errors),
         exception_policy=tuple(PolicySpec(c.case, c.code) for c in p.exception_policy),
@@ -133,7 +146,7 @@ def spec_from_model(model: Model) -> DeviceSpec:
                                       source=a.source)
                         for a in p.alignment),
         identity=tuple(IdentitySpec(c.register, c.kind, c.values, c.source) for c in model.identity),
-        enums=_enums(model),
+        enums=tuple(project(e, EnumSpec) for e in model.enums),
     )
 
 

@@ -99,7 +99,7 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "storage": reg.storage,
         "page": f"{reg.page.selector}={reg.page.value}" if reg.page else "",
         "enum": reg.enum or "",
-        "enum_labels": _text(" | ".join(f"{v.value}={v.label}" for v in enum.values)) if enum else "",
+        "enum_labels": _text(" | ".join(f"{v.value}={v.label}" for v in enum.members)) if enum else "",
         "bits": _text(bits),
         "command": "" if reg.command_value is None else str(reg.command_value),
         "description": _text(reg.description),

@@ -253,7 +253,7 @@ PACKAGE_NAMES = frozenset({
 def context(model: Model, options: Options) -> dict[str, Any]:
     enums = [
         {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
-         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
+         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.members]}
         for e in model.enums
     ]
     flags, records = _bit_classes(model)

@@ -197,10 +197,10 @@ class Selection:
     def enum_labels(self, point: Point) -> tuple[tuple[int, str], ...]:
         if point.reg.enum is None:
             return ()
-        return tuple((v.value, v.label) for v in self.model.enum(point.reg.enum).values)
+        return tuple((v.value, v.label) for v in self.model.enum(point.reg.enum).members)
 
     def enum_labels_of(self, name: str) -> tuple[tuple[int, str], ...]:
-        return tuple((v.value, v.label) for v in self.model.enum(name).values)
+        return tuple((v.value, v.label) for v in self.model.enum(name).members)
 
     def omitted_lines(self) -> list[str]:
         """One comment line per reason: what was left out."""

@@ -231,7 +231,7 @@ def groups(model: Model) -> list[dict[str, Any]]:
             sel = model.register(selector)
             labels = {}
             if sel.enum:
-                labels = {v.value: v.label for v in model.enum(sel.enum).values}
+                labels = {v.value: v.label for v in model.enum(sel.enum).members}
             paging.append({
                 "selector": selector,
                 "address": hex4(sel.address),
