@@ -139,7 +139,7 @@ def test_edx_draft_reads_bits_codes_scales_and_signs(tmp_path: Path) -> None:
     assert "scale" not in regs[0xE7]  # the table does not state it: left out, not guessed
     assert regs[0xE6]["access"] == "rw" and "access" not in regs[0xF6]  # "Only for reading": r, the default
     model = compile_map(out)
-    assert len(next(e for e in model.enums if e.name == "FaultDescription").values) >= 30
+    assert len(next(e for e in model.enums if e.name == "FaultDescription").members) >= 30
 
 
 # ---------------------------------------------------------------- formats

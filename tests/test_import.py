@@ -296,7 +296,7 @@ def test_hand_written_esphome(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert (m.register("power").type, m.register("power").word_order) == ("u32", "low_first")
     setpoint = m.register("setpoint")
     assert (setpoint.access, setpoint.scale, setpoint.min, setpoint.max) == ("rw", 0.5, 20, 60)
-    assert [v.label for v in m.enum(m.register("mode").enum or "").values] == ["Off", "Heat"]
+    assert [v.label for v in m.enum(m.register("mode").enum or "").members] == ["Off", "Heat"]
     assert m.register("defrost").table == "coil" and m.register("firmware").length == 4
     port = m.protocol.ports[0]
     assert (port.default_baudrate, port.default_parity) == (19200, "even")

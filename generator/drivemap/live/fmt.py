@@ -94,8 +94,8 @@ def _single(reg: Register) -> bool:
 def meaning(target: Target, reg: Register, value: Any) -> str:
     """The label of the value in the value set or enum, or the labels of the bits that are set."""
     if reg.values and value is not None:
-        label = next((v.label for v in reg.values if v.value == value), None)
-        return label if label is not None else ("" if any(v.value == value for v in reg.values)
+        label = next((v.label for v in reg.value_set if v.value == value), None)
+        return label if label is not None else ("" if any(v.value == value for v in reg.value_set)
                                                 else "not a value of the map")
     if reg.enum is not None and isinstance(value, enum.Enum):
         labels = {v.value: v.label for v in target.model.enum(reg.enum).members}

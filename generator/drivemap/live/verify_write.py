@@ -64,7 +64,7 @@ def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str,
             out.append((f"{others[0].name}", others[0].value))
         return out
     if reg.values:  # only values of the set: never a raw step the map does not allow
-        for item in reg.values:
+        for item in reg.value_set:
             try:
                 raw = codec.encode(int(item.value) if reg.is_integer and not isinstance(item.value, str) else item.value)
             except DriveError:

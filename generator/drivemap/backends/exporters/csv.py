@@ -104,7 +104,7 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "command": "" if reg.command_value is None else str(reg.command_value),
         "description": _text(reg.description),
         "source": _text(reg.source),
-        "values": _text(" | ".join(v.text() for v in reg.values)),
+        "values": _text(" | ".join(v.text() for v in reg.value_set)),
         "precision": "" if reg.precision is None else str(reg.precision),
         "display_name": _text(reg.display_name(cell.index) if reg.first_index else cell.name),
     }

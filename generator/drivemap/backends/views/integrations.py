@@ -121,10 +121,10 @@ def options(reg: Register) -> list[tuple[AllowedValue, str]]:
         text = str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
         return f"{text} {reg.unit}" if reg.unit and not isinstance(value, str) else text
 
-    texts = [item.label or plain(item) for item in reg.values]
+    texts = [item.label or plain(item) for item in reg.value_set]
     if len(set(texts)) != len(texts):
-        texts = [item.text() for item in reg.values]
-    return list(zip(reg.values, texts, strict=True))
+        texts = [item.text() for item in reg.value_set]
+    return list(zip(reg.value_set, texts, strict=True))
 
 
 def wire_words(reg: Register, value: float | str) -> list[int]:
