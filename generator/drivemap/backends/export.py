@@ -6,7 +6,7 @@ import dataclasses
 from typing import Any
 
 from drivemap.frontend.frames import export_form
-from drivemap.model.nodes import Model, Register
+from drivemap.model.nodes import FunctionCode, Model, Register
 
 
 def _number(value: float | None) -> float | int | None:
@@ -69,12 +69,19 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _function(fc: FunctionCode) -> dict[str, Any]:
+    """A function code in the contract's key order (the map's order, not the class's)."""
+    return {"code": fc.code, "name": fc.name, "max_quantity": fc.max_quantity, "broadcast": fc.broadcast,
+            "request_bytes": _plain(fc.request_bytes), "response_bytes": _plain(fc.response_bytes),
+            "source": fc.source, "notes": fc.notes, "broadcast_reason": fc.broadcast_reason}
+
+
 def export(model: Model) -> dict[str, Any]:
     """The export contract of one compiled model."""
     return {
         "model": model.device.model,
         "title": model.device.title,
-        "protocol": _plain(model.protocol),
+        "protocol": {**_plain(model.protocol), "function_codes": [_function(fc) for fc in model.protocol.function_codes]},
         "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
         "reserved": [
             {

@@ -181,9 +181,9 @@ def _protocol(p: dict[str, Any]) -> Protocol:
         ports=tuple(_port(x) for x in p["ports"]),
         function_codes=tuple(
             FunctionCode(
-                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
-                _lengths(f.get("request_bytes")), _lengths(f.get("response_bytes")), f["source"], f.get("notes"),
-                broadcast_reason=f.get("broadcast_reason"),
+                f["code"], f.get("max_quantity"), f.get("broadcast"), f.get("broadcast_reason"), name=f["name"],
+                request_bytes=_lengths(f.get("request_bytes")), response_bytes=_lengths(f.get("response_bytes")),
+                source=f["source"], notes=f.get("notes"),
             )
             for f in p["function_codes"]
         ),

@@ -1,7 +1,9 @@
 """The immutable, typed model every template and the runtime read.
 
 Built from a document that passed the schema and the semantic checks (:mod:`checks`), so
-constructors here trust their input. Everything is frozen; collections are tuples.
+constructors here trust their input. Everything is frozen; collections are tuples. A node that
+describes what the runtime describes extends the runtime's class (:mod:`drivemap.runtime.spec`)
+with compile-time facts only; :func:`drivemap.model.spec.project` gives its runtime part.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivemap.model.rules import Alignment
-from drivemap.runtime.spec import CommErrorSpec, ExceptionSpec, PolicySpec, TimingSpec
+from drivemap.runtime.spec import CommErrorSpec, ExceptionSpec, FunctionSpec, PolicySpec, TimingSpec
 
 __all__ = [
     "Checksum",
@@ -86,17 +86,15 @@ class LengthRange:
     max: int
 
 
-@dataclass(frozen=True)
-class FunctionCode:
-    code: int
+@dataclass(frozen=True, kw_only=True)
+class FunctionCode(FunctionSpec):
+    """A function code: the runtime's :class:`FunctionSpec` and what the map says of it."""
+
     name: str
-    max_quantity: int | None
-    broadcast: bool | None
     request_bytes: LengthRange | None
     response_bytes: LengthRange | None
     source: str
     notes: str | None
-    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,12 @@
 and ``drivemap build`` use; the generated ``spec.py`` is this object printed
 (:mod:`drivemap.backends.views.spec`), so a built package and an unbuilt map give equal specs.
 Nothing here renders or executes generated text.
+
+The model's nodes that describe what the runtime describes *are* the runtime's classes, extended
+by compile-time facts only (``Register`` is a ``RegisterSpec``, ``Bit`` a ``BitSpec``, ...), so the
+runtime's part of a node is a projection onto its runtime class (:func:`project`), not a copy
+field by field. Only the device record is assembled here: the model splits it into device,
+protocol and ports, and gives configuration, running state and reply quirks in richer forms.
 """
 
 from __future__ import annotations
@@ -16,12 +22,7 @@ from typing import Any, TypeVar
 from drivemap.model.nodes import Model
 from drivemap.runtime.client.dynamic import client_package
 from drivemap.runtime.sim.model import ModelSimulator, simulator_main
-from drivemap.runtime.spec import (
-    DeviceSpec,
-    FunctionSpec,
-    SerialSpec,
-    TimingSpec,
-)
+from drivemap.runtime.spec import DeviceSpec, SerialSpec, TimingSpec
 
 __all__ = ["load_package", "project", "spec_from_model"]
 
@@ -29,11 +30,12 @@ _T = TypeVar("_T")
 
 
 def _runtime_class(cls: type) -> type:
-    """The runtime spec class a model class is (or extends)."""
+    """The runtime spec class a model class is (or extends): the first in its MRO from :mod:`drivemap.runtime.spec`."""
     return next(c for c in cls.__mro__ if c.__module__ == DeviceSpec.__module__)
 
 
 def _projected(value: Any) -> Any:
+    """``value`` with every node in it (also in tuples) projected onto its runtime class."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return project(value, _runtime_class(type(value)))
     if isinstance(value, tuple):
@@ -63,9 +65,7 @@ def spec_from_model(model: Model) -> DeviceSpec:
     return DeviceSpec(
         model=model.name, title=model.device.title, modes=p.modes, unit_min=p.unit_min, unit_max=p.unit_max,
         broadcast_address=p.broadcast_address, serial=_serial(model),
-        function_codes=tuple(FunctionSpec(fc.code, fc.max_quantity, fc.broadcast, fc.broadcast_reason)
-                             for fc in p.function_codes),
-        exceptions=_projected(p.exceptions),
+        function_codes=_projected(p.function_codes), exceptions=_projected(p.exceptions),
         timing=project(p.timing, TimingSpec),
         registers=_projected(model.registers),
         reserved=_projected(model.reserved), comm_errors=_projected(p.comm_errors),

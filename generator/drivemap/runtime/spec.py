@@ -3,6 +3,8 @@
 The compiler makes one :class:`DeviceSpec` from a map (``drivemap.model.spec.spec_from_model``);
 generated ``generated/<model>/spec.py`` is that object printed. The runtime reads only these
 classes (never YAML at run time). The tables of type sizes and read codes here are the only ones.
+The compiler's model nodes extend these classes (a model ``Register`` is a :class:`RegisterSpec`
+plus compile-time facts), so each fact the runtime reads is declared here once.
 """
 
 from __future__ import annotations
@@ -123,8 +125,9 @@ class RegisterSpec:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
     def display_name(self, index: int, base: str | None = None) -> str:
-        """The element's name for people: ``base`` (default the name) and the manual's number of the
-        element (``index + first_index``); the model's ``Register.display_name`` says the same."""
+        """The name people see for element ``index`` (0-based, as in Python): ``base`` (default the
+        register's name) followed by the manual's number of the element (``pv_voltage 1`` for index 0
+        when ``first_index`` is 1); a register that is not an array is ``base`` alone."""
         text = self.name if base is None else base
         return f"{text} {index + self.first_index}" if self.count > 1 else text
 
