@@ -50,6 +50,7 @@ from drivemap.runtime.spec import (
     PageSpec,
     RegisterSpec,
     ReservedSpec,
+    type_words,
 )
 
 Access = Literal["r", "w", "rw"]
@@ -61,7 +62,7 @@ Value = float | str | None
 
 #: Raw bounds of the integer types (the runtime's table) and of a bool in a bit table.
 TYPE_BOUNDS: dict[str, tuple[int, int]] = {**_INTEGER_BOUNDS, "bool": (0, 1)}
-#: TYPE_WORDS, SIGNED_TYPES, FLOAT_TYPES, BIT_TABLES and READ_CODES are the runtime's tables
+#: TYPE_WORDS, SIGNED_TYPES, FLOAT_TYPES, BIT_TABLES, READ_CODES and type_words are the runtime's tables
 #: (:mod:`drivemap.runtime.spec`), re-exported here.
 INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
 #: Largest finite magnitude of each float type.
@@ -71,11 +72,6 @@ FLOAT_MAX: dict[str, float] = {"f32": 3.4028234663852886e38, "f64": 1.7976931348
 def default_type(table: str) -> RegType:
     """The type a register has when the map gives none: bool in bit tables, else u16."""
     return "bool" if table in BIT_TABLES else "u16"
-
-
-def type_words(rtype: str, length: int = 1) -> int:
-    """Words of a type (``length`` for strings)."""
-    return length if rtype == "string" else TYPE_WORDS[rtype]
 
 
 def raw_bounds(rtype: str, table: str, length: int = 1) -> tuple[int, int]:

@@ -21,6 +21,11 @@ BIT_TABLES = frozenset({"coil", "discrete"})
 READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
 
 
+def type_words(rtype: str, length: int = 1) -> int:
+    """Words of a type (``length`` for strings)."""
+    return length if rtype == "string" else TYPE_WORDS[rtype]
+
+
 @dataclass(frozen=True)
 class BitSpec:
     name: str
@@ -99,7 +104,7 @@ class RegisterSpec:
     signed: bool = field(init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "words", self.length if self.type == "string" else TYPE_WORDS[self.type])
+        object.__setattr__(self, "words", type_words(self.type, self.length))
         object.__setattr__(self, "signed", self.type in SIGNED_TYPES)
 
     @property
