@@ -9,19 +9,8 @@ from drivemap.frontend.frames import export_form
 from drivemap.model.nodes import FunctionCode, Model, Register
 
 
-def _number(value: float | None) -> float | int | None:
-    if value is None:
-        return None
-    return int(value) if float(value).is_integer() else value
-
-
-def _default(value: float | str | None) -> float | int | str | bool | None:
-    if isinstance(value, (str, bool)):
-        return value
-    return _number(value)
-
-
 def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
+    """Each element of ``reg`` (numbers are the model's: ints when whole)."""
     enum = None
     if reg.enum:
         enum = {v.name: v.value for v in model.enum(reg.enum).members}
@@ -35,12 +24,12 @@ def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
                 "param": reg.element_param(i),
                 "access": reg.access,
                 "type": reg.type,
-                "scale": _number(reg.scale),
-                "offset": _number(reg.offset),
+                "scale": reg.scale,
+                "offset": reg.offset,
                 "unit": reg.unit,
-                "min": _number(reg.min),
-                "max": _number(reg.max),
-                "default": _default(reg.default_at(i)),
+                "min": reg.min,
+                "max": reg.max,
+                "default": reg.default_at(i),
                 "reflect": None if reg.reflect == "unknown" else reg.reflect,
                 "storage": None if reg.storage == "unknown" else reg.storage,
                 "broadcast": reg.broadcast,
