@@ -139,7 +139,7 @@ def _comparable(registers: Any, mine: dict[tuple[str, int], Any]) -> list[Any]:
 def _values(model: Any, reg: Any) -> set[int] | None:
     if reg.enum is None:
         return None
-    return {v.value for e in model.enums if e.name == reg.enum for v in e.values}
+    return {v.value for e in model.enums if e.name == reg.enum for v in e.members}
 
 
 def _compare_lists(s: Score, reg: Any, mine: Any, proven: Any, drafted: Any) -> None:

@@ -253,7 +253,7 @@ def test_every_enum_has_a_table(model_id: str, pages: dict[str, Page], models: l
         assert len(section.tables) == 1
         header, *rows = section.tables[0]
         assert header[:4] == ["Value", "Hex", "Name", "Label"]
-        assert [(r[0], r[2], r[3]) for r in rows] == [(str(v.value), v.name, v.label) for v in enum.values]
+        assert [(r[0], r[2], r[3]) for r in rows] == [(str(v.value), v.name, v.label) for v in enum.members]
 
 
 @pytest.mark.parametrize("model_id", MODEL_IDS)

@@ -96,7 +96,7 @@ def test_time_limit_stops_a_slow_step() -> None:
 
 
 def _values(model: Any, enum: str) -> set[int]:
-    return {v.value for e in model.enums if e.name == enum for v in e.values}
+    return {v.value for e in model.enums if e.name == enum for v in e.members}
 
 
 @pytest.mark.parametrize("model", sorted(SEEDS))
@@ -139,7 +139,7 @@ def test_edx_draft_reads_bits_codes_scales_and_signs(tmp_path: Path) -> None:
     assert "scale" not in regs[0xE7]  # the table does not state it: left out, not guessed
     assert regs[0xE6]["access"] == "rw" and "access" not in regs[0xF6]  # "Only for reading": r, the default
     model = compile_map(out)
-    assert len(next(e for e in model.enums if e.name == "FaultDescription").values) >= 30
+    assert len(next(e for e in model.enums if e.name == "FaultDescription").members) >= 30
 
 
 # ---------------------------------------------------------------- formats
@@ -218,7 +218,7 @@ def test_docx_units_ranges_enums_bits_access(tmp_path: Path) -> None:
     assert regs[0x103]["scale"] == 0.1 and "access" not in regs[0x103]
     model = compile_map(out)
     enum = next(e for e in model.enums if e.name == regs[0x101]["enum"])
-    assert [v.label for v in enum.values] == ["Resistive", "inductive"]
+    assert [v.label for v in enum.members] == ["Resistive", "inductive"]
 
 
 def test_csv_hi_lo_byte_columns(tmp_path: Path) -> None:

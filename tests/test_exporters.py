@@ -87,7 +87,7 @@ def test_hostile_labels_survive_home_assistant_templates(tmp_path: Path) -> None
     env = jinja2.Environment(autoescape=False)
     for raw, index in (("2", 1), ("0", 0)):
         out = env.from_string(label["state"]).render(states=lambda entity, raw=raw: raw)
-        assert out == model.enum("MotorState").values[index].label
+        assert out == model.enum("MotorState").members[index].label
         assert out.startswith(HOSTILE[:40])
     assert env.from_string(label["state"]).render(states=lambda entity: "99") == "99"
     assert "{{" not in jinja_literal({"a": "{{ x }}"}) and "%" not in jinja_literal({"a": "{% x %}"})

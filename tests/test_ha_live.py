@@ -218,7 +218,7 @@ def _drive_through_home_assistant(ha: HomeAssistant, found: dict[str, dict[str, 
     element = by_uid["drivemap_plant_conveyor_digital_speed_3"]
     options = found[select]["attributes"]["options"]
     model = load_model(str(ROOT / "maps" / "ev.yaml"))
-    values = {v.name: v.value for v in model.enum(str(model.register("comm_error_action").enum)).values}
+    values = {v.name: v.value for v in model.enum(str(model.register("comm_error_action").enum)).members}
     option = next(o for o in options if values[o] != sim.get_raw("comm_error_action"))
     timeout = 777 if sim.get("rs485_timeout") != 777 else 555
     ha.call("number", "set_value", {"entity_id": number, "value": timeout})

@@ -108,7 +108,7 @@ def test_sunspec_models_laid_out_like_the_proven_fronius_map(tmp_path: Path,
     assert sum(got[a] == proven[a] for a in proven) >= len(proven) - 1
     assert imported.register("a").scale_register == "a_sf" and imported.register("a").not_available == (0xFFFF,)
     st = imported.register("st")
-    assert st.enum and imported.enum(st.enum).values[0].label
+    assert st.enum and imported.enum(st.enum).members[0].label
     assert any(r.bits for r in imported.registers)  # bitfield16/32 -> bits
     assert "point Pad lies past the model's length L" in out
 
@@ -207,7 +207,7 @@ def test_hand_written_home_assistant(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert (m.register("pump_running").table, m.register("pump").table, m.register("pump").access) == (
         "discrete", "coil", "rw")
     heating = m.register("heating")
-    assert heating.access == "w" and {v.value for v in m.enum(heating.enum or "").values} == {0, 1}
+    assert heating.access == "w" and {v.value for v in m.enum(heating.enum or "").members} == {0, 1}
     target_temp = m.register("room_target_temperature")
     assert (target_temp.address, target_temp.min, target_temp.max, target_temp.unit) == (121, 5, 30, "°C")
     assert m.register("room_current_temperature").access == "r"
@@ -297,7 +297,7 @@ def test_hand_written_esphome(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert (m.register("power").type, m.register("power").word_order) == ("u32", "low_first")
     setpoint = m.register("setpoint")
     assert (setpoint.access, setpoint.scale, setpoint.min, setpoint.max) == ("rw", 0.5, 20, 60)
-    assert [v.label for v in m.enum(m.register("mode").enum or "").values] == ["Off", "Heat"]
+    assert [v.label for v in m.enum(m.register("mode").enum or "").members] == ["Off", "Heat"]
     assert m.register("defrost").table == "coil" and m.register("firmware").length == 4
     port = m.protocol.ports[0]
     assert (port.default_baudrate, port.default_parity) == (19200, "even")

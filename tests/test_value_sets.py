@@ -18,8 +18,8 @@ from tests.helpers_live import cli, no_traceback
 
 def test_the_model_and_spec_carry_sdm630s_value_sets() -> None:
     model = load_model("maps/sdm630.yaml")
-    assert [v.value for v in model.register("demand_period").values] == [0, 5, 8, 10, 15, 20, 30, 60]
-    assert [(v.value, v.label) for v in model.register("system_type").values] == [
+    assert [v.value for v in model.register("demand_period").value_set] == [0, 5, 8, 10, 15, 20, 30, 60]
+    assert [(v.value, v.label) for v in model.register("system_type").value_set] == [
         (1.0, "1p2w"), (2.0, "3p3w"), (3.0, "3p4w")]
     spec = package("sdm630").SPEC.register("network_baud_rate")
     assert spec.values[2] == (2.0, "9600 baud")

@@ -157,7 +157,7 @@ def simulator_factory(model: Model, project: Project) -> Any:
 
     factory.spec = spec  # type: ignore[attr-defined]  # presets are checked against it before the start
     factory.read_values = read_values_yaml  # type: ignore[attr-defined]  # --values FILE: YAML or JSON
-    factory.enum_names = {reg.name: {v.name.upper(): v.value for v in model.enum(reg.enum).values}  # type: ignore[attr-defined]
+    factory.enum_names = {reg.name: {v.name.upper(): v.value for v in model.enum(reg.enum).members}  # type: ignore[attr-defined]
                           for reg in model.registers if reg.enum is not None}
     return factory
 

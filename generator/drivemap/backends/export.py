@@ -6,25 +6,14 @@ import dataclasses
 from typing import Any
 
 from drivemap.frontend.frames import export_form
-from drivemap.model.nodes import Model, Register
-
-
-def _number(value: float | None) -> float | int | None:
-    if value is None:
-        return None
-    return int(value) if float(value).is_integer() else value
-
-
-def _default(value: float | str | None) -> float | int | str | bool | None:
-    if isinstance(value, (str, bool)):
-        return value
-    return _number(value)
+from drivemap.model.nodes import FunctionCode, Model, Register
 
 
 def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
+    """Each element of ``reg`` (numbers are the model's: ints when whole)."""
     enum = None
     if reg.enum:
-        enum = {v.name: v.value for v in model.enum(reg.enum).values}
+        enum = {v.name: v.value for v in model.enum(reg.enum).members}
     bits = [{"name": b.name, "offset": b.offset, "width": b.width} for b in reg.bits] or None
     out = []
     for i in range(reg.count):
@@ -35,12 +24,12 @@ def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
                 "param": reg.element_param(i),
                 "access": reg.access,
                 "type": reg.type,
-                "scale": _number(reg.scale),
-                "offset": _number(reg.offset),
+                "scale": reg.scale,
+                "offset": reg.offset,
                 "unit": reg.unit,
-                "min": _number(reg.min),
-                "max": _number(reg.max),
-                "default": _default(reg.default_at(i)),
+                "min": reg.min,
+                "max": reg.max,
+                "default": reg.default_at(i),
                 "reflect": None if reg.reflect == "unknown" else reg.reflect,
                 "storage": None if reg.storage == "unknown" else reg.storage,
                 "broadcast": reg.broadcast,
@@ -69,12 +58,19 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _function(fc: FunctionCode) -> dict[str, Any]:
+    """A function code in the contract's key order (the map's order, not the class's)."""
+    return {"code": fc.code, "name": fc.name, "max_quantity": fc.max_quantity, "broadcast": fc.broadcast,
+            "request_bytes": _plain(fc.request_bytes), "response_bytes": _plain(fc.response_bytes),
+            "source": fc.source, "notes": fc.notes, "broadcast_reason": fc.broadcast_reason}
+
+
 def export(model: Model) -> dict[str, Any]:
     """The export contract of one compiled model."""
     return {
         "model": model.device.model,
         "title": model.device.title,
-        "protocol": _plain(model.protocol),
+        "protocol": {**_plain(model.protocol), "function_codes": [_function(fc) for fc in model.protocol.function_codes]},
         "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
         "reserved": [
             {

@@ -233,7 +233,7 @@ def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -
     quoted = text.strip().startswith('"')
     word = _text_value(text.strip()) if quoted else text.strip()
     assert reg.enum is not None
-    values = model.enum(reg.enum).values
+    values = model.enum(reg.enum).members
     for v in values:
         if word.upper() == v.name.upper():
             return codec.enum_type(v.value)
@@ -252,7 +252,7 @@ def _parse_enum(reg: Register, codec: EnumCodec[Any], model: Model, text: str) -
 def _field_value(reg: Register, bit: Any, enum_type: Any, model: Model, value: Any) -> Any:
     if enum_type is not None:
         if isinstance(value, str):
-            for v in model.enum(bit.enum).values:
+            for v in model.enum(bit.enum).members:
                 if v.name.upper() == value.upper():
                     return enum_type(v.value)
             raise InvalidValue(f"{reg.name}.{bit.name}: {value!r} is not a value of {bit.enum}")

@@ -120,7 +120,7 @@ def entity_name(reg: Register, index: int | None) -> str:
 
 
 def _enum_names(model: Model, enum: str) -> list[str]:
-    return [v.name for v in model.enum(enum).values]
+    return [v.name for v in model.enum(enum).members]
 
 
 def _announced(field: str, options: list[str]) -> str:

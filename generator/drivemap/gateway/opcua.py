@@ -185,7 +185,7 @@ def _raw_of(device: Device, reg: Register, value: Any) -> Any:
     if reg.enum is not None and isinstance(value, str):
         if value.startswith("UNKNOWN_"):
             return int(value[8:])
-        return next(v.value for v in device.model.enum(reg.enum).values if v.name == value)
+        return next(v.value for v in device.model.enum(reg.enum).members if v.name == value)
     if reg.bits and isinstance(value, dict):
         raw = 0
         for bit in reg.bits:
@@ -193,7 +193,7 @@ def _raw_of(device: Device, reg: Register, value: Any) -> Any:
             if isinstance(v, str) and v.startswith("UNKNOWN_"):  # a value the map does not list: its bits
                 v = int(v[8:])
             elif isinstance(v, str) and bit.enum is not None:
-                v = next((e.value for e in device.model.enum(bit.enum).values if e.name == v), 0)
+                v = next((e.value for e in device.model.enum(bit.enum).members if e.name == v), 0)
             raw |= (int(v) & ((1 << bit.width) - 1)) << bit.offset
         return raw
     return value
@@ -214,7 +214,7 @@ def _bits_json(device: Device, reg: Register, raw: int) -> dict[str, Any]:
     for bit in reg.bits:
         v = (raw >> bit.offset) & ((1 << bit.width) - 1)
         if bit.enum is not None:
-            names = {e.value: e.name for e in device.model.enum(bit.enum).values}
+            names = {e.value: e.name for e in device.model.enum(bit.enum).members}
             out[bit.name] = names.get(v, v)
         else:
             out[bit.name] = bool(v) if bit.width == 1 else v
@@ -356,7 +356,7 @@ class OpcuaBridge:
                                     ua.Range(Low=float(reg.min), High=float(reg.max)), datatype=ua.ObjectIds.Range)
         if reg.enum is None:
             return
-        values = device.model.enum(reg.enum).values
+        values = device.model.enum(reg.enum).members
         items = [ua.EnumValueType(Value=v.value, DisplayName=ua.LocalizedText(v.name),
                                   Description=ua.LocalizedText(v.label)) for v in values]
         await node.add_property(ua.NodeId(f"{name}.EnumValues", self.idx), "0:EnumValues", items,

@@ -29,10 +29,10 @@ def _plain(value: float | str) -> str:
 def value_options(reg: Register) -> list[tuple[float | str, str]]:
     """(value, option text) of each value of ``reg``'s value set: the label, else the value as the
     map writes it (``5``); the value and label (``5 (5 min)``) where two texts would be the same."""
-    texts = [item.label or _plain(item.value) for item in reg.values]
+    texts = [item.label or _plain(item.value) for item in reg.value_set]
     if len(set(texts)) != len(texts):
-        texts = [item.text() for item in reg.values]
-    return [(item.value, text) for item, text in zip(reg.values, texts, strict=True)]
+        texts = [item.text() for item in reg.value_set]
+    return [(item.value, text) for item, text in zip(reg.value_set, texts, strict=True)]
 
 
 def _word(text: str) -> str:
@@ -51,7 +51,7 @@ def _word(text: str) -> str:
 def set_value(reg: Register, spec: RegisterSpec, text: str) -> Any:
     """The map's value a command names (option text, label or value); NotAllowedValue otherwise."""
     word = _word(text)
-    for item, (value, option) in zip(reg.values, value_options(reg), strict=True):
+    for item, (value, option) in zip(reg.value_set, value_options(reg), strict=True):
         if word in (option, item.label):
             return value
     given: Any = word

@@ -27,7 +27,7 @@ def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str,
     if reg.type in ("string", "bool") or reg.scale_register is not None or reg.is_float:
         return _decoded_problem(target, reg, raw, raws or {})
     if reg.enum is not None:
-        values = {v.value for v in target.model.enum(reg.enum).values}
+        values = {v.value for v in target.model.enum(reg.enum).members}
         if raw not in values:
             return f"{raw} is not a value of {reg.enum} ({', '.join(map(str, sorted(values)))})"
     if reg.bits:
@@ -36,7 +36,7 @@ def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str,
             mask |= bit.mask
             if bit.enum is not None:
                 part = (raw & bit.mask) >> bit.offset
-                if part not in {v.value for v in target.model.enum(bit.enum).values}:
+                if part not in {v.value for v in target.model.enum(bit.enum).members}:
                     return f"bits {bit.name} = {part} is not a value of {bit.enum}"
         if raw & ~mask & ((1 << (16 * reg.words)) - 1):
             return f"bits outside the map's bit fields are set (raw 0x{raw & 0xFFFFFFFF:04X})"

@@ -94,11 +94,11 @@ def _single(reg: Register) -> bool:
 def meaning(target: Target, reg: Register, value: Any) -> str:
     """The label of the value in the value set or enum, or the labels of the bits that are set."""
     if reg.values and value is not None:
-        label = next((v.label for v in reg.values if v.value == value), None)
-        return label if label is not None else ("" if any(v.value == value for v in reg.values)
+        label = next((v.label for v in reg.value_set if v.value == value), None)
+        return label if label is not None else ("" if any(v.value == value for v in reg.value_set)
                                                 else "not a value of the map")
     if reg.enum is not None and isinstance(value, enum.Enum):
-        labels = {v.value: v.label for v in target.model.enum(reg.enum).values}
+        labels = {v.value: v.label for v in target.model.enum(reg.enum).members}
         return labels.get(value.value, "not a value of the map")
     if isinstance(value, enum.IntFlag):
         return ", ".join(b.label for b in reg.bits if int(value) & b.mask)
@@ -110,7 +110,7 @@ def meaning(target: Target, reg: Register, value: Any) -> str:
 def _field_label(target: Target, reg: Register, attribute: str, value: Any) -> str:
     bit = next((b for b in reg.bits if b.name.lower() == attribute), None)
     if bit is not None and bit.enum is not None and isinstance(value, enum.Enum):
-        labels = {v.value: v.label for v in target.model.enum(bit.enum).values}
+        labels = {v.value: v.label for v in target.model.enum(bit.enum).members}
         return f"{attribute} {labels.get(value.value, value.name)}"
     return f"{attribute} {to_text(value)}"
 

@@ -59,12 +59,12 @@ def test_raws(session: Session, reg: Register, original: int) -> list[tuple[str,
     codec = session.target.codecs[reg.name]
     out: list[tuple[str, int]] = []
     if reg.enum is not None:
-        others = [v for v in session.target.model.enum(reg.enum).values if v.value != original]
+        others = [v for v in session.target.model.enum(reg.enum).members if v.value != original]
         if others:
             out.append((f"{others[0].name}", others[0].value))
         return out
     if reg.values:  # only values of the set: never a raw step the map does not allow
-        for item in reg.values:
+        for item in reg.value_set:
             try:
                 raw = codec.encode(int(item.value) if reg.is_integer and not isinstance(item.value, str) else item.value)
             except DriveError:

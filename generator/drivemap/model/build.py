@@ -49,7 +49,7 @@ from drivemap.model.nodes import (
     type_words,
 )
 
-__all__ = ["build_model"]
+__all__ = ["build_model", "number", "whole"]
 
 
 def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int]) -> Model:
@@ -65,12 +65,14 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         for name, e in data.get("enums", {}).items()
     )
     groups = tuple(Group(g["name"], g["title"], g["source"], g.get("notes")) for g in data.get("groups", ()))
-    registers = [_register(p, r, lines) for r in data["registers"]]
+    codes = {e.name: tuple(v.value for v in e.members) for e in enums}
+    registers = [_register(p, r, lines, codes) for r in data["registers"]]
     reserved = tuple(
         Reserved(
-            x["start"], x["end"], x.get("readable"), x.get("writable", False),
+            x["start"], x["end"], x.get("readable"),
             Page(x["page"]["selector"], x["page"]["value"]) if x.get("page") else None,
-            x["source"], x.get("notes"), kind=x.get("kind", "reserved"), table=x.get("table", "holding"),
+            writable=x.get("writable", False), source=x["source"], notes=x.get("notes"),
+            kind=x.get("kind", "reserved"), table=x.get("table", "holding"),
         )
         for x in data.get("reserved", ())
     )
@@ -87,6 +89,15 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
     )
     model._by_name.update({r.name: r for r in registers})
     return model
+
+
+def number(value: float | None) -> int | float | None:
+    """A number as the map means it: an int when it is whole (so a printed spec reads ``10``, not ``10.0``)."""
+    return None if value is None else whole(value)
+
+
+def whole(value: float) -> int | float:
+    return int(value) if float(value).is_integer() else float(value)
 
 
 def _identity(x: dict[str, Any], reg: Register) -> IdentityCheck:
@@ -115,13 +126,13 @@ def _device(dev: dict[str, Any]) -> Device:
 def _timing(t: dict[str, Any]) -> Timing:
     proc = t.get("processing_ms")
     return Timing(
-        silent_interval_chars=t.get("silent_interval_chars"),
-        silent_interval_floor_ms=t.get("silent_interval_floor_ms"),
+        silent_interval_chars=number(t.get("silent_interval_chars")),
+        silent_interval_floor_ms=number(t.get("silent_interval_floor_ms")),
         silent_interval_floor_above_bps=t.get("silent_interval_floor_above_bps"),
-        processing_ms=(proc["min"], proc["max"]) if proc else None,
-        inter_frame_gap_ms=t.get("inter_frame_gap_ms"),
-        broadcast_gap_ms=t.get("broadcast_gap_ms"),
-        response_timeout_ms=t.get("response_timeout_ms"),
+        processing_ms=(whole(proc["min"]), whole(proc["max"])) if proc else None,
+        inter_frame_gap_ms=number(t.get("inter_frame_gap_ms")),
+        broadcast_gap_ms=number(t.get("broadcast_gap_ms")),
+        response_timeout_ms=number(t.get("response_timeout_ms")),
         retries=t.get("retries"),
         source=t["source"],
         notes=t.get("notes"),
@@ -170,9 +181,9 @@ def _protocol(p: dict[str, Any]) -> Protocol:
         ports=tuple(_port(x) for x in p["ports"]),
         function_codes=tuple(
             FunctionCode(
-                f["code"], f["name"], f.get("max_quantity"), f.get("broadcast"),
-                _lengths(f.get("request_bytes")), _lengths(f.get("response_bytes")), f["source"], f.get("notes"),
-                broadcast_reason=f.get("broadcast_reason"),
+                f["code"], f.get("max_quantity"), f.get("broadcast"), f.get("broadcast_reason"), name=f["name"],
+                request_bytes=_lengths(f.get("request_bytes")), response_bytes=_lengths(f.get("response_bytes")),
+                source=f["source"], notes=f.get("notes"),
             )
             for f in p["function_codes"]
         ),
@@ -224,12 +235,13 @@ def _example(e: dict[str, Any], status: Status) -> Example:
     )
 
 
-def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Register:
+def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int],
+              enum_codes: dict[str, tuple[int, ...]]) -> Register:
     table, address = modicon.locate(r)
     rtype: RegType = r.get("type", default_type(table))
     length = r.get("length", 1)
     default = r.get("default")
-    defaults: tuple[Value, ...] = tuple(default) if isinstance(default, list) else (default,)
+    defaults = tuple(_default(d) for d in (default if isinstance(default, list) else (default,)))
     writable = "w" in r.get("access", "r")
     not_available = tuple(
         raw for raw in (normalize_raw(rtype, table, length, v) for v in r.get("not_available", ())) if raw is not None
@@ -239,10 +251,11 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
         name=r["name"], address=address, param=r.get("param"), param_rule=r.get("param_rule"),
         label=r.get("label"), description=r.get("description"), group=r["group"],
         type=rtype, word_order=r.get("word_order"), access=r.get("access", "r"),
-        scale=r.get("scale", 1), offset=r.get("offset", 0), unit=r.get("unit"),
-        min=r.get("min"), max=r.get("max"), defaults=defaults,
+        scale=whole(r.get("scale", 1)), offset=whole(r.get("offset", 0)), unit=r.get("unit"),
+        min=number(r.get("min")), max=number(r.get("max")), defaults=defaults,
         reflect=r.get("reflect", "unknown"), storage=r.get("storage", "unknown"),
-        write_delay_ms=r.get("write_delay_ms"), enum=r.get("enum"),
+        write_delay_ms=number(r.get("write_delay_ms")), enum=r.get("enum"),
+        enum_values=enum_codes[r["enum"]] if r.get("enum") else (),
         bits=tuple(
             Bit(b["name"], b["offset"], b.get("width", 1), b["label"], b.get("enum"), b.get("notes"))
             for b in r.get("bits", ())
@@ -256,15 +269,20 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int]) -> Re
         refuse_while_running=r.get("refuse_while_running", False),
         source=r["source"], notes=r.get("notes"),
         table=table, byte_order=r.get("byte_order", "high_first"), length=length,
-        encoding=r.get("encoding", "ascii"), scale_register=r.get("scale_register"),
+        encoding=r.get("encoding", "ascii") if rtype == "string" else "ascii", scale_register=r.get("scale_register"),
         not_available=not_available, min_read=r.get("min_read"),
         modicon_given=None if given is None else str(given),
         line=lines.get(r["name"], 0),
-        running_advice=_running_advice(r.get("running_advice")),
+        advice=_running_advice(r.get("running_advice")),
         element_param_format=r.get("element_param_format"),
-        values=tuple(AllowedValue(_value(rtype, v["value"]), v.get("label"), v.get("notes")) for v in r.get("values", ())),
+        value_set=tuple(AllowedValue(_value(rtype, v["value"]), v.get("label"), v.get("notes")) for v in r.get("values", ())),
         precision=r.get("precision"), first_index=r.get("first_index", 0),
     )
+
+
+def _default(value: Value) -> Value:
+    """A default as the register's values are: text and true/false as given, numbers as ints when whole."""
+    return value if isinstance(value, (str, bool)) else number(value)
 
 
 def _value(rtype: str, value: float | str) -> float | str:

@@ -5,19 +5,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivemap.runtime.client.identity import expected_text
+from drivemap.runtime.spec import IdentitySpec
 
 #: The ways an identity check compares (``identity[].<kind>`` in a map).
 IDENTITY_KINDS = ("equals", "one_of", "prefix", "pattern")
 
 
 @dataclass(frozen=True)
-class IdentityCheck:
-    """A register and the value(s) that identify the device or family (``kind``: see IDENTITY_KINDS)."""
+class IdentityCheck(IdentitySpec):
+    """A register and the value(s) that identify the device or family (``kind``: see IDENTITY_KINDS):
+    the runtime's :class:`IdentitySpec` and the map's notes."""
 
-    register: str
-    kind: str
-    values: tuple[int | str, ...]
-    source: str
     notes: str | None = None
 
     def expected(self) -> str:

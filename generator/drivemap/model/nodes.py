@@ -1,7 +1,9 @@
 """The immutable, typed model every template and the runtime read.
 
 Built from a document that passed the schema and the semantic checks (:mod:`checks`), so
-constructors here trust their input. Everything is frozen; collections are tuples.
+constructors here trust their input. Everything is frozen; collections are tuples. A node that
+describes what the runtime describes extends the runtime's class (:mod:`drivemap.runtime.spec`)
+with compile-time facts only; :func:`drivemap.model.spec.project` gives its runtime part.
 """
 
 from __future__ import annotations
@@ -36,7 +38,20 @@ from drivemap.model.protocol import (
 from drivemap.model.rules import Alignment, AllowedValue
 from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
 from drivemap.runtime.names import camel
-from drivemap.runtime.spec import BIT_TABLES, FLOAT_TYPES, READ_CODES, SIGNED_TYPES, TYPE_WORDS
+from drivemap.runtime.spec import (
+    BIT_TABLES,
+    FLOAT_TYPES,
+    READ_CODES,
+    SIGNED_TYPES,
+    TYPE_WORDS,
+    BitSpec,
+    EnumMemberSpec,
+    EnumSpec,
+    PageSpec,
+    RegisterSpec,
+    ReservedSpec,
+    type_words,
+)
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]
@@ -47,7 +62,7 @@ Value = float | str | None
 
 #: Raw bounds of the integer types (the runtime's table) and of a bool in a bit table.
 TYPE_BOUNDS: dict[str, tuple[int, int]] = {**_INTEGER_BOUNDS, "bool": (0, 1)}
-#: TYPE_WORDS, SIGNED_TYPES, FLOAT_TYPES, BIT_TABLES and READ_CODES are the runtime's tables
+#: TYPE_WORDS, SIGNED_TYPES, FLOAT_TYPES, BIT_TABLES, READ_CODES and type_words are the runtime's tables
 #: (:mod:`drivemap.runtime.spec`), re-exported here.
 INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
 #: Largest finite magnitude of each float type.
@@ -57,11 +72,6 @@ FLOAT_MAX: dict[str, float] = {"f32": 3.4028234663852886e38, "f64": 1.7976931348
 def default_type(table: str) -> RegType:
     """The type a register has when the map gives none: bool in bit tables, else u16."""
     return "bool" if table in BIT_TABLES else "u16"
-
-
-def type_words(rtype: str, length: int = 1) -> int:
-    """Words of a type (``length`` for strings)."""
-    return length if rtype == "string" else TYPE_WORDS[rtype]
 
 
 def raw_bounds(rtype: str, table: str, length: int = 1) -> tuple[int, int]:
@@ -89,39 +99,28 @@ def is_keyword(name: str) -> bool:
 
 
 @dataclass(frozen=True)
-class EnumValue:
-    value: int
-    name: str
-    label: str
-    notes: str | None
+class EnumValue(EnumMemberSpec):
+    """A member of an enum: the runtime's :class:`EnumMemberSpec` and the map's notes."""
+
+    notes: str | None = None
 
 
 @dataclass(frozen=True)
-class Enum:
-    name: str
-    values: tuple[EnumValue, ...]
-    source: str
-    notes: str | None
+class Enum(EnumSpec):
+    """A named set of values: the runtime's :class:`EnumSpec` whose members keep their notes."""
+
+    members: tuple[EnumValue, ...]
 
 
 @dataclass(frozen=True)
-class Bit:
-    name: str
-    offset: int
-    width: int
-    label: str
-    enum: str | None
-    notes: str | None
+class Bit(BitSpec):
+    """A bit field of a register: the runtime's :class:`BitSpec` and the map's notes."""
 
-    @property
-    def mask(self) -> int:
-        return ((1 << self.width) - 1) << self.offset
+    notes: str | None = None
 
 
-@dataclass(frozen=True)
-class Page:
-    selector: str
-    value: int
+#: A register's page (selector register and value): the runtime's class as it is.
+Page = PageSpec
 
 
 @dataclass(frozen=True)
@@ -132,75 +131,43 @@ class Group:
     notes: str | None
 
 
-@dataclass(frozen=True)
-class Register:
-    """One register, or one array of registers (``count`` > 1)."""
+@dataclass(frozen=True, kw_only=True)
+class Register(RegisterSpec):
+    """One register, or one array of registers (``count`` > 1): the runtime's :class:`RegisterSpec`
+    (numbers as ints when whole) and what the map says for people and for the compiler.
 
-    name: str
-    address: int
-    param: str | None
-    param_rule: str | None
-    label: str | None
-    description: str | None
-    group: str
-    type: RegType
-    word_order: str | None
-    access: Access
-    scale: float
-    offset: float
-    unit: str | None
-    min: float | None
-    max: float | None
-    defaults: tuple[Value, ...]
-    reflect: str
-    storage: str
-    write_delay_ms: float | None
-    enum: str | None
-    bits: tuple[Bit, ...]
-    flags_name: str | None
-    count: int
-    stride: int
-    element_params: tuple[str, ...]
-    page: Page | None
-    command_value: int | None
-    broadcast: bool
-    refuse_while_running: bool
-    source: str
-    notes: str | None
+    ``value_set``, ``advice`` and ``flags_name`` are the map's richer forms of the runtime's
+    ``values``, ``running_advice`` and ``bits_class``, which are derived from them."""
+
+    type: RegType = "u16"
+    access: Access = "rw"
     table: Table = "holding"
-    byte_order: str = "high_first"
-    length: int = 1
-    """Registers of a string (1 for every other type)."""
-    encoding: str = "ascii"
-    scale_register: str | None = None
-    not_available: tuple[int, ...] = ()
-    """Raw values (as the register's raw value: signed for s16/s32/s64) that mean "no value"."""
-    min_read: int | None = None
+    bits: tuple[Bit, ...] = ()
+    param_rule: str | None = None
+    label: str | None = None
+    description: str | None = None
+    group: str
+    flags_name: str | None = None
+    element_params: tuple[str, ...] = ()
+    notes: str | None = None
     modicon_given: str | None = None
     """The Modicon number as the map gives it (``register:``), else None."""
     line: int = 0
-    running_advice: RunningAdvice | None = None
+    advice: RunningAdvice | None = None
+    """The manual's advice for writes while the drive runs (``running_advice:``)."""
     #: each element's parameter id by rule: {index} / {address} (decimal), e.g. "P_{address}"
     element_param_format: str | None = None
-    #: the value set (``values:``): the only values a write may send
-    values: tuple[AllowedValue, ...] = ()
-    #: decimals shown to people (None: the default of runtime.client.display)
-    precision: int | None = None
-    #: the manual's number of element 0 of an array (names shown to people)
-    first_index: int = 0
+    #: the value set (``values:``): the only values a write may send, with their notes
+    value_set: tuple[AllowedValue, ...] = ()
+    values: tuple[tuple[float | str, str | None], ...] = field(init=False, default=())
+    running_advice: str | None = field(init=False, default=None)
+    bits_class: str | None = field(init=False, default=None)
 
-    @property
-    def words(self) -> int:
-        """Words on the wire (bits for coils and discrete inputs)."""
-        return type_words(self.type, self.length)
-
-    @property
-    def signed(self) -> bool:
-        return self.type in SIGNED_TYPES
-
-    @property
-    def bit_table(self) -> bool:
-        return self.table in BIT_TABLES
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "values", tuple((v.value, v.label) for v in self.value_set))
+        object.__setattr__(self, "running_advice", self.advice.text() if self.advice else None)
+        object.__setattr__(self, "bits_class", (self.flags_name or camel(self.name)) if self.bits else None)
 
     @property
     def is_float(self) -> bool:
@@ -217,24 +184,6 @@ class Register:
         return modicon.number(self.table, self.address)
 
     @property
-    def is_array(self) -> bool:
-        return self.count > 1
-
-    @property
-    def readable(self) -> bool:
-        return "r" in self.access
-
-    @property
-    def writable(self) -> bool:
-        return "w" in self.access
-
-    @property
-    def bits_class(self) -> str | None:
-        if not self.bits:
-            return None
-        return self.flags_name or camel(self.name)
-
-    @property
     def multibit(self) -> bool:
         return any(b.width > 1 for b in self.bits)
 
@@ -245,30 +194,12 @@ class Register:
         return (self.type in INTEGER_TYPES and self.scale_register is None and float(self.scale).is_integer()
                 and float(self.offset).is_integer())
 
-    def element_address(self, index: int) -> int:
-        return self.address + index * self.stride
-
-    def element_name(self, index: int) -> str:
-        return f"{self.name}[{index}]" if self.is_array else self.name
-
-    def display_name(self, index: int, base: str | None = None) -> str:
-        """The name people see for element ``index`` (0-based, as in Python): ``base`` (default the
-        register's name) followed by the manual's number of the element (``pv_voltage 1`` for index 0
-        when ``first_index`` is 1); a register that is not an array is ``base`` alone."""
-        text = self.name if base is None else base
-        return f"{text} {index + self.first_index}" if self.is_array else text
-
     def element_param(self, index: int) -> str | None:
         if self.element_params:
             return self.element_params[index]
         if self.element_param_format is not None:
             return self.element_param_format.format(index=index, address=self.element_address(index))
         return self.param if index == 0 else None
-
-    def default_at(self, index: int) -> Value:
-        if len(self.defaults) == 1:
-            return self.defaults[0]
-        return self.defaults[index]
 
     def raw_bounds(self) -> tuple[int, int]:
         return raw_bounds(self.type, self.table, self.length)
@@ -298,13 +229,11 @@ class Cell:
         return range(self.address, self.address + self.register.words)
 
 
-@dataclass(frozen=True)
-class Reserved:
-    start: int
-    end: int
-    readable: bool | None
+@dataclass(frozen=True, kw_only=True)
+class Reserved(ReservedSpec):
+    """A reserved block: the runtime's :class:`ReservedSpec` and what the map says of it."""
+
     writable: bool
-    page: Page | None
     source: str
     notes: str | None
     #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed

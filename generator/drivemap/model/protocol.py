@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivemap.model.rules import Alignment
+from drivemap.runtime.spec import CommErrorSpec, ExceptionSpec, FunctionSpec, PolicySpec, TimingSpec
 
 __all__ = [
     "Checksum",
@@ -85,24 +86,21 @@ class LengthRange:
     max: int
 
 
-@dataclass(frozen=True)
-class FunctionCode:
-    code: int
+@dataclass(frozen=True, kw_only=True)
+class FunctionCode(FunctionSpec):
+    """A function code: the runtime's :class:`FunctionSpec` and what the map says of it."""
+
     name: str
-    max_quantity: int | None
-    broadcast: bool | None
     request_bytes: LengthRange | None
     response_bytes: LengthRange | None
     source: str
     notes: str | None
-    broadcast_reason: str | None = None
 
 
 @dataclass(frozen=True)
-class ExceptionCode:
-    code: int
-    name: str
-    meaning: str
+class ExceptionCode(ExceptionSpec):
+    """An exception code: the runtime's :class:`ExceptionSpec` and what the map says of it."""
+
     comm_errors: tuple[int, ...]
     source: str
     notes: str | None
@@ -111,34 +109,27 @@ class ExceptionCode:
 
 
 @dataclass(frozen=True)
-class CommError:
-    code: int
-    name: str
-    meaning: str
+class CommError(CommErrorSpec):
+    """A communication error code: the runtime's :class:`CommErrorSpec`, its source and notes."""
+
     source: str
     notes: str | None
 
 
 @dataclass(frozen=True)
-class PolicyCase:
-    case: str
-    code: int | None
+class PolicyCase(PolicySpec):
+    """An error case's code: the runtime's :class:`PolicySpec`, its source and the map's reason."""
+
     source: str
     reason: str | None
 
 
-@dataclass(frozen=True)
-class Timing:
-    silent_interval_chars: float | None
-    silent_interval_floor_ms: float | None
-    silent_interval_floor_above_bps: int | None
-    processing_ms: tuple[float, float] | None
-    inter_frame_gap_ms: float | None
-    broadcast_gap_ms: float | None
-    response_timeout_ms: float | None
-    retries: int | None
+@dataclass(frozen=True, kw_only=True)
+class Timing(TimingSpec):
+    """The timing: the runtime's :class:`TimingSpec` (numbers as ints when whole), source and notes."""
+
     source: str
-    notes: str | None
+    notes: str | None = None
 
 
 @dataclass(frozen=True)

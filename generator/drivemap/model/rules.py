@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivemap.model.modicon import Table
+from drivemap.runtime.spec import AlignmentSpec
 
 
 @dataclass(frozen=True)
@@ -25,22 +26,14 @@ class AllowedValue:
         return shown + (f" ({self.label})" if self.label else "")
 
 
-@dataclass(frozen=True)
-class Alignment:
-    """A rule on the requests to ``table`` words ``start``..``end`` (``protocol.alignment``)."""
+@dataclass(frozen=True, kw_only=True)
+class Alignment(AlignmentSpec):
+    """A rule on the requests to ``table`` words ``start``..``end`` (``protocol.alignment``): the
+    runtime's :class:`AlignmentSpec` (``exception``: the rule's code, else the illegal_address
+    policy's, else 02h) and the map's notes."""
 
     table: Table
-    start: int
-    end: int
-    start_multiple: int
-    quantity_multiple: int
-    min_quantity: int
-    whole_values: bool
-    operations: tuple[str, ...]
-    exception: int
-    """The code the device answers (the rule's, else the illegal_address policy's, else 02h)."""
-    source: str
-    notes: str | None
+    notes: str | None = None
 
     def text(self) -> str:
         """The rule in words, for docs and messages."""

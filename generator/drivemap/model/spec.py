@@ -4,75 +4,50 @@
 and ``drivemap build`` use; the generated ``spec.py`` is this object printed
 (:mod:`drivemap.backends.views.spec`), so a built package and an unbuilt map give equal specs.
 Nothing here renders or executes generated text.
+
+The model's nodes that describe what the runtime describes *are* the runtime's classes, extended
+by compile-time facts only (``Register`` is a ``RegisterSpec``, ``Bit`` a ``BitSpec``, ...), so the
+runtime's part of a node is a projection onto its runtime class (:func:`project`), not a copy
+field by field. Only the device record is assembled here: the model splits it into device,
+protocol and ports, and gives configuration, running state and reply quirks in richer forms.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import types
+from typing import Any, TypeVar
 
-from drivemap.model.nodes import Model, Register
+from drivemap.model.nodes import Model
 from drivemap.runtime.client.dynamic import client_package
 from drivemap.runtime.sim.model import ModelSimulator, simulator_main
-from drivemap.runtime.spec import (
-    AlignmentSpec,
-    BitSpec,
-    CommErrorSpec,
-    DeviceSpec,
-    EnumMemberSpec,
-    EnumSpec,
-    ExceptionSpec,
-    FunctionSpec,
-    IdentitySpec,
-    PageSpec,
-    PolicySpec,
-    RegisterSpec,
-    ReservedSpec,
-    SerialSpec,
-    TimingSpec,
-)
+from drivemap.runtime.spec import DeviceSpec, SerialSpec, TimingSpec
 
-__all__ = ["load_package", "register_spec", "spec_from_model"]
+__all__ = ["load_package", "project", "spec_from_model"]
+
+_T = TypeVar("_T")
 
 
-def _num(value: float | None) -> int | float | None:
-    """A number as the map means it: an int when it is whole (so the printed spec reads ``10``, not ``10.0``)."""
-    if value is None:
-        return None
-    return int(value) if float(value).is_integer() else float(value)
+def _runtime_class(cls: type) -> type:
+    """The runtime spec class a model class is (or extends): the first in its MRO from :mod:`drivemap.runtime.spec`."""
+    return next(c for c in cls.__mro__ if c.__module__ == DeviceSpec.__module__)
 
 
-def _whole(value: float) -> int | float:
-    return int(value) if float(value).is_integer() else float(value)
+def _projected(value: Any) -> Any:
+    """``value`` with every node in it (also in tuples) projected onto its runtime class."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return project(value, _runtime_class(type(value)))
+    if isinstance(value, tuple):
+        return tuple(_projected(v) for v in value)
+    return value
 
 
-def _default(value: float | str | None) -> int | float | str | bool | None:
-    if isinstance(value, (str, bool)):
-        return value
-    return _num(value)
-
-
-def register_spec(model: Model, reg: Register) -> RegisterSpec:
-    """The runtime description of one register (or array) of ``model``."""
-    enum_values = tuple(v.value for v in model.enum(reg.enum).values) if reg.enum else ()
-    return RegisterSpec(
-        name=reg.name, address=reg.address, type=reg.type, table=reg.table, access=reg.access,
-        count=reg.count, stride=reg.stride, word_order=reg.word_order,
-        scale=_whole(reg.scale), offset=_whole(reg.offset), unit=reg.unit,
-        min=_num(reg.min), max=_num(reg.max), defaults=tuple(_default(d) for d in reg.defaults),
-        reflect=reg.reflect, storage=reg.storage, write_delay_ms=_num(reg.write_delay_ms),
-        enum=reg.enum, enum_values=enum_values,
-        bits=tuple(BitSpec(b.name, b.offset, b.width, b.label, b.enum) for b in reg.bits),
-        page=PageSpec(reg.page.selector, reg.page.value) if reg.page else None,
-        command_value=reg.command_value, broadcast=reg.broadcast, refuse_while_running=reg.refuse_while_running,
-        param=reg.param, source=reg.source,
-        running_advice=reg.running_advice.text() if reg.running_advice else None,
-        byte_order=reg.byte_order, length=reg.length,
-        encoding=reg.encoding if reg.type == "string" else "ascii",
-        scale_register=reg.scale_register, not_available=reg.not_available, min_read=reg.min_read,
-        values=tuple((v.value, v.label) for v in reg.values), precision=reg.precision, first_index=reg.first_index,
-        bits_class=reg.bits_class,
-    )
+def project(node: object, cls: type[_T]) -> _T:
+    """``node`` (a model node, which extends the runtime class ``cls``) as a plain ``cls``: the
+    fields the runtime declares, nested nodes projected likewise; the compile-time extras are dropped."""
+    return cls(**{f.name: _projected(getattr(node, f.name)) for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+                  if f.init})
 
 
 def _serial(model: Model) -> SerialSpec:
@@ -84,41 +59,17 @@ def _serial(model: Model) -> SerialSpec:
     )
 
 
-def _timing(model: Model) -> TimingSpec:
-    t = model.protocol.timing
-    return TimingSpec(
-        silent_interval_chars=_num(t.silent_interval_chars), silent_interval_floor_ms=_num(t.silent_interval_floor_ms),
-        silent_interval_floor_above_bps=t.silent_interval_floor_above_bps,
-        processing_ms=(_whole(t.processing_ms[0]), _whole(t.processing_ms[1])) if t.processing_ms else None,
-        inter_frame_gap_ms=_num(t.inter_frame_gap_ms), broadcast_gap_ms=_num(t.broadcast_gap_ms),
-        response_timeout_ms=_num(t.response_timeout_ms), retries=t.retries,
-    )
-
-
-def _enums(model: Model) -> tuple[EnumSpec, ...]:
-    return tuple(
-        EnumSpec(e.name, tuple(EnumMemberSpec(v.value, v.name, v.label) for v in e.values), e.source, e.notes)
-        for e in model.enums
-    )
-
-
 def spec_from_model(model: Model) -> DeviceSpec:
     """The runtime's description of ``model``: registers, dialect, timing, enums (no YAML, no generated code)."""
     p = model.protocol
     return DeviceSpec(
         model=model.name, title=model.device.title, modes=p.modes, unit_min=p.unit_min, unit_max=p.unit_max,
         broadcast_address=p.broadcast_address, serial=_serial(model),
-        function_codes=tuple(FunctionSpec(fc.code, fc.max_quantity, fc.broadcast, fc.broadcast_reason)
-                             for fc in p.function_codes),
-        exceptions=tuple(ExceptionSpec(ex.code, ex.name, ex.meaning) for ex in p.exceptions),
-        timing=_timing(model),
-        registers=tuple(register_spec(model, r) for r in model.registers),
-        reserved=tuple(ReservedSpec(r.start, r.end, r.readable,
-                                    PageSpec(r.page.selector, r.page.value) if r.page else None, r.table)
-                       for r in model.reserved),
-        comm_errors=tuple(CommErrorSpec(c.code, c.name, c.meaning) for c in p.comm_errors),
-        exception_policy=tuple(PolicySpec(c.case, c.code) for c in p.exception_policy),
-        comm_error_policy=tuple(PolicySpec(c.case, c.code) for c in p.comm_error_policy),
+        function_codes=_projected(p.function_codes), exceptions=_projected(p.exceptions),
+        timing=project(p.timing, TimingSpec),
+        registers=_projected(model.registers),
+        reserved=_projected(model.reserved), comm_errors=_projected(p.comm_errors),
+        exception_policy=_projected(p.exception_policy), comm_error_policy=_projected(p.comm_error_policy),
         comm_error_history=p.comm_error_history,
         configuration=(p.configuration.register, p.configuration.value) if p.configuration else None,
         max_frame_bytes=p.max_frame_bytes,
@@ -127,13 +78,8 @@ def spec_from_model(model: Model) -> DeviceSpec:
         running_state=(p.running_state.register, p.running_state.values) if p.running_state else None,
         reply_quirks=tuple(q.quirk for q in p.reply_quirks),
         max_gap=p.max_gap,
-        alignment=tuple(AlignmentSpec(a.table, start=a.start, end=a.end, start_multiple=a.start_multiple,
-                                      quantity_multiple=a.quantity_multiple, min_quantity=a.min_quantity,
-                                      whole_values=a.whole_values, operations=a.operations, exception=a.exception,
-                                      source=a.source)
-                        for a in p.alignment),
-        identity=tuple(IdentitySpec(c.register, c.kind, c.values, c.source) for c in model.identity),
-        enums=_enums(model),
+        alignment=_projected(p.alignment), identity=_projected(model.identity),
+        enums=_projected(model.enums),
     )
 
 

@@ -3,6 +3,8 @@
 The compiler makes one :class:`DeviceSpec` from a map (``drivemap.model.spec.spec_from_model``);
 generated ``generated/<model>/spec.py`` is that object printed. The runtime reads only these
 classes (never YAML at run time). The tables of type sizes and read codes here are the only ones.
+The compiler's model nodes extend these classes (a model ``Register`` is a :class:`RegisterSpec`
+plus compile-time facts), so each fact the runtime reads is declared here once.
 """
 
 from __future__ import annotations
@@ -17,6 +19,11 @@ FLOAT_TYPES = frozenset({"f32", "f64"})
 BIT_TABLES = frozenset({"coil", "discrete"})
 #: The read function code of each table.
 READ_CODES: dict[str, int] = {"holding": 0x03, "input": 0x04, "coil": 0x01, "discrete": 0x02}
+
+
+def type_words(rtype: str, length: int = 1) -> int:
+    """Words of a type (``length`` for strings)."""
+    return length if rtype == "string" else TYPE_WORDS[rtype]
 
 
 @dataclass(frozen=True)
@@ -97,7 +104,7 @@ class RegisterSpec:
     signed: bool = field(init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "words", self.length if self.type == "string" else TYPE_WORDS[self.type])
+        object.__setattr__(self, "words", type_words(self.type, self.length))
         object.__setattr__(self, "signed", self.type in SIGNED_TYPES)
 
     @property
@@ -123,8 +130,9 @@ class RegisterSpec:
         return f"{self.name}[{index}]" if self.count > 1 else self.name
 
     def display_name(self, index: int, base: str | None = None) -> str:
-        """The element's name for people: ``base`` (default the name) and the manual's number of the
-        element (``index + first_index``); the model's ``Register.display_name`` says the same."""
+        """The name people see for element ``index`` (0-based, as in Python): ``base`` (default the
+        register's name) followed by the manual's number of the element (``pv_voltage 1`` for index 0
+        when ``first_index`` is 1); a register that is not an array is ``base`` alone."""
         text = self.name if base is None else base
         return f"{text} {index + self.first_index}" if self.count > 1 else text
 

@@ -323,7 +323,7 @@ class _Build:
                               "(an ESPHome switch writes one register)")
             return
         commands = [(name, reg.command_value or 0)] if point.is_command else \
-            [(f"{name} {v.name}", v.value) for v in self.model.enum(reg.enum or "").values]
+            [(f"{name} {v.name}", v.value) for v in self.model.enum(reg.enum or "").members]
         for label, value in commands:
             # assumed state: never polled; both on and off write the command value (never an undocumented 0)
             self._add("switch", point, {**self._base(point, label), "assumed_state": True, "bitmask": Hex(value),

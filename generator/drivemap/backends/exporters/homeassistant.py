@@ -373,7 +373,7 @@ class _Build:
         if point.is_command:
             self.switches.append(self._switch(point, point.key, reg.command_value or 0, kind))
             return
-        for item in self.model.enum(reg.enum or "").values:
+        for item in self.model.enum(reg.enum or "").members:
             self.switches.append(self._switch(point, f"{point.key} {item.name}", item.value, kind))
 
     def _switch(self, point: iv.Point, key: str, value: int, kind: str) -> dict[str, Any]:

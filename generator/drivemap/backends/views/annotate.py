@@ -87,7 +87,7 @@ def words_value(model: Model, reg: Register, words: list[int]) -> str:
 def describe_value(model: Model, reg: Register, raw: int) -> str:
     """What a raw register value means: engineering value with unit, enum member, bits set."""
     if reg.enum:
-        names = {v.value: v.name for v in model.enum(reg.enum).values}
+        names = {v.value: v.name for v in model.enum(reg.enum).members}
         return f"{raw} = {names.get(raw, 'not a listed value')}"
     if reg.bits:
         parts = []

@@ -17,7 +17,6 @@ from drivemap.backends.python.names import FIXED_NAMES, exception_classes
 from drivemap.backends.python.names import bit_attribute as _attr
 from drivemap.backends.views.common import header
 from drivemap.model.nodes import Bit, Model, Register, camel
-from drivemap.model.spec import register_spec
 from drivemap.runtime.client.declare import REG_CLASSES, broadcast_kind_of, kind_of
 
 
@@ -154,7 +153,7 @@ def _doc(model: Model, reg: Register) -> list[str]:
     lines.append(_where(reg))
     lines += [line for line in (_units(reg), _state(reg)) if line]
     if reg.values:
-        lines.append("Allowed values: " + ", ".join(v.text() for v in reg.values)
+        lines.append("Allowed values: " + ", ".join(v.text() for v in reg.value_set)
                      + " (a write of any other raises NotAllowedValue before anything is sent).")
     if reg.not_available:
         shown = ", ".join(f"0x{v:X}" if v >= 0 else str(v) for v in reg.not_available)
@@ -166,7 +165,7 @@ def _doc(model: Model, reg: Register) -> list[str]:
     if reg.broadcast:
         lines.append("May be written by broadcast.")
     if reg.running_advice is not None:
-        lines.append(f"While the drive runs the manual advises: {reg.running_advice.text()}; "
+        lines.append(f"While the drive runs the manual advises: {reg.running_advice}; "
                      "writing it then gives a RunningWriteWarning.")
     lines.append(f"Manual: {reg.source}.")
     return lines
@@ -229,12 +228,11 @@ def _exceptions(model: Model) -> list[dict[str, str]]:
 def _accessors(model: Model) -> list[AccessorView]:
     accessors: list[AccessorView] = []
     for reg in model.registers:
-        spec = register_spec(model, reg)
         accessors.append(AccessorView(
             name=reg.name, type=value_type(reg), base=base_type(reg),
-            reg_class=REG_CLASSES[kind_of(spec)].__name__,
+            reg_class=REG_CLASSES[kind_of(reg)].__name__,
             broadcast_class={"w": "BroadcastReg", "cmd": "BroadcastCommandReg",
-                             "w[]": "BroadcastArrayReg"}[broadcast_kind_of(spec)],
+                             "w[]": "BroadcastArrayReg"}[broadcast_kind_of(reg)],
             doc=_doc(model, reg), broadcast=reg.broadcast and reg.writable, readable=reg.readable,
             is_array=reg.is_array,
         ))
@@ -253,7 +251,7 @@ PACKAGE_NAMES = frozenset({
 def context(model: Model, options: Options) -> dict[str, Any]:
     enums = [
         {"name": e.name, "doc": f"{e.name} ({e.source}).", "notes": e.notes,
-         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.values]}
+         "values": [{"name": v.name, "value": v.value, "doc": v.label} for v in e.members]}
         for e in model.enums
     ]
     flags, records = _bit_classes(model)

@@ -174,7 +174,7 @@ def _enums(model: Model) -> list[dict[str, Any]]:
             "members": [
                 {"value": num(v.value), "hex": hex2(v.value) if v.value >= 0 else None, "name": v.name,
                  "label": v.label, "notes": v.notes}
-                for v in enum.values
+                for v in enum.members
             ],
             "used_by": ", ".join(used) if used else None,
             "source": enum.source,
@@ -293,7 +293,7 @@ def _value_rows(model: Model, pairs: tuple[tuple[str, Value], ...]) -> list[dict
             continue
         shown = with_unit(num(value), reg.unit)
         if reg.enum and float(value).is_integer():
-            names = {v.value: v.name for v in model.enum(reg.enum).values}
+            names = {v.value: v.name for v in model.enum(reg.enum).members}
             if int(value) in names:
                 shown = f"{num(value)} ({names[int(value)]})"
         elif reg.bits and float(value).is_integer():

@@ -123,10 +123,10 @@ def options(reg: Register) -> list[tuple[AllowedValue, str]]:
         text = str(int(value)) if isinstance(value, float) and value.is_integer() else str(value)
         return f"{text} {reg.unit}" if reg.unit and not isinstance(value, str) else text
 
-    texts = [item.label or plain(item) for item in reg.values]
+    texts = [item.label or plain(item) for item in reg.value_set]
     if len(set(texts)) != len(texts):
-        texts = [item.text() for item in reg.values]
-    return list(zip(reg.values, texts, strict=True))
+        texts = [item.text() for item in reg.value_set]
+    return list(zip(reg.value_set, texts, strict=True))
 
 
 def wire_words(reg: Register, value: float | str) -> list[int]:
@@ -199,10 +199,10 @@ class Selection:
     def enum_labels(self, point: Point) -> tuple[tuple[int, str], ...]:
         if point.reg.enum is None:
             return ()
-        return tuple((v.value, v.label) for v in self.model.enum(point.reg.enum).values)
+        return tuple((v.value, v.label) for v in self.model.enum(point.reg.enum).members)
 
     def enum_labels_of(self, name: str) -> tuple[tuple[int, str], ...]:
-        return tuple((v.value, v.label) for v in self.model.enum(name).values)
+        return tuple((v.value, v.label) for v in self.model.enum(name).members)
 
     def omitted_lines(self) -> list[str]:
         """One comment line per reason: what was left out."""

@@ -99,7 +99,7 @@ def _type_notes(reg: Register) -> list[str]:
 
 def _advice_text(reg: Register) -> str:
     """The manual's advice for writes while running (the device is not known to refuse them)."""
-    advice = reg.running_advice
+    advice = reg.advice
     assert advice is not None
     instead = f"; write {advice.instead} instead" if advice.instead else ""
     return (f"while the drive runs the manual advises: {advice.advice}{instead} ({advice.source}; advice only: "
@@ -139,7 +139,7 @@ def _display_notes(reg: Register) -> list[str]:
     """The value set, the display precision and the manual's numbering of an array."""
     notes = []
     if reg.values:
-        notes.append("values: " + ", ".join(v.text() for v in reg.values) + " (a write of any other value is refused)")
+        notes.append("values: " + ", ".join(v.text() for v in reg.value_set) + " (a write of any other value is refused)")
     if reg.precision is not None:
         notes.append(f"shown with {reg.precision} decimal{'s' if reg.precision != 1 else ''}")
     if reg.first_index:
@@ -231,7 +231,7 @@ def groups(model: Model) -> list[dict[str, Any]]:
             sel = model.register(selector)
             labels = {}
             if sel.enum:
-                labels = {v.value: v.label for v in model.enum(sel.enum).values}
+                labels = {v.value: v.label for v in model.enum(sel.enum).members}
             paging.append({
                 "selector": selector,
                 "address": hex4(sel.address),

@@ -1,0 +1,117 @@
+"""One hierarchy: the model's nodes extend the runtime's spec classes with compile-time facts only,
+and :func:`spec_from_model` is their projection onto those classes (no copy field by field)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from drivemap.compiler import compile_map
+from drivemap.model.family import IdentityCheck
+from drivemap.model.nodes import (
+    Alignment,
+    Bit,
+    CommError,
+    Enum,
+    EnumValue,
+    ExceptionCode,
+    FunctionCode,
+    Page,
+    PolicyCase,
+    Register,
+    Reserved,
+    Timing,
+)
+from drivemap.model.rules import AllowedValue
+from drivemap.model.spec import project, spec_from_model
+from drivemap.runtime import spec as runtime
+from drivemap.runtime.spec import RegisterSpec
+
+ROOT = Path(__file__).resolve().parent.parent
+MAPS = sorted((ROOT / "maps").glob("*.yaml"))
+
+#: Each model node, its runtime class, and the runtime fields it declares again: narrower types
+#: (Literal, the model's own node classes) or fields derived from the map's richer form.
+NODES: list[tuple[type, type, set[str]]] = [
+    (Register, runtime.RegisterSpec,
+     {"type", "access", "table", "bits", "values", "running_advice", "bits_class"}),
+    (Bit, runtime.BitSpec, set()),
+    (Enum, runtime.EnumSpec, {"members"}),
+    (EnumValue, runtime.EnumMemberSpec, set()),
+    (Reserved, runtime.ReservedSpec, {"table"}),
+    (Timing, runtime.TimingSpec, set()),
+    (Alignment, runtime.AlignmentSpec, {"table"}),
+    (IdentityCheck, runtime.IdentitySpec, set()),
+    (FunctionCode, runtime.FunctionSpec, set()),
+    (ExceptionCode, runtime.ExceptionSpec, set()),
+    (CommError, runtime.CommErrorSpec, set()),
+    (PolicyCase, runtime.PolicySpec, set()),
+]
+
+
+@pytest.mark.parametrize(("node", "base", "again"), NODES, ids=lambda x: getattr(x, "__name__", ""))
+def test_model_node_extends_its_runtime_class_and_declares_no_runtime_fact_again(
+        node: type, base: type, again: set[str]) -> None:
+    assert issubclass(node, base)
+    runtime_fields = {f.name for f in dataclasses.fields(base)}
+    assert set(node.__dict__.get("__annotations__", {})) & runtime_fields == again
+
+
+def test_page_is_the_runtime_class() -> None:
+    assert Page is runtime.PageSpec
+
+
+def _nodes(value: Any) -> list[Any]:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return [value, *(n for f in dataclasses.fields(value) for n in _nodes(getattr(value, f.name)))]
+    if isinstance(value, tuple):
+        return [n for v in value for n in _nodes(v)]
+    return []
+
+
+@pytest.mark.parametrize("path", MAPS, ids=lambda p: p.stem)
+def test_spec_from_model_holds_only_runtime_classes(path: Path) -> None:
+    """The projection drops the model's classes: the spec prints and compares as the runtime's."""
+    spec = spec_from_model(compile_map(path))
+    nodes = _nodes(spec)
+    assert len(nodes) > 10
+    assert {type(n).__module__ for n in nodes} == {runtime.__name__}
+
+
+def test_a_register_is_its_spec_and_its_projection_drops_only_compile_time_facts() -> None:
+    model = compile_map(ROOT / "maps" / "ev.yaml")
+    spec = spec_from_model(model)
+    for reg in model.registers:
+        plain = project(reg, RegisterSpec)
+        assert type(plain) is RegisterSpec and plain == spec.register(reg.name)
+        assert plain != reg  # a model Register carries more (and is another class)
+        assert (plain.words, plain.signed) == (reg.words, reg.signed)
+
+
+def test_runtime_fields_are_derived_from_the_maps_richer_forms() -> None:
+    ev = compile_map(ROOT / "maps" / "ev.yaml")
+    advised = next(r for r in ev.registers if r.advice is not None)
+    assert advised.advice is not None and advised.running_advice == advised.advice.text()
+    flagged = next(r for r in ev.registers if r.bits)
+    assert flagged.bits_class and all(isinstance(b, Bit) for b in flagged.bits)
+    sdm = compile_map(ROOT / "maps" / "sdm630.yaml")
+    reg = sdm.register("system_type")
+    assert reg.values == tuple((v.value, v.label) for v in reg.value_set) and reg.values
+    changed = dataclasses.replace(reg, value_set=(AllowedValue(7, "seven", "a note"),), flags_name="Other")
+    assert changed.values == ((7, "seven"),) and changed.bits_class is None  # recomputed; no bits, no class
+    with pytest.raises(ValueError, match="init=False"):
+        dataclasses.replace(reg, values=((1, None),))
+
+
+def test_model_numbers_are_the_runtimes() -> None:
+    """Whole numbers are ints in the model as in the spec (``max: 100.0`` reads 100)."""
+    model = compile_map(ROOT / "maps" / "vfd1000.yaml")
+    spec = spec_from_model(model)
+    for reg in model.registers:
+        for name in ("scale", "offset", "min", "max", "write_delay_ms"):
+            value = getattr(reg, name)
+            assert value is None or isinstance(value, float) != float(value).is_integer()
+            assert repr(value) == repr(getattr(spec.register(reg.name), name))
