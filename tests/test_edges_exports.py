@@ -180,9 +180,9 @@ LINE = ("--serial", "/dev/ttyUSB0", "--baudrate", "9600", "--parity", "none", "-
 
 
 def test_devices_on_one_serial_line_share_one_home_assistant_hub() -> None:
-    from helpers_live import cli
+    from helpers_live import run
 
-    proc = cli("export", "ev:1", "vfd1000:2", "--format", "homeassistant", *LINE)
+    proc = run("export", "ev:1", "vfd1000:2", "--format", "homeassistant", *LINE)
     assert proc.returncode == 0, proc.stderr
     doc = parse("homeassistant", proc.stdout)
     assert len(doc["modbus"]) == 1  # Home Assistant drops a second hub on the same port
@@ -192,25 +192,25 @@ def test_devices_on_one_serial_line_share_one_home_assistant_hub() -> None:
     assert addresses == {"ev": 1, "vfd1000": 2}
     ids = [e["unique_id"] for key in ("sensors", "switches", "binary_sensors") for e in hub.get(key, [])]
     assert len(ids) == len(set(ids))
-    twins = parse("homeassistant", cli("export", "ev:1", "ev:2", "--format", "homeassistant", *LINE).stdout)
+    twins = parse("homeassistant", run("export", "ev:1", "ev:2", "--format", "homeassistant", *LINE).stdout)
     twin_ids = [e["unique_id"] for e in twins["modbus"][0]["sensors"]]
     assert len(twin_ids) == len(set(twin_ids)) and any(i.startswith("ev_2_") for i in twin_ids)
 
 
 def test_one_line_exports_refuse_what_cannot_share_a_line(tmp_path: Path) -> None:
-    from helpers_live import ROOT, cli
+    from helpers_live import ROOT, run
 
-    same_unit = cli("export", "ev:1", "vfd1000:1", "--format", "homeassistant", *LINE)
+    same_unit = run("export", "ev:1", "vfd1000:1", "--format", "homeassistant", *LINE)
     assert same_unit.returncode == 1 and "unit 1 is given to both ev and vfd1000" in same_unit.stderr
-    other_format = cli("export", "ev:1", "vfd1000:2", "--format", "csv")
+    other_format = run("export", "ev:1", "vfd1000:2", "--format", "csv")
     assert other_format.returncode == 1 and "only --format homeassistant" in other_format.stderr
     text = (ROOT / "maps" / "sdm630.yaml").read_text(encoding="utf-8")
     assert text.count("default_baudrate: 9600") == 1
     fast = tmp_path / "sdm630.yaml"  # the same meter set to 19200 baud by its owner
     fast.write_text(text.replace("default_baudrate: 9600", "default_baudrate: 19200").replace(
         "../schemas/", f"{ROOT}/schemas/"), encoding="utf-8")
-    clash = cli("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0")
+    clash = run("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0")
     assert clash.returncode == 1 and "share its settings" in clash.stderr and "19200" in clash.stderr, clash.stderr
-    same = cli("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0",
+    same = run("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0",
                "--baudrate", "9600")
     assert same.returncode == 0, same.stderr

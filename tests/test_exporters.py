@@ -194,6 +194,7 @@ def test_esphome_ev_is_drivemaps_plan_exactly() -> None:
     assert doc["modbus_controller"][0]["command_throttle"] == "20ms"  # EEPROM write delay of the map
 
 
+@pytest.mark.slow  # a pymodbus server on TCP for every map
 def test_pymodbus_simulator_serves_the_export() -> None:
     """pymodbus's simulator datastore, built from the JSON exactly as pymodbus.simulator builds it,
     answers the generated client with the map's image (the real CLI: test_exporters_tools.py)."""
