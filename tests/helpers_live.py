@@ -27,22 +27,28 @@ def cli(*args: str, timeout: float = 90, cwd: Path = ROOT, prefix: tuple[str, ..
                           timeout=timeout, cwd=cwd, env=ENV)
 
 
+class CommandTimeout(BaseException):
+    """:func:`run`'s time bound ran out (a ``BaseException``, so no verb's error handling reports it as its own)."""
+
+
 def run(*args: str, timeout: float = 90, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
     """``drivemap ARGS`` as :func:`cli` runs it, but ``drivemap.cli.main`` in this process: the same exit
     code, stdout and stderr (the environment's ``COLUMNS`` as :data:`ENV` sets it, the working directory
-    ``cwd``), without starting an interpreter. An exception ``main`` lets escape propagates (a subprocess
-    would print its traceback); an ``argparse`` exit becomes the exit code; a verb still running after
-    ``timeout`` seconds is interrupted with ``TimeoutError`` (as :func:`cli`'s ``subprocess.TimeoutExpired``)."""
+    ``cwd``, ``sys.argv``), without starting an interpreter. An exception ``main`` lets escape propagates
+    (a subprocess would print its traceback); an ``argparse`` exit becomes the exit code; a verb still
+    running after ``timeout`` seconds is interrupted with :class:`CommandTimeout` (as :func:`cli`'s
+    ``subprocess.TimeoutExpired``)."""
     from drivemap.cli import main
 
     def expire(_signum: int, _frame: object) -> None:
-        raise TimeoutError(f"drivemap {' '.join(args)} still runs after {timeout} s")
+        raise CommandTimeout(f"drivemap {' '.join(args)} still runs after {timeout} s")
 
     out, err = io.StringIO(), io.StringIO()
     old = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, timeout)
     try:
         with (contextlib.chdir(cwd), mock.patch.dict(os.environ, {"COLUMNS": ENV["COLUMNS"]}),
+              mock.patch.object(sys, "argv", [str(ROOT / "generator" / "drivemap" / "__main__.py"), *args]),
               contextlib.redirect_stdout(out), contextlib.redirect_stderr(err)):
             try:
                 code: int | str | None = main(list(args))
