@@ -113,23 +113,24 @@ def test_nul_padded_strings_are_stripped_for_home_assistant() -> None:
 
 
 def test_units_and_device_classes_home_assistant_accepts() -> None:
-    ev = parse("homeassistant", render(load("ev"), "homeassistant"))
+    ev_model, fronius_model = load("ev"), load("fronius_symo_hybrid")
+    ev = parse("homeassistant", render(ev_model, "homeassistant"))
     units = {s.get("unit_of_measurement") for s in ev["modbus"][0]["sensors"]}
     assert "r/min" not in units and "rpm" in units
     sdm = parse("homeassistant", render(load("sdm630"), "homeassistant"))
     by_unit = {s.get("unit_of_measurement"): s for s in sdm["modbus"][0]["sensors"]}
     assert "VAr" not in by_unit and by_unit["var"]["device_class"] == "reactive_power"
     assert by_unit["VA"]["device_class"] == "apparent_power"
-    fronius = parse("homeassistant", render(load("fronius_symo_hybrid"), "homeassistant"))
+    current = render(fronius_model, "homeassistant")
+    fronius = parse("homeassistant", current)
     entries = fronius["modbus"][0]["sensors"] + fronius["template"][0]["sensor"]
     varh = [e for e in entries if e.get("unit_of_measurement") == "varh"]
     assert varh and all(e["device_class"] == "reactive_energy" for e in varh)
     vah = [e for e in entries if e.get("unit_of_measurement") == "VAh"]
     assert vah and all("device_class" not in e and e["state_class"] == "total_increasing" for e in vah)
-    old = render(load("fronius_symo_hybrid"), "homeassistant", ha_version="2024.1")
-    assert "device_class: reactive_energy" not in old and "device_class: reactive_energy" in render(
-        load("fronius_symo_hybrid"), "homeassistant")  # older releases have no such class
-    esphome = parse("esphome", render(load("ev"), "esphome"))
+    old = render(fronius_model, "homeassistant", ha_version="2024.1")
+    assert "device_class: reactive_energy" not in old and "device_class: reactive_energy" in current  # older releases have no such class
+    esphome = parse("esphome", render(ev_model, "esphome"))
     assert "r/min" not in str(esphome) and "rpm" in str(esphome)
 
 
