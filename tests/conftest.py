@@ -6,7 +6,10 @@ Tiers (``pyproject.toml`` markers):
   against the simulator's handler, the golden maps) -- minutes at most on a 2-core machine;
 * ``slow`` (``pytest -m slow``): tests that start real servers, serial lines made of ptys, subprocesses,
   brokers or virtualenvs; which modules those are is listed below (:data:`SLOW_MODULES`), measured
-  with ``pytest --durations=0``;
+  with ``pytest --durations=0``; single tests of a default-tier module that do so carry
+  ``@pytest.mark.slow`` themselves, and an expensive search keeps a smaller default-tier twin (the
+  full one is ``slow``). A command-line test whose subject is the verb's logic, not the process,
+  calls ``drivemap.cli.main`` in this process (``tests/helpers_live.py``: ``run``);
 * ``tools`` (``pytest -m tools``): third-party tools in virtualenvs of their own (ESPHome, Home
   Assistant, pymodbus.simulator); a tool that cannot be installed fails its test.
 
@@ -29,6 +32,8 @@ SLOW_MODULES = frozenset({
     "test_escaping", "test_exporter_plugin", "test_injection", "test_project", "test_roundtrip",
     "test_serial_receiver", "test_simulator_fuzz", "test_simulator_server", "test_simulator_state",
     "test_simulator_tcp", "test_simulator_tcp_fuzz", "test_stale_replies", "test_vserial", "test_wheel",
+    # the real command as a process: its stderr's encoding, a FIFO it must not hang on, a memory limit
+    "test_cli_hostile", "test_map_bounds",
 })
 #: Every module of these families talks to real servers (the live verbs, the gateway, onboarding a device).
 SLOW_PREFIXES = ("test_live_", "test_gateway_", "test_probe", "test_draft", "test_import")

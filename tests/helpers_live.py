@@ -1,9 +1,11 @@
-"""Helpers for the live-verb tests: the real CLI in a subprocess, simulators (in this process or as
-``drivemap simulate`` subprocesses, possibly of deliberately wrong maps), on 127.0.0.1 only."""
+"""Helpers for the live-verb tests: the real CLI in a subprocess (:func:`cli`) or its ``main()`` in this
+process (:func:`run`), simulators (in this process or as ``drivemap simulate`` subprocesses, possibly of
+deliberately wrong maps), on 127.0.0.1 only."""
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import selectors
@@ -12,6 +14,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from unittest import mock
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "generator"), str(ROOT / "generated"), str(ROOT)]),
@@ -22,6 +25,42 @@ def cli(*args: str, timeout: float = 90, cwd: Path = ROOT, prefix: tuple[str, ..
     """``python -m drivemap ARGS`` in a subprocess (stdout is a pipe, not a terminal)."""
     return subprocess.run([*prefix, sys.executable, "-m", "drivemap", *args], capture_output=True, text=True,
                           timeout=timeout, cwd=cwd, env=ENV)
+
+
+class CommandTimeout(BaseException):
+    """:func:`run`'s time bound ran out (a ``BaseException``, so no verb's error handling reports it as its own)."""
+
+
+def run(*args: str, timeout: float = 90, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    """``drivemap ARGS`` as :func:`cli` runs it, but ``drivemap.cli.main`` in this process: the same exit
+    code, stdout and stderr (the environment's ``COLUMNS`` as :data:`ENV` sets it, the working directory
+    ``cwd``, ``sys.argv``), without starting an interpreter. An exception ``main`` lets escape propagates
+    (a subprocess would print its traceback); an ``argparse`` exit becomes the exit code; a verb still
+    running after ``timeout`` seconds is interrupted with :class:`CommandTimeout` (as :func:`cli`'s
+    ``subprocess.TimeoutExpired``)."""
+    from drivemap.cli import main
+
+    def expire(_signum: int, _frame: object) -> None:
+        raise CommandTimeout(f"drivemap {' '.join(args)} still runs after {timeout} s")
+
+    out, err = io.StringIO(), io.StringIO()
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, timeout)
+    try:
+        with (contextlib.chdir(cwd), mock.patch.dict(os.environ, {"COLUMNS": ENV["COLUMNS"]}),
+              mock.patch.object(sys, "argv", [str(ROOT / "generator" / "drivemap" / "__main__.py"), *args]),
+              contextlib.redirect_stdout(out), contextlib.redirect_stderr(err)):
+            try:
+                code: int | str | None = main(list(args))
+            except SystemExit as exit_:
+                code = exit_.code
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    if isinstance(code, str):  # sys.exit("message"): printed to stderr, exit status 1
+        err.write(code + "\n")
+        code = 1
+    return subprocess.CompletedProcess(["drivemap", *args], code or 0, out.getvalue(), err.getvalue())
 
 
 def no_traceback(proc: subprocess.CompletedProcess[str]) -> None:

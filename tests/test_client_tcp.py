@@ -79,6 +79,7 @@ async def test_fifty_concurrent_callers_one_transaction_at_a_time() -> None:
                 assert 100 <= value < 150 and (value - 100) % 8 == i % 8 and (value - 100) % 2 == i % 2
 
 
+@pytest.mark.slow  # a virtual serial line (ptys) and its timeouts
 async def test_async_serial_retry_and_timeout() -> None:
     with serial_server("ev", "rtu") as (sim, line):
         sim.set("motor_speed", 77)

@@ -20,7 +20,7 @@ from drivemap.model.nodes import Model
 from drivemap.runtime.client.codec import display_text
 from tests.exporter_helpers import parse, render
 from tests.helpers_client import tcp_server
-from tests.helpers_live import cli
+from tests.helpers_live import run
 
 
 def f32(value: float) -> float:
@@ -65,8 +65,8 @@ def test_precision_formats_every_number() -> None:
 def test_read_and_json_show_the_shortest_f32() -> None:
     with tcp_server("sdm630") as (sim, host, port):
         sim.set("phase_1_voltage", 230.2)
-        table = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage")
-        as_json = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--json")
+        table = run("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage")
+        as_json = run("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--json")
     assert table.returncode == 0, table.stderr
     assert "230.2 " in table.stdout and "230.199" not in table.stdout
     assert json.loads(as_json.stdout)["registers"][0]["value"] == 230.2

@@ -113,23 +113,24 @@ def test_nul_padded_strings_are_stripped_for_home_assistant() -> None:
 
 
 def test_units_and_device_classes_home_assistant_accepts() -> None:
-    ev = parse("homeassistant", render(load("ev"), "homeassistant"))
+    ev_model, fronius_model = load("ev"), load("fronius_symo_hybrid")
+    ev = parse("homeassistant", render(ev_model, "homeassistant"))
     units = {s.get("unit_of_measurement") for s in ev["modbus"][0]["sensors"]}
     assert "r/min" not in units and "rpm" in units
     sdm = parse("homeassistant", render(load("sdm630"), "homeassistant"))
     by_unit = {s.get("unit_of_measurement"): s for s in sdm["modbus"][0]["sensors"]}
     assert "VAr" not in by_unit and by_unit["var"]["device_class"] == "reactive_power"
     assert by_unit["VA"]["device_class"] == "apparent_power"
-    fronius = parse("homeassistant", render(load("fronius_symo_hybrid"), "homeassistant"))
+    current = render(fronius_model, "homeassistant")
+    fronius = parse("homeassistant", current)
     entries = fronius["modbus"][0]["sensors"] + fronius["template"][0]["sensor"]
     varh = [e for e in entries if e.get("unit_of_measurement") == "varh"]
     assert varh and all(e["device_class"] == "reactive_energy" for e in varh)
     vah = [e for e in entries if e.get("unit_of_measurement") == "VAh"]
     assert vah and all("device_class" not in e and e["state_class"] == "total_increasing" for e in vah)
-    old = render(load("fronius_symo_hybrid"), "homeassistant", ha_version="2024.1")
-    assert "device_class: reactive_energy" not in old and "device_class: reactive_energy" in render(
-        load("fronius_symo_hybrid"), "homeassistant")  # older releases have no such class
-    esphome = parse("esphome", render(load("ev"), "esphome"))
+    old = render(fronius_model, "homeassistant", ha_version="2024.1")
+    assert "device_class: reactive_energy" not in old and "device_class: reactive_energy" in current  # older releases have no such class
+    esphome = parse("esphome", render(ev_model, "esphome"))
     assert "r/min" not in str(esphome) and "rpm" in str(esphome)
 
 
@@ -180,9 +181,9 @@ LINE = ("--serial", "/dev/ttyUSB0", "--baudrate", "9600", "--parity", "none", "-
 
 
 def test_devices_on_one_serial_line_share_one_home_assistant_hub() -> None:
-    from helpers_live import cli
+    from helpers_live import run
 
-    proc = cli("export", "ev:1", "vfd1000:2", "--format", "homeassistant", *LINE)
+    proc = run("export", "ev:1", "vfd1000:2", "--format", "homeassistant", *LINE)
     assert proc.returncode == 0, proc.stderr
     doc = parse("homeassistant", proc.stdout)
     assert len(doc["modbus"]) == 1  # Home Assistant drops a second hub on the same port
@@ -192,25 +193,25 @@ def test_devices_on_one_serial_line_share_one_home_assistant_hub() -> None:
     assert addresses == {"ev": 1, "vfd1000": 2}
     ids = [e["unique_id"] for key in ("sensors", "switches", "binary_sensors") for e in hub.get(key, [])]
     assert len(ids) == len(set(ids))
-    twins = parse("homeassistant", cli("export", "ev:1", "ev:2", "--format", "homeassistant", *LINE).stdout)
+    twins = parse("homeassistant", run("export", "ev:1", "ev:2", "--format", "homeassistant", *LINE).stdout)
     twin_ids = [e["unique_id"] for e in twins["modbus"][0]["sensors"]]
     assert len(twin_ids) == len(set(twin_ids)) and any(i.startswith("ev_2_") for i in twin_ids)
 
 
 def test_one_line_exports_refuse_what_cannot_share_a_line(tmp_path: Path) -> None:
-    from helpers_live import ROOT, cli
+    from helpers_live import ROOT, run
 
-    same_unit = cli("export", "ev:1", "vfd1000:1", "--format", "homeassistant", *LINE)
+    same_unit = run("export", "ev:1", "vfd1000:1", "--format", "homeassistant", *LINE)
     assert same_unit.returncode == 1 and "unit 1 is given to both ev and vfd1000" in same_unit.stderr
-    other_format = cli("export", "ev:1", "vfd1000:2", "--format", "csv")
+    other_format = run("export", "ev:1", "vfd1000:2", "--format", "csv")
     assert other_format.returncode == 1 and "only --format homeassistant" in other_format.stderr
     text = (ROOT / "maps" / "sdm630.yaml").read_text(encoding="utf-8")
     assert text.count("default_baudrate: 9600") == 1
     fast = tmp_path / "sdm630.yaml"  # the same meter set to 19200 baud by its owner
     fast.write_text(text.replace("default_baudrate: 9600", "default_baudrate: 19200").replace(
         "../schemas/", f"{ROOT}/schemas/"), encoding="utf-8")
-    clash = cli("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0")
+    clash = run("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0")
     assert clash.returncode == 1 and "share its settings" in clash.stderr and "19200" in clash.stderr, clash.stderr
-    same = cli("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0",
+    same = run("export", "sdm630:1", f"{fast}:2", "--format", "homeassistant", "--serial", "/dev/ttyUSB0",
                "--baudrate", "9600")
     assert same.returncode == 0, same.stderr

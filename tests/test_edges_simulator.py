@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from helpers_client import simulator, tcp_server
-from helpers_live import ROOT, cli, no_traceback, simulate
+from helpers_live import ROOT, no_traceback, run, simulate
 
 SHIPPED = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))
 
@@ -39,8 +39,8 @@ def test_sdm630_system_type_starts_at_its_min() -> None:
 
 def test_scan_accepts_the_maps_own_simulator_and_shows_why_others_do_not_fit() -> None:
     with tcp_server("sdm630") as (_sim, host, port):
-        proc = cli("scan", "--tcp", f"{host}:{port}", "--units", "1")
-        as_json = cli("scan", "--tcp", f"{host}:{port}", "--units", "1", "--json")
+        proc = run("scan", "--tcp", f"{host}:{port}", "--units", "1")
+        as_json = run("scan", "--tcp", f"{host}:{port}", "--units", "1", "--json")
     no_traceback(proc)
     assert proc.returncode == 0, proc.stderr
     fits = {f["model"]: f for f in json.loads(as_json.stdout)["units"][0]["fits"]}
@@ -56,8 +56,8 @@ def test_scan_accepts_the_maps_own_simulator_and_shows_why_others_do_not_fit() -
 def test_scan_and_verify_agree_that_an_unset_zero_is_a_note(tmp_path: Path) -> None:
     with tcp_server("sdm630") as (sim, host, port):
         sim.set_raw("system_type", 0)  # outside 1..3, no documented power-up value: "not set yet?"
-        scan = cli("scan", "--tcp", f"{host}:{port}", "--units", "1", "--json")
-        verify = cli("verify", "sdm630", "--tcp", f"{host}:{port}", "--report", str(tmp_path / "r"))
+        scan = run("scan", "--tcp", f"{host}:{port}", "--units", "1", "--json")
+        verify = run("verify", "sdm630", "--tcp", f"{host}:{port}", "--report", str(tmp_path / "r"))
     fit = next(f for f in json.loads(scan.stdout)["units"][0]["fits"] if f["model"] == "sdm630")
     assert fit["fits"] and any(n.startswith("system_type:") for n in fit["notes"]), fit
     doc = json.loads((tmp_path / "r.json").read_text(encoding="utf-8"))
@@ -66,11 +66,12 @@ def test_scan_and_verify_agree_that_an_unset_zero_is_a_note(tmp_path: Path) -> N
     assert verify.returncode == 0, verify.stdout
 
 
+@pytest.mark.slow  # `drivemap simulate` as a process, serving on TCP
 def test_simulate_set_and_values_preset_engineering_values(tmp_path: Path) -> None:
     values = tmp_path / "values.yaml"
     values.write_text("phase_1_voltage: 230.1\nsystem_type: 3\nfrequency: 49.9\n", encoding="utf-8")
     with simulate("sdm630", "--values", str(values), "--set", "frequency=50.5", "--set", "phase_2_voltage=231") as port:
-        proc = cli("read", "sdm630", "--tcp", f"127.0.0.1:{port}", "phase_1_voltage", "phase_2_voltage",
+        proc = run("read", "sdm630", "--tcp", f"127.0.0.1:{port}", "phase_1_voltage", "phase_2_voltage",
                    "frequency", "system_type", "--json")
     assert proc.returncode == 0, proc.stderr
     got = {r["name"]: r["value"] for r in json.loads(proc.stdout)["registers"]}
@@ -78,7 +79,7 @@ def test_simulate_set_and_values_preset_engineering_values(tmp_path: Path) -> No
 
 
 def test_simulate_presets_are_checked_with_located_errors(tmp_path: Path) -> None:
-    proc = cli("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--set", "system_typ=3", "--set", "demand_period=99")
+    proc = run("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--set", "system_typ=3", "--set", "demand_period=99")
     no_traceback(proc)
     assert proc.returncode == 1
     lines = proc.stderr.splitlines()
@@ -86,14 +87,14 @@ def test_simulate_presets_are_checked_with_located_errors(tmp_path: Path) -> Non
     assert re.match(r"<command line>:1:\d+: error: demand_period: 99 min is above the map's max 60", lines[1])
     values = tmp_path / "v.yaml"
     values.write_text("phase_1_voltage: 230\nsystem_type: 7\nmanufacturer: 3\n", encoding="utf-8")
-    proc = cli("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--values", str(values))
+    proc = run("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--values", str(values))
     assert proc.returncode == 1 and f"{values}:2:1: error: system_type: 7" in proc.stderr, proc.stderr
     assert f"{values}:3:1: error: sdm630 has no register 'manufacturer'" in proc.stderr
-    with_steps = cli("simulate", "ev", "--tcp", "127.0.0.1:0", "--set", "digital_accel_time[0]=1.25")
+    with_steps = run("simulate", "ev", "--tcp", "127.0.0.1:0", "--set", "digital_accel_time[0]=1.25")
     assert with_steps.returncode == 1 and "whole number of steps" in with_steps.stderr, with_steps.stderr
     bad_yaml = tmp_path / "bad.yaml"
     bad_yaml.write_text("a: [1,\n", encoding="utf-8")
-    proc = cli("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--values", str(bad_yaml))
+    proc = run("simulate", "sdm630", "--tcp", "127.0.0.1:0", "--values", str(bad_yaml))
     no_traceback(proc)
     assert proc.returncode == 1 and proc.stderr.startswith(f"{bad_yaml}:"), proc.stderr
 
@@ -125,13 +126,14 @@ def test_a_generated_simulator_reads_json_values(tmp_path: Path) -> None:
         from_file(spec, bad)
 
 
+@pytest.mark.slow  # `drivemap simulate` as a process, serving on TCP
 def test_simulate_presets_take_enum_members_by_name(tmp_path: Path) -> None:
     values = tmp_path / "v.yaml"
     values.write_text("comm_error_action: net_io_clear\n", encoding="utf-8")
     with simulate("ev", "--values", str(values), "--set", "net_x_input_function[2]=FREE") as port:
-        proc = cli("read", "ev", "--tcp", f"127.0.0.1:{port}", "comm_error_action", "net_x_input_function[2]", "--json")
+        proc = run("read", "ev", "--tcp", f"127.0.0.1:{port}", "comm_error_action", "net_x_input_function[2]", "--json")
     assert proc.returncode == 0, proc.stderr
     got = {r["name"]: r["value"] for r in json.loads(proc.stdout)["registers"]}
     assert got == {"comm_error_action": "NET_IO_CLEAR", "net_x_input_function[2]": "FREE"}
-    bad = cli("simulate", "ev", "--tcp", "127.0.0.1:0", "--set", "comm_error_action=sometimes")
+    bad = run("simulate", "ev", "--tcp", "127.0.0.1:0", "--set", "comm_error_action=sometimes")
     assert bad.returncode == 1 and "is not a value of CommErrorAction (ALARM, NET_IO_CLEAR" in bad.stderr, bad.stderr

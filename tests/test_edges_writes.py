@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from helpers_client import package, tcp_server
-from helpers_live import cli, no_traceback
+from helpers_live import no_traceback, run
 
 from drivemap.runtime.client.codec import STEP_TOLERANCE, shortest_f32_text
 from drivemap.runtime.errors import InexactValue
@@ -69,20 +69,20 @@ def test_cli_write_refuses_then_rounds_only_with_round() -> None:
     with tcp_server("fronius_symo_hybrid") as (sim, host, port):
         sim.set("pf_setpoint_sf", 0)
         sim.set_raw("pf_setpoint", 7)
-        refused = cli("write", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "pf_setpoint=-0.95")
+        refused = run("write", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "pf_setpoint=-0.95")
         assert sim.get_raw("pf_setpoint") == 7  # nothing reached the device
-        rounded = cli("write", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "pf_setpoint=-0.95", "--round")
+        rounded = run("write", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "pf_setpoint=-0.95", "--round")
         assert sim.get_raw("pf_setpoint") in (-1, 0xFFFF)
     no_traceback(refused)
     assert refused.returncode != 0 and "nearest representable: -1 or 0" in refused.stderr, refused.stderr
     assert rounded.returncode == 0, rounded.stderr and "--round" in rounded.stderr
     with tcp_server("ev") as (sim, host, port):
         before = sim.get_raw("digital_accel_time[0]")
-        refused = cli("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.25")
+        refused = run("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.25")
         assert sim.get_raw("digital_accel_time[0]") == before
-        exact = cli("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.2")
+        exact = run("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.2")
         assert sim.get_raw("digital_accel_time[0]") == 12
-        rounded = cli("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.25", "--round")
+        rounded = run("write", "ev", "--tcp", f"{host}:{port}", "digital_accel_time[0]=1.25", "--round")
         assert sim.get_raw("digital_accel_time[0]") == 13
     assert refused.returncode == 1 and re.search(r"<command line>:1:\d+: error: .*1\.2 s or 1\.3 s", refused.stderr)
     assert exact.returncode == 0, exact.stderr
@@ -90,7 +90,7 @@ def test_cli_write_refuses_then_rounds_only_with_round() -> None:
 
 
 def test_cli_never_truncates_a_float_to_an_int() -> None:
-    proc = cli("write", str(ROOT / "tests" / "maps" / "allkinds.yaml"), "--dry-run", "--tcp", "127.0.0.1:9",
+    proc = run("write", str(ROOT / "tests" / "maps" / "allkinds.yaml"), "--dry-run", "--tcp", "127.0.0.1:9",
                "setpoint=30.5")
     assert proc.returncode == 0, proc.stderr
     assert "41 F4 00 00" in proc.stdout  # 30.5, not 30 (41 F0 00 00)
@@ -100,12 +100,12 @@ def test_cli_never_truncates_a_float_to_an_int() -> None:
 
 
 def test_writes_go_out_in_command_line_order_and_dry_run_shows_it() -> None:
-    proc = cli("write", "sdm630", "--dry-run", "--tcp", "127.0.0.1:9", "reset=0", "demand_period=15")
+    proc = run("write", "sdm630", "--dry-run", "--tcp", "127.0.0.1:9", "reset=0", "demand_period=15")
     assert proc.returncode == 0, proc.stderr
     requests = [line for line in proc.stdout.splitlines() if re.match(r"\d+\. ", line)]
     assert "reset" in requests[0] and "demand_period" in requests[1], proc.stdout
     with tcp_server("ev") as (sim, host, port):
-        proc = cli("write", "ev", "--tcp", f"{host}:{port}", "--debug", "digital_speed[3]=300", "digital_speed[0]=100")
+        proc = run("write", "ev", "--tcp", f"{host}:{port}", "--debug", "digital_speed[3]=300", "digital_speed[0]=100")
         assert proc.returncode == 0, proc.stderr
         frames = [line.split(" TX ")[1].split() for line in proc.stderr.splitlines() if " TX " in line]
     addresses = [int("".join(f[8:10]), 16) for f in frames if f[7] in ("06", "10")]
@@ -113,7 +113,7 @@ def test_writes_go_out_in_command_line_order_and_dry_run_shows_it() -> None:
 
 
 def test_dry_run_names_the_register_of_the_frames_table() -> None:
-    proc = cli("write", "sdm630", "--dry-run", "--tcp", "127.0.0.1:9", "demand_period=30")
+    proc = run("write", "sdm630", "--dry-run", "--tcp", "127.0.0.1:9", "demand_period=30")
     assert proc.returncode == 0, proc.stderr
     assert "demand_period" in proc.stdout and "phase_2_voltage" not in proc.stdout, proc.stdout
 
@@ -123,7 +123,7 @@ def test_dry_run_names_the_register_of_the_frames_table() -> None:
 
 @pytest.mark.parametrize("text,expected", [("true", 1), ("ON", 1), ("1", 1), ("False", 0), ("off", 0), ("0", 0)])
 def test_bool_words(text: str, expected: int) -> None:
-    proc = cli("write", "tests/maps/allkinds.yaml", "--dry-run", "--tcp", "127.0.0.1:9", f"run={text}")
+    proc = run("write", "tests/maps/allkinds.yaml", "--dry-run", "--tcp", "127.0.0.1:9", f"run={text}")
     assert proc.returncode == 0, proc.stderr
     frame = next(line for line in proc.stdout.splitlines() if "TCP:" in line)
     assert frame.split()[-2:] == (["FF", "00"] if expected else ["00", "00"]), frame
@@ -132,14 +132,14 @@ def test_bool_words(text: str, expected: int) -> None:
 def test_bad_bools_bits_and_non_ascii_digits_are_located_errors() -> None:
     for arg, message in (("run=yes", "is not a bool"), ("run=2", "is not a bool"),
                          ("enable=maybe", "is not a bool")):
-        proc = cli("write", "tests/maps/allkinds.yaml", "--dry-run", "--tcp", "127.0.0.1:9", arg)
+        proc = run("write", "tests/maps/allkinds.yaml", "--dry-run", "--tcp", "127.0.0.1:9", arg)
         no_traceback(proc)
         assert proc.returncode == 1 and re.search(rf"<command line>:1:\d+: error: .*{message}", proc.stderr), proc.stderr
     for arg in ("digital_speed[\u0663]=5", "digital_speed[0]=\u0661\u0662"):
-        proc = cli("write", "ev", "--dry-run", "--tcp", "127.0.0.1:9", arg)
+        proc = run("write", "ev", "--dry-run", "--tcp", "127.0.0.1:9", arg)
         no_traceback(proc)
         assert proc.returncode == 1 and "<command line>:1:" in proc.stderr, proc.stderr
-    proc = cli("write", "ev", "--dry-run", "--tcp", "127.0.0.1:9", "rs485_comm_settings=parity:EVEN,stop_bits:2,data_bits:0")
+    proc = run("write", "ev", "--dry-run", "--tcp", "127.0.0.1:9", "rs485_comm_settings=parity:EVEN,stop_bits:2,data_bits:0")
     assert proc.returncode == 1 and "is not a bool" in proc.stderr, proc.stderr
 
 
@@ -156,10 +156,10 @@ def test_shortest_f32_text() -> None:
 def test_read_prints_f32_values_as_their_shortest_decimal() -> None:
     with tcp_server("sdm630") as (sim, host, port):
         sim.set("phase_1_voltage", 230.2)
-        table = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage")
-        as_json = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--json")
-        as_csv = cli("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--csv")
-        watched = cli("watch", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--count", "1")
+        table = run("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage")
+        as_json = run("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--json")
+        as_csv = run("read", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--csv")
+        watched = run("watch", "sdm630", "--tcp", f"{host}:{port}", "phase_1_voltage", "--count", "1")
     for proc in (table, as_json, as_csv, watched):
         assert proc.returncode == 0, proc.stderr
         assert "230.2" in proc.stdout and "230.1999" not in proc.stdout, proc.stdout
@@ -175,7 +175,7 @@ def test_client_names_take_ascii_digits_only() -> None:
             assert drive.accessor("digital_speed[3]") is drive.digital_speed[3]
             with pytest.raises(UnknownRegister):
                 drive.accessor("digital_speed[\u0663]")
-    proc = cli("read", "ev", "--tcp", "127.0.0.1:\u0665\u0660\u0662", "motor_state")
+    proc = run("read", "ev", "--tcp", "127.0.0.1:\u0665\u0660\u0662", "motor_state")
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
 
 

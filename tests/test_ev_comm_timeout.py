@@ -12,6 +12,8 @@ import struct
 import time
 from typing import Any
 
+import pytest
+
 from drivemap.runtime.sim.behaviours.ev import Ev
 from tests.helpers_client import TIMEOUT, package, tcp_server
 
@@ -98,6 +100,7 @@ def test_rs232_unit_17_uses_09_14() -> None:
     assert sim.get("comm_error_history[0]") == 0x85
 
 
+@pytest.mark.slow  # a served simulator on TCP, in real time
 def test_served_simulator_raises_it_in_real_time() -> None:
     """Over Modbus TCP with the server's own ticker: the client stops talking, the drive alarms."""
     with tcp_server("ev") as (sim, host, port):
@@ -112,6 +115,7 @@ def test_served_simulator_raises_it_in_real_time() -> None:
             assert drive.comm_error_history[0].read() == ev.CommErrorCode.COMMUNICATION_TIMEOUT
 
 
+@pytest.mark.slow  # a served simulator on TCP, in real time
 def test_queries_keep_it_quiet_over_tcp() -> None:
     with tcp_server("ev") as (sim, host, port):
         with ev.Client.tcp(host, port, timeout=TIMEOUT) as drive:

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 
 import pytest
 from helpers_client import package, simulator, tcp_server
-from helpers_live import ROOT, cli, no_traceback
+from helpers_live import ROOT, no_traceback, run
 
 from drivemap.compiler import compile_map
 from drivemap.runtime.client.identity import check_identity, check_identity_async
@@ -33,7 +33,7 @@ def test_scan_finds_every_shipped_simulator_by_identity_first(model: str) -> Non
     for name, value in CONFIGURED.get(model, {}).items():
         sim.set(name, value)
     with tcp_server(model, sim=sim) as (_, host, port):
-        proc = cli("scan", "--tcp", f"{host}:{port}", "--units", "5", "--json")
+        proc = run("scan", "--tcp", f"{host}:{port}", "--units", "5", "--json")
     no_traceback(proc)
     assert proc.returncode == 0, proc.stderr
     fits = json.loads(proc.stdout)["units"][0]["fits"]
@@ -104,11 +104,11 @@ def test_write_refuses_a_device_that_is_not_the_maps(tmp_path: Path) -> None:
     sim = simulator("fronius_symo_hybrid")
     sim.unit(1).values["sunspec_id"] = 0x12345678
     with tcp_server("fronius_symo_hybrid", sim=sim) as (_, host, port):
-        refused = cli("write", "fronius_symo_hybrid", "f_store_data=0xFFFF", "--tcp", f"{host}:{port}")
+        refused = run("write", "fronius_symo_hybrid", "f_store_data=0xFFFF", "--tcp", f"{host}:{port}")
         untouched = sim.unit(1).values["f_store_data"]
-        forced = cli("write", "fronius_symo_hybrid", "f_store_data=0xFFFF", "--tcp", f"{host}:{port}",
+        forced = run("write", "fronius_symo_hybrid", "f_store_data=0xFFFF", "--tcp", f"{host}:{port}",
                      "--no-identity-check", "--no-read-back")
-        read = cli("read", "fronius_symo_hybrid", "common_model_id", "--tcp", f"{host}:{port}")
+        read = run("read", "fronius_symo_hybrid", "common_model_id", "--tcp", f"{host}:{port}")
     no_traceback(refused)
     assert refused.returncode == 7, refused.stderr
     line = refused.stderr.strip().splitlines()[-1]
@@ -124,8 +124,8 @@ def test_verify_reports_an_identity_disagreement(tmp_path: Path) -> None:
     sim = simulator("fronius_symo_hybrid")
     sim.unit(1).values["common_model_id"] = 2
     with tcp_server("fronius_symo_hybrid", sim=sim) as (_, host, port):
-        proc = cli("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--report", str(tmp_path / "v"))
-        refused = cli("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--write-safe",
+        proc = run("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--report", str(tmp_path / "v"))
+        refused = run("verify", "fronius_symo_hybrid", "--tcp", f"{host}:{port}", "--write-safe",
                       "--report", str(tmp_path / "w"))
     no_traceback(proc)
     assert proc.returncode == 6, proc.stderr

@@ -225,6 +225,7 @@ def resetting_peer() -> Iterator[tuple[str, int]]:
         listener.close()
 
 
+@pytest.mark.slow  # a real peer resetting TCP connections
 def test_connection_reset_is_a_transport_error() -> None:
     with resetting_peer() as (host, port), ev.Client.tcp(host, port, timeout=TIMEOUT, retries=0) as drive:
         for _ in range(6):  # every read, not every second one: the bus reconnects after a reset
@@ -232,6 +233,7 @@ def test_connection_reset_is_a_transport_error() -> None:
                 drive.motor_speed.read()
 
 
+@pytest.mark.slow  # a real peer resetting TCP connections
 async def test_async_connection_reset_is_a_transport_error() -> None:
     with resetting_peer() as (host, port):
         drive = ev.AsyncClient.tcp(host, port, timeout=TIMEOUT, retries=0)

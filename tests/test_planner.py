@@ -166,14 +166,28 @@ def test_pages_share_unpaged_neighbours() -> None:
         {(0, 16, 0), (8, 8, 1)}, {(0, 16, 1), (8, 8, 0)})
 
 
+#: Random maps the default tier checks; the slow tier checks :data:`ALL_RANDOM_MAPS` (the same first ones).
+RANDOM_MAPS = 10
+ALL_RANDOM_MAPS = 60
+
+
 def test_random_maps_match_lower_bound() -> None:
+    _random_maps_match_lower_bound(RANDOM_MAPS)
+
+
+@pytest.mark.slow
+def test_all_random_maps_match_lower_bound() -> None:
+    _random_maps_match_lower_bound(ALL_RANDOM_MAPS)
+
+
+def _random_maps_match_lower_bound(trials: int) -> None:
     import random
 
     from drivemap.runtime.client.planner import plan_reads
     from drivemap.runtime.spec import PageSpec, RegisterSpec, ReservedSpec
 
     rng = random.Random(1234)
-    for trial in range(60):
+    for trial in range(trials):
         regs: list[Any] = [RegisterSpec("sel", 500, access="rw")]
         address = 0
         n = 0

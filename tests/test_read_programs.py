@@ -191,6 +191,7 @@ def _serial_run(cls: Any, fault: FrameFault, frames: int, call: Callable[[Any], 
             return result, after, dataclasses.asdict(drive.stats), line.delivered("to_device")
 
 
+@pytest.mark.slow  # a virtual serial line (ptys) per fault, twice
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 @pytest.mark.parametrize("what", ["element", "two registers"])
 def test_faults_on_a_serial_line_give_the_same_results(paths: dict[str, int], fault: str, what: str) -> None:
@@ -233,6 +234,7 @@ WRITE_FAULTS = {
 }
 
 
+@pytest.mark.slow  # a virtual serial line (ptys) per fault, twice
 @pytest.mark.parametrize("fault", sorted(WRITE_FAULTS))
 def test_write_faults_give_the_same_results(paths: dict[str, int], fault: str) -> None:
     results = []

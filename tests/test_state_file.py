@@ -15,14 +15,13 @@ from __future__ import annotations
 import importlib
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from drivemap.runtime.sim.simulator import SimulatorError, StateFileError
+from tests.helpers_live import run
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -146,10 +145,7 @@ def test_simulate_refuses_the_file_with_a_located_error(tmp_path: Path) -> None:
     state = tmp_path / "ev.json"
     text = '{\n  "model": "ev",\n  "version": 999,\n  "units": {"1": {}, "2": {"digital_speed[0]": 5}}\n}\n'
     state.write_text(text, encoding="utf-8")
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "simulate", "ev", "--tcp", "127.0.0.1:0",
-                           "--unit", "1", "--state", str(state)], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=60)
+    proc = run("simulate", "ev", "--tcp", "127.0.0.1:0", "--unit", "1", "--state", str(state), timeout=60)
     assert proc.returncode == 1
     assert proc.stderr.splitlines()[0].startswith(f"{state}:3:3: error: state file version 999"), proc.stderr
     assert "Traceback" not in proc.stderr
@@ -162,10 +158,7 @@ def test_a_state_file_that_could_never_be_saved_is_refused_at_start(tmp_path: Pa
     with pytest.raises(StateFileError, match=r"a_file/ev\.json:1:1: error: cannot save simulator state in"):
         sim_class()([1], state_file=blocker / "ev.json")
     assert blocker.read_text(encoding="utf-8") == "not a folder\n"
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "simulate", "ev", "--tcp", "127.0.0.1:0",
-                           "--state", "/proc/drivemap-no-such/ev.json"], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=60)
+    proc = run("simulate", "ev", "--tcp", "127.0.0.1:0", "--state", "/proc/drivemap-no-such/ev.json", timeout=60)
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.startswith("/proc/drivemap-no-such/ev.json:1:1: error: cannot save simulator state in /proc")
     assert "Traceback" not in proc.stderr

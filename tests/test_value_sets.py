@@ -13,7 +13,7 @@ from drivemap.compiler import load_model
 from drivemap.runtime.errors import NotAllowedValue, ValueOutOfRange
 from tests.exporter_helpers import parse, render
 from tests.helpers_client import package, simulator, tcp_server
-from tests.helpers_live import cli, no_traceback
+from tests.helpers_live import no_traceback, run
 
 
 def test_the_model_and_spec_carry_sdm630s_value_sets() -> None:
@@ -67,8 +67,8 @@ def test_simulator_answers_a_value_outside_the_set_out_of_range() -> None:
 
 def test_cli_write_refuses_it_naming_the_allowed_values() -> None:
     with tcp_server("sdm630") as (sim, host, port):
-        bad = cli("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=2.5")
-        good = cli("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=3")
+        bad = run("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=2.5")
+        good = run("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=3")
         assert sim.get("system_type") == 3.0
     no_traceback(bad)
     assert bad.returncode == 1
@@ -79,7 +79,7 @@ def test_cli_write_refuses_it_naming_the_allowed_values() -> None:
 def test_read_shows_the_label_of_the_value() -> None:
     with tcp_server("sdm630") as (sim, host, port):
         sim.set("network_baud_rate", 3)
-        proc = cli("read", "sdm630", "--tcp", f"{host}:{port}", "network_baud_rate")
+        proc = run("read", "sdm630", "--tcp", f"{host}:{port}", "network_baud_rate")
     assert proc.returncode == 0, proc.stderr
     row = next(line for line in proc.stdout.splitlines() if "network_baud_rate" in line)
     assert "19200 baud" in row
@@ -156,6 +156,6 @@ def test_verify_write_safe_tries_only_values_of_the_set() -> None:
 
 def test_cli_write_takes_a_label_of_the_set() -> None:
     with tcp_server("sdm630") as (sim, host, port):
-        proc = cli("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=3P4W", "network_baud_rate=19200 baud")
+        proc = run("write", "sdm630", "--tcp", f"{host}:{port}", "system_type=3P4W", "network_baud_rate=19200 baud")
         assert proc.returncode == 0, proc.stderr
         assert sim.get("system_type") == 3.0 and sim.get("network_baud_rate") == 3.0
