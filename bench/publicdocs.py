@@ -1,7 +1,8 @@
 """Draft recovery on public documents: `drivemap draft` on vendor register documents of devices not in
 this repository (bench/public_docs.json), compared with the maps they were finished into.
 
-The documents are not in the repository (no redistribution licence). The bench reads them from
+The documents are not in the repository (most have no redistribution licence; the openly licensed
+ones are not committed either, as material fetched in this workplace is not). The bench reads them from
 $DRIVEMAP_PUBLIC_DOCS (default ~/.cache/drivemap/public-docs), checks each one's sha256, drafts it with
 the verb's code and the manifest's arguments, and compares the draft with the shipped map
 (bench/draftscore.py). A document that is absent or differs gives a "not measured" row.

@@ -142,8 +142,9 @@ is compared with the page it matches best. Tool time is reading, drafting and th
     "Draft recovery, public documents": """\
 `bench/publicdocs.py`: the public register documents of devices not in this repository listed in
 `bench/public_docs.json` (title, revision, format, where each is published, sha256, size, the draft's
-arguments, the map it was finished into). The documents are vendor files without a redistribution
-licence and are not in the repository: the bench reads them from `$DRIVEMAP_PUBLIC_DOCS` (default
+arguments, the map it was finished into, the licence where one is granted). None is in the repository
+(vendor files without a redistribution licence; the openly licensed ones are not committed either, as
+material fetched in this workplace is not): the bench reads them from `$DRIVEMAP_PUBLIC_DOCS` (default
 `~/.cache/drivemap/public-docs`) and measures only a file whose sha256 is the manifest's; any other
 gives a "not measured" row. Each is drafted in memory with the verb's code and arguments and compared
 with the shipped map as in section "Draft recovery" (`bench/draftscore.py`). **Map choices**: the

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivemap.frontend.formats import CURRENT
-from drivemap.onboard.draft.fields import Context, Raw, draft_fields
+from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
 from drivemap.onboard.draft.rows import grid_raws, loose_raws, table_access, table_kind
@@ -60,11 +60,21 @@ def _heading(table: Table) -> str:
 def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
     doc_kind = _document_kind(source.text)
     kind = table_kind(table.context.splitlines()[-1] if table.context else "") or table_kind(table.context) \
-        or doc_kind
+        or _nearest_kind(table.context) or doc_kind
     access = table_access(table.context)
     if table.matrix:
         return matrix_raws(table, kind)
     return loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
+
+
+def _nearest_kind(context: str) -> str | None:
+    """The table the nearest line above a table names, when the lines before it name several
+    (``### Coils`` under a paragraph listing every table, then ``Access level ...``)."""
+    for line in reversed(context.splitlines()):
+        kind = table_kind(line)
+        if kind is not None:
+            return kind
+    return None
 
 
 def _document_kind(text: str) -> str | None:
@@ -97,7 +107,8 @@ def draft(source: Source, model: str) -> Draft:
         else:
             plain = re.sub(r"^[\d.\s]+", "", heading)
             group = unique(snake(plain, f"table_{len(groups) + 1}")[:40].rstrip("_"), {g["name"] for g in groups})
-        drafts = [draft_fields(r, ctx) for r in raws]
+        direction = factor_direction(raws)
+        drafts = [draft_fields(r, ctx, direction) for r in raws]
         for d in drafts:
             d.entry["group"] = group
             d.table_label = table.label

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from drivemap.onboard.draft.cells import parse_address
+from drivemap.onboard.draft.cells import Address, parse_address
 
 _ROLES: tuple[tuple[str, str], ...] = (
     ("hi_byte", r"hi(gh)?\s*byte|高位元組|高字节|高位字节"),
@@ -52,6 +52,9 @@ class Layout:
     header_row: int | None = None
     header_rows: int = 1
     """2 when the header goes on in the next row (``Data`` / ``format``)."""
+    other_address: int | None = None
+    """A second address column whose header does not say hex (``Register Address | Modbus Address``)."""
+    other_header: str = ""
 
 
 def role_of(text: str) -> str | None:
@@ -73,6 +76,8 @@ def _layout_of(header: list[str], offset: int = 0) -> Layout:
             if _RADIX_HEX.search(cell) and not _RADIX_HEX.search(layout.headers["address"]):
                 layout.roles["address_dec"] = layout.roles["address"]
                 layout.roles["address"], layout.headers["address"] = i + offset, cell
+            elif layout.other_address is None:
+                layout.other_address, layout.other_header = i + offset, cell
             continue
         if role == "name" and "name" in layout.roles:
             role = "description"
@@ -145,8 +150,52 @@ def find_layouts(rows: list[list[str]]) -> list[Layout]:
     for offset, cells in _groups(joined or header):
         layout = _layout_of(cells, offset)
         layout.header_row, layout.header_rows = index, 2 if joined else 1
+        _prefer_marked(layout, rows[index + layout.header_rows:])
+        _prefer_distinct_name(layout, rows[index + layout.header_rows:])
         layouts.append(layout)
     return layouts
+
+
+def _prefer_distinct_name(layout: Layout, rows: list[list[str]]) -> None:
+    """A name column that repeats a few values (``dbus-service-name``: ``com.victronenergy.system`` on
+    every row of a section) names groups, not registers: the description column, a different text on
+    most rows, names the registers then."""
+    name, description = layout.roles.get("name"), layout.roles.get("description")
+    if name is None or description is None:
+        return
+
+    def texts(col: int) -> list[str]:
+        return [r[col].strip() for r in rows if col < len(r) and r[col].strip()]
+
+    names, descriptions = texts(name), texts(description)
+    if len(names) < 10 or len(descriptions) < 0.9 * len(names):
+        return
+    distinct = len(set(descriptions))
+    if len(set(names)) <= 0.2 * len(names) and distinct >= 0.5 * len(descriptions) and distinct >= 4 * len(set(names)):
+        layout.roles["name"], layout.roles["description"] = description, name
+        layout.headers["name"], layout.headers["description"] = layout.headers["description"], layout.headers["name"]
+
+
+def _prefer_marked(layout: Layout, rows: list[list[str]]) -> None:
+    """Of two address columns, the one printed ``0x00`` is the protocol address when the other holds
+    plain numbers that are not Modicon 3xxxx/4xxxx numbers (``Register Address 0001 | Modbus Address
+    0x00``, ``10001 | 0x00``: coil and discrete-input numbers counted from 1)."""
+    first, other = layout.roles.get("address"), layout.other_address
+    if first is None or other is None or layout.radix is not None:
+        return
+
+    def parsed(col: int) -> list[Address]:
+        cells = [r[col] for r in rows if col < len(r) and r[col].strip()]
+        found = [parse_address(c) for c in cells]
+        return [a for a in found if a is not None] if all(found) else []
+
+    plain, marked = parsed(first), parsed(other)
+    if len(plain) < 2 or len(marked) != len(plain) or not all(a.marked for a in marked):
+        return
+    if any(a.marked for a in plain) or all(30001 <= (a.dec_value or 0) <= 49999 for a in plain):
+        return
+    layout.roles["address_dec"], layout.headers["address_dec"] = first, layout.headers["address"]
+    layout.roles["address"], layout.headers["address"], layout.radix = other, layout.other_header, "hex"
 
 
 def content_layout(rows: list[list[str]]) -> Layout | None:

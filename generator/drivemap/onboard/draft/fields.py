@@ -3,6 +3,7 @@ enum or bits. A field the row does not state is left out and named in ``missing`
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -78,12 +79,16 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
 
 
 def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], missing: list[str],
-                  notes: list[str]) -> tuple[float | None, bool]:
+                  notes: list[str], direction: str | None = None) -> tuple[float | None, bool]:
     """Scale and unit; returns (scale, whether the range that follows is in raw counts)."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
     factor = parse_number(raw.cells.get("scale", ""))
-    if factor is not None and factor > 0:  # a bare number in a Scale/Factor column: engineering = raw x factor
+    if factor is not None and factor < 0:
+        notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
+    if factor is not None and factor > 0:  # a bare number in a Scale/Factor column
+        factor = _factor_scale(factor, raw, entry, direction)
+    if factor is not None and factor > 0:
         unit = found.unit if found is not None else None
         found = Scale(factor, unit, raw.cells["scale"])
     raw_range = False
@@ -112,6 +117,45 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     return scale, raw_range
 
 
+_MULTIPLIER = re.compile(r"multiplier|^gain|倍率", re.I)
+_RAW_MAX = {"u16": 65535, "s16": 32767}
+
+
+def _range_says(factor: float, rtype: str | None, range_text: str) -> str | None:
+    """``divide`` when the printed range is the raw span divided by the factor (``Scalefactor 100``,
+    ``0 to 655.35`` on a u16), ``multiply`` when multiplied by it; None when the range does not tell."""
+    rng = parse_range(range_text)
+    top = _RAW_MAX.get(rtype or "")
+    if rng is None or top is None or factor in (0, 1):
+        return None
+    if math.isclose(rng[1], top * factor, rel_tol=1e-9):
+        return "multiply"
+    if math.isclose(rng[1], top / factor, rel_tol=1e-9):
+        return "divide"
+    return None
+
+
+def factor_direction(raws: list[Raw]) -> str | None:
+    """What a table's Scale/Factor column means, when the rows whose range tells all say the same."""
+    said = set()
+    for raw in raws:
+        factor = parse_number(raw.cells.get("scale", ""))
+        if factor is not None and factor > 0:
+            said.add(_range_says(factor, parse_type(raw.cells.get("type", ""), None), raw.cells.get("range", "")))
+    said.discard(None)
+    return said.pop() if len(said) == 1 else None
+
+
+def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: str | None) -> float:
+    """The scale of a bare number in a Scale/Factor column: the number itself when it is 1 or the header
+    says multiplier; else what the row's printed range tells, else what the table's rows tell (a
+    column divides on every row or on none), else the number as a multiplier."""
+    if factor == 1 or _MULTIPLIER.search(raw.cells.get("scale_header", "")):
+        return factor
+    said = _range_says(factor, str(entry.get("type")), raw.cells.get("range", "")) or direction
+    return _clean(1 / factor) if said == "divide" else factor
+
+
 def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[str, object],
                   missing: list[str], notes: list[str]) -> None:
     lo = parse_number(raw.cells.get("min", ""))
@@ -126,6 +170,11 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
         return
     factor = 1.0
     after = parse_range(text or _range_text(raw.text))
+    printed = unit_after_range(after[2]) if after is not None else None
+    if printed is not None and entry.get("unit") not in (None, printed):
+        notes.append(f"range {lo}..{hi} printed in {printed}, the register's unit is {entry['unit']}: left out")
+        missing.append("range")
+        return
     unit_column = parse_scale(raw.cells.get("unit", ""), unit_cell=True) is not None
     printed_unit = unit_column or (after is not None and unit_after_range(after[2]) is not None)
     if scale is None and not printed_unit:
@@ -174,7 +223,7 @@ def _access_field(raw: Raw, entry: dict[str, object], missing: list[str]) -> Non
         entry["access"] = access
 
 
-def draft_fields(raw: Raw, ctx: Context) -> Drafted:
+def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafted:
     """The map entry of one register (without name, group and enum names: :mod:`.assemble` adds them)."""
     entry: dict[str, object] = {}
     missing: list[str] = []
@@ -201,7 +250,7 @@ def draft_fields(raw: Raw, ctx: Context) -> Drafted:
     elif enum:
         entry["enum"] = enum
     if not bits and not enum:
-        scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes)
+        scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes, direction)
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
     _access_field(raw, entry, missing)

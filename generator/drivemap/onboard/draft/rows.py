@@ -178,8 +178,27 @@ class GridReader:
                 self.skipped.append(Skipped(self.where(row), " | ".join(c for c in row.cells if c.strip()),
                                             "no address in the address column"))
             return
+        other = self.other_address(row, value)
+        if other is not None:
+            self.skipped.append(Skipped(
+                self.where(row), " | ".join(c.strip() for c in row.cells if c.strip()),
+                f"not drafted: {self.layout.headers.get('address', '')!r} {text!r} is address 0x{value:04x}, "
+                f"{self.layout.other_header!r} says {other!r}: the document states two addresses"))
+            return
         self.mode = "text"
         self.start(row, value, table)
+
+    def other_address(self, row: Row, value: int) -> str | None:
+        """The cell of a second address column that states another address than the Modicon number
+        (``30009 | 0x00``), else None."""
+        other = self.layout.other_address
+        if other is None or other == self.layout.roles.get("address") or not self.column.modicon:
+            return None
+        cell = row.cells[other].strip() if other < len(row.cells) else ""
+        a = parse_address(cell)
+        if a is None or not a.marked or a.hex_value == value:
+            return None
+        return cell
 
     def start(self, row: Row, value: int, table: str | None) -> None:
         name = _cell(row, self.layout, "name")
@@ -187,6 +206,7 @@ class GridReader:
             name = next((c.strip() for c in row.cells[self.found_at + 1:] if c.strip()), "")
         cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
         cells["length_header"] = self.layout.headers.get("length", "")
+        cells["scale_header"] = self.layout.headers.get("scale", "")
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 _UNITS = (
     r"[Vv]olts?|[Aa]mps?|[Ww]atts?|[Hh]ertz|[Hh]ours?|[Ss]econds?|[Mm]inutes?|"
     r"kvarh|kVArh|kvar|kVAr|kVAh|kVA|kWh|MWh|Wh|kW|MW|VAr|var|VA|W|"
-    r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|kA|A|kHz|Hz|"
+    r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|µA|μA|uA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
     r"ms|min|s|sec|h|hr|hours|"
     r"%RH|%|‰|kΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
@@ -30,7 +30,7 @@ _LABELLED = re.compile(rf"(?:unit|resolution|单位|單位|分辨率|解析度)\
 _WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
 _FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
 _NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
-           "RPM": "r/min", "min-1": "r/min", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
+           "RPM": "r/min", "min-1": "r/min", "uA": "µA", "μA": "µA", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
 _NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("W", "watt watts"), ("Hz", "hertz"),
                                       ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
                 for w in words.split() + [x.capitalize() for x in words.split()]})
