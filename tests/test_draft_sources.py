@@ -211,3 +211,18 @@ def test_a_name_column_that_repeats_a_few_values_names_no_register(
     facts, notes, _ = _drafted(tmp_path, doc, capsys)
     assert facts == [(label, None, 200 + i, "u16", None, None, None, None, None) for i, label in enumerate(labels)]
     assert notes == [f"{TO_FILL}table, scale, unit, range, access"] * 12
+
+
+@pytest.mark.parametrize("heading", ["Registers", "Enums", "Function codes", "Timing"])
+def test_a_table_headed_like_a_section_of_the_docs_page_still_builds(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], heading: str) -> None:
+    """A table (or sheet) headed like a fixed section of the generated docs page keeps its heading with
+    its place added, so the draft passes the checks of every exporter ``build`` runs."""
+    document = _document(tmp_path, "board.md", f"## {heading}\n\n| Address | Name | Unit |\n|---|---|---|\n"
+                                                "| 0x0010 | Pump speed | rpm |\n| 0x0011 | Pump current | A |\n")
+    facts, _notes, _summary = _drafted(tmp_path, document, capsys)
+    assert [f[2] for f in facts] == [0x10, 0x11]
+    out = tmp_path / "maps" / "dev.yaml"
+    assert main(["validate", "--exporter", "all", str(out)]) == 0
+    title = yaml.safe_load(out.read_text(encoding="utf-8"))["groups"][0]["title"]
+    assert title.startswith(f"{heading} (") and title != heading

@@ -6,6 +6,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from drivemap.backends.python.reserved import reserved
+from drivemap.backends.views.format import slug
 from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
@@ -117,9 +119,7 @@ def draft(source: Source, model: str) -> Draft:
         drafts = arrays(drafts)
         found.append((f"{table.label}: {heading}", len(drafts)))
         if group not in {g["name"] for g in groups}:
-            title = heading
-            while title in {g["title"] for g in groups}:
-                title += " (continued)"
+            title = _group_title(heading, table.label, groups)
             groups.append({"name": group, "title": title, "source": f"{source.name} {table.label}"})
         for d in drafts:
             _finish(d, source.name, names)
@@ -129,6 +129,15 @@ def draft(source: Source, model: str) -> Draft:
     if any("as printed under" in n for d in registers for n in d.notes):
         review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
     return Draft(data, registers, skipped, found, review)
+
+
+def _group_title(heading: str, label: str, groups: list[dict[str, Any]]) -> str:
+    """The group's title: the table's heading, with the table's place where the docs page has a fixed
+    section of that name (a sheet called "Registers"), and "(continued)" where a group has it already."""
+    title = heading if slug(heading) not in reserved().headings else f"{heading} ({label})"
+    while title in {g["title"] for g in groups}:
+        title += " (continued)"
+    return title
 
 
 def _series_param(d: Drafted) -> bool:
