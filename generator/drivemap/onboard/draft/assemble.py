@@ -6,8 +6,6 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivemap.backends.python.reserved import reserved
-from drivemap.backends.views.format import slug
 from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
@@ -134,6 +132,9 @@ def draft(source: Source, model: str) -> Draft:
 def _group_title(heading: str, label: str, groups: list[dict[str, Any]]) -> str:
     """The group's title: the table's heading, with the table's place where the docs page has a fixed
     section of that name (a sheet called "Registers"), and "(continued)" where a group has it already."""
+    from drivemap.backends.python.reserved import reserved  # the docs exporter's data; loaded when drafting
+    from drivemap.backends.views.format import slug
+
     title = heading if slug(heading) not in reserved().headings else f"{heading} ({label})"
     while title in {g["title"] for g in groups}:
         title += " (continued)"

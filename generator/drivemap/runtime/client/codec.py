@@ -212,8 +212,7 @@ class IeeeCodec(Codec[float]):
         self._check_range(number)
 
     def encode(self, value: float) -> int:
-        """The raw words of ``value``; a value the float type cannot hold as written is refused
-        (:class:`InexactValue`, see :func:`~drivemap.runtime.client.steps.exact_f32`), never rounded to its nearest neighbour."""
+        """The raw words of ``value``; one an f32 cannot show is refused (:func:`.steps.exact_f32`), not rounded."""
         self.check(value)
         number = float(value)
         if not self._plain:

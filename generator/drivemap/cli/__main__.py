@@ -1,0 +1,7 @@
+"""``python -m drivemap.cli``."""
+
+import sys
+
+from drivemap.cli import main
+
+sys.exit(main())
