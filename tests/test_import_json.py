@@ -140,3 +140,25 @@ def test_json_entries_of_a_wrong_shape_are_located(tmp_path: Path, capsys: pytes
     code, _, err = run(capsys, "import", "pymodbus-sim", str(two), "-o", str(tmp_path / "x.yaml"))
     assert code == 1 and f"{two}:1:17: error: device_list has 2 devices (a, b): import a configuration of one" in err
     assert not (tmp_path / "x.yaml").exists()
+
+
+def test_json_and_pymodbus_sim_imports_from_the_installed_wheel(tmp_path_factory: pytest.TempPathFactory,
+                                                                 tmp_path: Path) -> None:
+    """Both formats as users get them: the wheel in a fresh virtualenv, an empty folder outside this
+    checkout; the maps they write validate there, with the checks of every exporter."""
+    from test_wheel import env as env_fixture
+    from test_wheel import ok
+    from test_wheel import wheel as wheel_fixture
+
+    bindir = env_fixture.__wrapped__(wheel_fixture.__wrapped__(tmp_path_factory), tmp_path_factory)  # type: ignore[attr-defined]
+    work = tmp_path / "from-exports"
+    work.mkdir()
+    (work / "edx.json").write_text(ok(bindir, work, "export", "edx", "--format", "json"), encoding="utf-8")
+    (work / "sim.json").write_text(ok(bindir, work, "export", "vfd1000", "--format", "pymodbus-sim"), encoding="utf-8")
+    assert "wrote maps/edx.yaml" in ok(bindir, work, "import", "json", "edx.json")
+    assert "wrote maps/vfd_image.yaml" in ok(bindir, work, "import", "pymodbus-sim", "sim.json", "--model", "vfd_image")
+    checked = ok(bindir, work, "validate", "--exporter", "all")
+    assert "maps/edx.yaml: ok" in checked and "maps/vfd_image.yaml: ok" in checked
+    assert ok(bindir, work, "export", "maps/edx.yaml", "--format", "json") == (work / "edx.json").read_text("utf-8")
+    assert sorted(p.relative_to(work).as_posix() for p in work.rglob("*")) == [
+        "edx.json", "maps", "maps/edx.yaml", "maps/vfd_image.yaml", "sim.json"]
