@@ -5,6 +5,7 @@ is taken off ``sys.path`` so the tree's bench modules are the ones imported (the
     python bench/baseline_child.py overhead HOST PORT COUNT SECONDS SWAP STUB_CALLS
     python bench/baseline_child.py build FOLDER SIZE
     python bench/baseline_child.py import PATH PACKAGE CACHED
+    python bench/baseline_child.py wire        (the tree's section 3 in its quick form: efficiency by row name)
 """
 
 from __future__ import annotations
@@ -120,6 +121,11 @@ def overhead_main(argv: list[str]) -> dict[str, Any]:
 def main(argv: list[str]) -> None:
     if argv[0] == "overhead":
         print(json.dumps(overhead_main(argv[1:])))
+        return
+    if argv[0] == "wire":
+        wire = importlib.import_module("wire")
+        sec = wire.run(True)
+        print(json.dumps({"rows": {r.name: r.ratio for r in sec.rows}, "files": [drivemap.__file__, wire.__file__]}))
         return
     imports = importlib.import_module("imports")
     files = [drivemap.__file__, imports.__file__]

@@ -78,3 +78,26 @@ def test_verdicts() -> None:
     assert baseline._verdict(base, [1.041, 1.046, 1.052, 1.056, 1.061]) == ("WORSE", False)
     # the same with fewer than 5 rounds: not enough to call
     assert baseline._verdict(base[:3], [1.041, 1.046, 1.049]) == ("within spread", True)
+
+
+def test_verdicts_when_more_is_better() -> None:
+    base = [0.90, 0.91, 0.92, 0.93, 0.94]
+    assert baseline._verdict(base, [0.92, 0.93, 0.95, 0.90, 0.91], higher=True) == ("no worse", True)
+    assert baseline._verdict(base, [0.91, 0.91, 0.915, 0.95, 0.95], higher=True) == ("within spread", True)
+    assert baseline._verdict(base, [0.85, 0.86, 0.88, 0.95, 0.95], higher=True) == ("WORSE", False)
+
+
+def test_tree_metadata_carries_the_trees_entry_points(tmp_path: Path) -> None:
+    """The child sees the tree's own entry points ahead of the installed drivemap's."""
+    tree = tmp_path / "tree"
+    tree.mkdir()
+    (tree / "pyproject.toml").write_text('[project]\nname = "drivemap"\n[project.entry-points."drivemap.behaviours"]\n'
+                                         'ev = "elsewhere.ev:Ev"\n', encoding="utf-8")
+    folder = baseline.tree_metadata(tree, tmp_path / "meta")
+    code = ("import importlib.metadata as m; "
+            "print([e.value for e in m.entry_points(group='drivemap.behaviours', name='ev')])")
+    env = dict(baseline._env(tree))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
+                         check=True).stdout
+    assert out.strip() == "['elsewhere.ev:Ev']"
+    assert str(folder) in env["PYTHONPATH"].split(":")
