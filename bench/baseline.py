@@ -268,7 +268,7 @@ def _report(sec: Section, over: dict[str, dict[str, list[float]]], wire: dict[st
 def run(quick: bool) -> Section:
     sec = Section(TITLE)
     rounds, count, seconds, stub_calls = (3, 60, 0.2, 200) if quick else (9, 300, 0.6, 1000)
-    wire_rounds, import_rounds, size = (1, 2, 1000) if quick else (4, 5, IMPORT_SIZE)
+    wire_rounds, import_rounds, size = (1, 2, 1000) if quick else (6, 5, IMPORT_SIZE)
     took: dict[str, float] = {}
     with tempfile.TemporaryDirectory(prefix="drivemap-baseline-") as tmp_name:
         tmp = Path(tmp_name)
