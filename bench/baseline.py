@@ -185,7 +185,8 @@ def _wire_rounds(trees: dict[str, Path], rounds: int) -> dict[str, dict[str, lis
 
 
 def _import_rounds(trees: dict[str, Path], tmp: Path, size: int, rounds: int) -> dict[str, dict[str, list[float]]]:
-    """tree -> "cold"/"cached" -> per-round import seconds of that tree's synthetic client."""
+    """tree -> "cold"/"cached" -> per-round import seconds of that tree's synthetic client; "construct" ->
+    import and first ``Client.tcp()`` (cached)."""
     built: dict[str, tuple[str, str]] = {}
     for n, (name, tree) in enumerate(trees.items()):
         folder = tmp / f"imports{n}"
@@ -193,7 +194,7 @@ def _import_rounds(trees: dict[str, Path], tmp: Path, size: int, rounds: int) ->
         path, package = _call(tree, "build", str(folder), str(size))["built"]
         built[name] = (path, package)
         _call(tree, "import", path, package, "1")  # writes __pycache__ (not counted)
-    out: dict[str, dict[str, list[float]]] = {name: {"cold": [], "cached": []} for name in trees}
+    out: dict[str, dict[str, list[float]]] = {name: {"cold": [], "cached": [], "construct": []} for name in trees}
     names = list(trees)
     for i in range(rounds):
         for name in (names if i % 2 == 0 else names[::-1]):
@@ -202,6 +203,7 @@ def _import_rounds(trees: dict[str, Path], tmp: Path, size: int, rounds: int) ->
                 out[name]["cached" if cached == "1" else "cold"].append(seconds)
                 if cached == "0":
                     _call(trees[name], "import", *built[name], "1")  # restore __pycache__
+            out[name]["construct"].append(_call(trees[name], "construct", *built[name])["seconds"])
     return out
 
 
@@ -253,6 +255,8 @@ def _report(sec: Section, over: dict[str, dict[str, list[float]]], wire: dict[st
     for kind in ("cached", "cold"):
         _compare(sec, f"import of a {size}-register client ({kind}), s", imp["baseline"][kind], imp["current"][kind],
                  " s", 3)
+    _compare(sec, "the same, cached, + first `Client.tcp()` (info), s", imp["baseline"]["construct"],
+             imp["current"]["construct"], " s", 3, row=False)
     sec.detail += ["", "The same rounds in µs per call: the generated client on the network (the ratios' numerator), "
                    "and with `execute()` stubbed (the client's own layers):", "", *head]
     for mode in ("sync", "async"):

@@ -5,6 +5,7 @@ is taken off ``sys.path`` so the tree's bench modules are the ones imported (the
     python bench/baseline_child.py overhead HOST PORT COUNT SECONDS SWAP STUB_CALLS
     python bench/baseline_child.py build FOLDER SIZE
     python bench/baseline_child.py import PATH PACKAGE CACHED
+    python bench/baseline_child.py construct PATH PACKAGE   (import + the first ``Client.tcp()``, no connection)
     python bench/baseline_child.py wire        (the tree's section 3 in its quick form: efficiency by row name)
 """
 
@@ -118,7 +119,24 @@ def overhead_main(argv: list[str]) -> dict[str, Any]:
     return out
 
 
+def construct_main(path: str, package: str) -> dict[str, Any]:
+    """Seconds to import ``package.client`` and make its first ``Client`` (section 8's import, plus what the
+    client's constructor does: the baseline made every accessor there, the current tree on first use)."""
+    sys.path.insert(0, path)
+    importlib.import_module("drivemap.runtime.client")  # as section 8: the runtime is not counted
+    importlib.import_module("pymodbus.client")
+    t0 = time.perf_counter()
+    mod = importlib.import_module(package + ".client")
+    client = mod.Client.tcp("127.0.0.1", 1, 1)
+    seconds = time.perf_counter() - t0
+    client.close()
+    return {"seconds": seconds, "files": [drivemap.__file__]}
+
+
 def main(argv: list[str]) -> None:
+    if argv[0] == "construct":
+        print(json.dumps(construct_main(argv[1], argv[2])))
+        return
     if argv[0] == "overhead":
         print(json.dumps(overhead_main(argv[1:])))
         return
