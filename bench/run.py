@@ -1,6 +1,6 @@
 """Run every drivemap benchmark side by side and write bench/RESULTS.md.
 
-    python bench/run.py            # full run (about 10 minutes on 2 cores), writes bench/RESULTS.md
+    python bench/run.py            # full run (about 14 minutes on 2 cores), writes bench/RESULTS.md
     python bench/run.py --quick    # smoke mode (fewer, shorter rounds; writes nothing unless --out)
 
 Sections: (1) read planning, (2) client overhead vs raw pymodbus, (3) wire efficiency on a paced
@@ -9,8 +9,9 @@ scaling, (6) exports: entities and reads per poll cycle of the Home Assistant an
 gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clients of 100 to 50k registers, (9) draft
 recovery (`drivemap draft` on the seed manuals against the proven maps), (10) draft recovery on public documents
 (bench/public_docs.json; the documents from $DRIVEMAP_PUBLIC_DOCS, default ~/.cache/drivemap/public-docs), (11) the
-SunSpec probe of the Fronius simulator against the proven map. Every figure is the median of several bounded rounds;
-only 127.0.0.1 and ptys are used.
+SunSpec probe of the Fronius simulator against the proven map, (12) against the baseline: (2) and (8) for the tree
+before the runtime's layer refactor and this tree, side by side in the same run (bench/baseline.py). Every figure is
+the median of several bounded rounds; only 127.0.0.1 and ptys are used.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+import baseline  # noqa: E402
 import compiler_scaling  # noqa: E402
 import draft as draft_bench  # noqa: E402
 import exports  # noqa: E402
@@ -165,6 +167,7 @@ element address by element address. **Cells recovered**: same holding address, t
 scale-factor register. The other fields are compared on the cells both maps have and every difference
 is listed with both values: the probe's map takes them from the SunSpec models (pysunspec2), the proven
 map from Fronius' documents.""",
+    baseline.TITLE: baseline.DEFINITION,
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
@@ -299,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
                     choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
-                             "draft", "publicdocs", "sunspec"],
+                             "draft", "publicdocs", "sunspec", "baseline"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -318,6 +321,7 @@ def main(argv: list[str] | None = None) -> int:
         ("draft", "Draft recovery (seed manuals vs proven maps)", lambda: draft_bench.run(args.quick)),
         ("publicdocs", publicdocs.TITLE, lambda: publicdocs.run(args.quick)),
         ("sunspec", sunspecprobe.TITLE, lambda: sunspecprobe.run(args.quick)),
+        ("baseline", baseline.TITLE, lambda: baseline.run(args.quick)),
     ]
     sections: list[Section] = []
     for key, title, fn in plan:
