@@ -88,6 +88,11 @@ def _case(name: str, title: str, pdus: tuple[ModbusPDU, ModbusPDU], operation: s
 
 
 def cases() -> list[Case]:
+    """Every example of the map, in the map's order: register reads, bit reads and writes, register writes."""
+    return _register_reads() + _bit_cases() + _register_writes()
+
+
+def _register_reads() -> list[Case]:
     voltages = (regs(230.5, DT.FLOAT32) + regs(231.25, DT.FLOAT32, "little")
                 + regs(229.75, DT.FLOAT32, "little", swap=True) + regs(50.0, DT.FLOAT32, swap=True))
     energy = (regs(123456.789, DT.FLOAT64) + regs(2**40 + 12345, DT.UINT64)
@@ -125,6 +130,11 @@ def cases() -> list[Case]:
               {"clock_year": 2024, "clock_month": 7, "clock_day": 15}),
         _case("read_first_holding", "A register the map gives by its Modicon number 400001",
               _read_holding(0x0000, [42]), "read", 0x0000, 1, {"first_holding": 42}),
+    ]
+
+
+def _bit_cases() -> list[Case]:
+    return [
         _case("read_run", "Read a coil (01h)",
               (ReadCoilsRequest(address=0x0000, count=1), ReadCoilsResponse(bits=[True] + [False] * 7)),
               "read", 0x0000, 1, {"run": True}),
@@ -139,6 +149,11 @@ def cases() -> list[Case]:
               (WriteMultipleCoilsRequest(address=0x0010, bits=[True, False, True, True]),
                WriteMultipleCoilsResponse(address=0x0010, count=4)),
               "write_multiple", 0x0010, 4, {"relays[0]": True, "relays[1]": False, "relays[2]": True, "relays[3]": True}),
+    ]
+
+
+def _register_writes() -> list[Case]:
+    return [
         _case("write_setpoint", "Write an f32 (10h)", _write_holding(0x0100, regs(-12.5, DT.FLOAT32)),
               "write_multiple", 0x0100, 2, {"setpoint": -12.5}),
         _case("write_ramp_limit", "Write an f64, low word first and swapped bytes",

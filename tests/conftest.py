@@ -34,6 +34,8 @@ SLOW_MODULES = frozenset({
     "test_simulator_tcp", "test_simulator_tcp_fuzz", "test_stale_replies", "test_vserial", "test_wheel",
     # the real command as a process: its stderr's encoding, a FIFO it must not hang on, a memory limit
     "test_cli_hostile", "test_map_bounds",
+    # split off test_docs (links, leaks, escaping, the usage snippet against the simulator)
+    "test_docs_links",
 })
 #: Every module of these families talks to real servers (the live verbs, the gateway, onboarding a device).
 SLOW_PREFIXES = ("test_live_", "test_gateway_", "test_probe", "test_draft", "test_import")

@@ -143,7 +143,6 @@ def _mqtt_settled(ha: HomeAssistant, count: int) -> Any:
 ], ids=["vfd1000+ev", "sdm630"])
 def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(devices: tuple[str, ...],
                                                                             tmp_path: Path) -> None:
-    from tests.ha_compare import compare_mqtt
     from tests.helpers_gateway import Broker
 
     tool = require("homeassistant")
@@ -153,10 +152,7 @@ def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(devi
     ports = {d: free_port() for d in devices}
     lines = {d: (d, DEVICES[d][0]) for d in devices}
     broker = Broker(tmp_path).start()
-    config = tmp_path / "plant.yaml"
-    config.write_text(GATEWAY.format(mqtt=broker.port) + "".join(
-        f"  - name: line_{d}\n    tcp: 127.0.0.1:{ports[d]}\n    devices:\n      - {DEVICES[d][1]}\n" for d in devices),
-        encoding="utf-8")
+    config = _gateway_config(tmp_path, broker.port, ports, devices)
     ha = HomeAssistant(tool, tmp_path / "ha")
     ha.configure({}, mqtt_port=broker.port)
     gateway: subprocess.Popen[bytes] | None = None
@@ -170,34 +166,64 @@ def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(devi
                                        stdout=log, stderr=subprocess.STDOUT)
         ha.start()
         ha.onboard()
-        configs = discovery_configs(broker.port)
-        assert len(configs) > 20 * len(devices), f"the gateway announced {len(configs)} entities"
-        found = ha.wait_for(_mqtt_settled(ha, len(configs)), 120, "the discovered entities")
-        (tmp_path / "entities.json").write_text(json.dumps(found, indent=1), encoding="utf-8")
-        mqtt = {e["unique_id"]: e["state"] for e in found.values() if e["platform"] == "mqtt"}
-        missing = [c["unique_id"] for c in configs if c["unique_id"] not in mqtt]
-        assert not missing, f"{len(missing)} of {len(configs)} discovered entities are not in HA: {missing[:20]}"
-        results = {}
-        for device, (line, model) in lines.items():
-            reads = {e["name"]: e for e in read_all(model, ports[line])["registers"]}
-            node = f"drivemap_plant_{device}"
-            mine = [c for c in configs if c["unique_id"].startswith(node + "_")]
-            results[device] = compare_mqtt(mine, found, reads, node)
+        found, results = _discovered_and_compared(ha, broker.port, devices, lines, ports, tmp_path)
         if "conveyor" in sims:
             _drive_through_home_assistant(ha, found, sims["conveyor"])
         logged = ha.bad_log_lines()
     finally:
         ha.stop()
         if gateway is not None:
-            gateway.terminate()
-            try:
-                gateway.wait(15)
-            except subprocess.TimeoutExpired:
-                gateway.kill()
-                gateway.wait(5)
+            _stop(gateway)
         broker.stop()
         for server in servers:
             server.stop()
+    _assert_entities_equal_reads(results)
+    print(f"gateway run: {time.monotonic() - started:.0f} s")
+    assert not logged, "\n".join(logged)
+
+
+def _gateway_config(tmp_path: Path, mqtt_port: int, ports: dict[str, int], devices: tuple[str, ...]) -> Path:
+    """The gateway's configuration: the broker, and one TCP line per device."""
+    config = tmp_path / "plant.yaml"
+    config.write_text(GATEWAY.format(mqtt=mqtt_port) + "".join(
+        f"  - name: line_{d}\n    tcp: 127.0.0.1:{ports[d]}\n    devices:\n      - {DEVICES[d][1]}\n" for d in devices),
+        encoding="utf-8")
+    return config
+
+
+def _discovered_and_compared(ha: HomeAssistant, mqtt_port: int, devices: tuple[str, ...],
+                             lines: dict[str, tuple[str, str]], ports: dict[str, int],
+                             tmp_path: Path) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
+    """HA's entities once every entity the gateway announced is in HA, and per device how the
+    discovered entities compare with ``drivemap read``."""
+    from tests.ha_compare import compare_mqtt
+
+    configs = discovery_configs(mqtt_port)
+    assert len(configs) > 20 * len(devices), f"the gateway announced {len(configs)} entities"
+    found = ha.wait_for(_mqtt_settled(ha, len(configs)), 120, "the discovered entities")
+    (tmp_path / "entities.json").write_text(json.dumps(found, indent=1), encoding="utf-8")
+    mqtt = {e["unique_id"]: e["state"] for e in found.values() if e["platform"] == "mqtt"}
+    missing = [c["unique_id"] for c in configs if c["unique_id"] not in mqtt]
+    assert not missing, f"{len(missing)} of {len(configs)} discovered entities are not in HA: {missing[:20]}"
+    results = {}
+    for device, (line, model) in lines.items():
+        reads = {e["name"]: e for e in read_all(model, ports[line])["registers"]}
+        node = f"drivemap_plant_{device}"
+        mine = [c for c in configs if c["unique_id"].startswith(node + "_")]
+        results[device] = compare_mqtt(mine, found, reads, node)
+    return found, results
+
+
+def _stop(process: subprocess.Popen[bytes]) -> None:
+    process.terminate()
+    try:
+        process.wait(15)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(5)
+
+
+def _assert_entities_equal_reads(results: dict[str, Any]) -> None:
     for device, (compared, bad, not_compared) in results.items():
         total = len(compared) + len(bad) + len(not_compared)
         print(f"\n{device}: {len(compared)}/{total} discovered entities equal drivemap's read, {len(bad)} differ, "
@@ -206,8 +232,6 @@ def test_home_assistant_reads_and_drives_the_gateway_through_mqtt_discovery(devi
             print("  not compared:", line)
         assert not bad, "\n".join(bad)
         assert len(compared) >= 0.9 * total, not_compared
-    print(f"gateway run: {time.monotonic() - started:.0f} s")
-    assert not logged, "\n".join(logged)
 
 
 def _drive_through_home_assistant(ha: HomeAssistant, found: dict[str, dict[str, Any]], sim: Any) -> None:

@@ -25,9 +25,9 @@ import drivemap.runtime.client.sync_client as client_mod
 from drivemap.runtime.client.sansio import Core
 from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
+from tests.allkinds_server import MODEL, PKG, REFUSED, plain_server, server_tables
 from tests.helpers_client import package, serial_server, tcp_server
 from tests.test_client_faults import rtu
-from tests.test_map_allkinds import MODEL, PKG, REFUSED, plain_server, server_tables
 
 ev = package("ev")
 vfd = package("vfd1000")
