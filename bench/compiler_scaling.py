@@ -153,22 +153,22 @@ def _profile_summary(text: str) -> str:
     return "\n".join(head + lines[start:])
 
 
-def run(quick: bool, budget_s: float) -> Section:
-    sec = Section("Compiler scaling")
-    rounds = 1 if quick else 3
-    sizes = SIZES_QUICK if quick else SIZES_FULL
-    per_build_timeout = 60.0 if quick else 90.0
-    started = time.perf_counter()
+Runs = list[dict[str, Any]]
 
-    # real maps, one by one, and `drivemap build` of all of them
-    real: list[tuple[str, list[dict[str, Any]]]] = []
+
+def _measure(rounds: int, sizes: tuple[int, ...], per_build_timeout: float,
+             budget_s: float) -> tuple[list[tuple[str, Runs]], Runs, list[tuple[int, Runs]]]:
+    """Build the real maps one by one, all of them with `drivemap build`, then the synthetic sizes within
+    the budget: (real map runs, `drivemap build` runs, synthetic runs)."""
+    started = time.perf_counter()
+    real: list[tuple[str, Runs]] = []
     for model in MODELS:
         real.append((model, [_run_worker("map", model, per_build_timeout) for _ in range(rounds)]))
     cli_runs = [_run_worker("cli", "all", per_build_timeout) for _ in range(rounds)]
 
-    synthetic: list[tuple[int, list[dict[str, Any]]]] = []
+    synthetic: list[tuple[int, Runs]] = []
     for size in sizes:
-        runs: list[dict[str, Any]] = []
+        runs: Runs = []
         for _ in range(rounds):
             left = budget_s - (time.perf_counter() - started)
             if runs and left < per_build_timeout:
@@ -177,65 +177,74 @@ def run(quick: bool, budget_s: float) -> Section:
             if "timeout" in runs[-1] or "error" in runs[-1]:
                 break
         synthetic.append((size, runs))
+    return real, cli_runs, synthetic
 
-    sec.detail.append("| map | registers | map bytes | rounds | build median (s) | compile (s) | render+write (s) "
-                      "| µs/register | peak RSS (MB) | RSS growth (MB) |")
-    sec.detail.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 
-    def line(name: str, runs: list[dict[str, Any]]) -> float | None:
-        ok = [r for r in runs if "total_s" in r]
-        if not ok:
-            why = runs[0].get("error") or f"timed out after {runs[0].get('timeout')} s" if runs else "not run"
-            sec.detail.append(f"| {name} | — | — | {len(runs)} | {why} | | | | | |")
-            return None
-        tot = [r["total_s"] for r in ok]
-        regs = ok[0].get("registers")
-        per = median(tot) / regs * 1e6 if regs else None
-        sec.detail.append(
-            f"| {name} | {regs if regs else '—'} | {ok[0].get('bytes', '—')} | {len(ok)} | {median(tot):.3f} "
-            f"({spread(tot)}) | {median([r['compile_s'] for r in ok]):.3f} | {median([r['render_s'] for r in ok]):.3f} "
-            f"| {f'{per:.0f}' if per else '—'} | {max(r['rss_peak_mb'] for r in ok):.0f} "
-            f"| {median([r['rss_peak_mb'] - r['rss_before_mb'] for r in ok]):.1f} |")
-        return per
+def _line(sec: Section, name: str, runs: Runs) -> float | None:
+    """One table line for the runs of one map; its µs/register (None when no run finished)."""
+    ok = [r for r in runs if "total_s" in r]
+    if not ok:
+        why = runs[0].get("error") or f"timed out after {runs[0].get('timeout')} s" if runs else "not run"
+        sec.detail.append(f"| {name} | — | — | {len(runs)} | {why} | | | | | |")
+        return None
+    tot = [r["total_s"] for r in ok]
+    regs = ok[0].get("registers")
+    per = median(tot) / regs * 1e6 if regs else None
+    sec.detail.append(
+        f"| {name} | {regs if regs else '—'} | {ok[0].get('bytes', '—')} | {len(ok)} | {median(tot):.3f} "
+        f"({spread(tot)}) | {median([r['compile_s'] for r in ok]):.3f} | {median([r['render_s'] for r in ok]):.3f} "
+        f"| {f'{per:.0f}' if per else '—'} | {max(r['rss_peak_mb'] for r in ok):.0f} "
+        f"| {median([r['rss_peak_mb'] - r['rss_before_mb'] for r in ok]):.1f} |")
+    return per
 
-    for model, runs in real:
-        line(f"maps/{model}.yaml", runs)
-    line("`drivemap build` (all maps)", cli_runs)
+
+def _synthetic_lines(sec: Section, synthetic: list[tuple[int, Runs]]) -> dict[int, float | None]:
+    """The synthetic maps' table lines; µs/register per size (a timeout's lower bound where one timed out)."""
     per_size: dict[int, float | None] = {}
     for size, runs in synthetic:
-        per_size[size] = line(f"synthetic {size}", runs)
+        per_size[size] = _line(sec, f"synthetic {size}", runs)
         if runs and "timeout" in runs[-1]:
             per_size[size] = runs[-1]["timeout"] / size * 1e6  # lower bound
             sec.detail.append(f"| ↳ lower bound | {size} | | | > {runs[-1]['timeout']:.0f} | | | "
                               f"≥ {per_size[size]:.0f} | | |")
+    return per_size
 
+
+def _goal_rows(sec: Section, quick: bool, sizes: tuple[int, ...], synthetic: list[tuple[int, Runs]],
+               per_size: dict[int, float | None], per_build_timeout: float) -> None:
+    """The cost and memory per register of the largest size against the smallest; a profile when missed."""
     small, large = sizes[0], sizes[-1]
     ps, pl = per_size.get(small), per_size.get(large)
     timed_out = any("timeout" in r for _, runs in synthetic for r in runs)
-    if ps and pl:
-        ratio = pl / ps
-        met = ratio <= GOAL and not timed_out
-        sec.rows.append(Row("5 compiler", f"cost/register {large} vs {small} regs", ratio, f"≤ {GOAL}×", met,
-                            f"{pl:.0f} vs {ps:.0f} µs/reg" + (" (lower bound: timed out)" if timed_out else "")))
-        mem = {size: runs for size, runs in synthetic}
-        ok_l = [r for r in mem[large] if "rss_peak_mb" in r]
-        ok_s = [r for r in mem[small] if "rss_peak_mb" in r]
-        if ok_l and ok_s:
-            gl = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_l]) / large * 1024
-            gs = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_s]) / small * 1024
-            sec.rows.append(Row("5 compiler", f"memory/register {large} vs {small} regs", gl / gs if gs > 0 else None,
-                                "(flat)", None, f"{gl:.1f} vs {gs:.1f} KiB/reg RSS growth",
-                                "RSS growth is page-granular: noisy for small maps"))
-        if not met and not quick:
-            # profile the largest size that finished within one build timeout
-            size = max((s for s, runs in synthetic if any("total_s" in r for r in runs)), default=small)
-            if size == large and timed_out:
-                size = small
-            size = min(size, 1000)
-            prof = _run_worker("synthetic", str(size), per_build_timeout, profile=True)
-            if "profile" in prof:
-                sec.profiles.append(f"cProfile of the build of a synthetic map of {size} registers "
-                                    f"(top entries by own time):\n\n```\n{_profile_summary(prof['profile'])}\n```")
+    if not (ps and pl):
+        return
+    ratio = pl / ps
+    met = ratio <= GOAL and not timed_out
+    sec.rows.append(Row("5 compiler", f"cost/register {large} vs {small} regs", ratio, f"≤ {GOAL}×", met,
+                        f"{pl:.0f} vs {ps:.0f} µs/reg" + (" (lower bound: timed out)" if timed_out else "")))
+    mem = {size: runs for size, runs in synthetic}
+    ok_l = [r for r in mem[large] if "rss_peak_mb" in r]
+    ok_s = [r for r in mem[small] if "rss_peak_mb" in r]
+    if ok_l and ok_s:
+        gl = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_l]) / large * 1024
+        gs = median([r["rss_peak_mb"] - r["rss_before_mb"] for r in ok_s]) / small * 1024
+        sec.rows.append(Row("5 compiler", f"memory/register {large} vs {small} regs", gl / gs if gs > 0 else None,
+                            "(flat)", None, f"{gl:.1f} vs {gs:.1f} KiB/reg RSS growth",
+                            "RSS growth is page-granular: noisy for small maps"))
+    if not met and not quick:
+        # profile the largest size that finished within one build timeout
+        size = max((s for s, runs in synthetic if any("total_s" in r for r in runs)), default=small)
+        if size == large and timed_out:
+            size = small
+        size = min(size, 1000)
+        prof = _run_worker("synthetic", str(size), per_build_timeout, profile=True)
+        if "profile" in prof:
+            sec.profiles.append(f"cProfile of the build of a synthetic map of {size} registers "
+                                f"(top entries by own time):\n\n```\n{_profile_summary(prof['profile'])}\n```")
+
+
+def _bound_lines(sec: Section, per_build_timeout: float) -> None:
+    """Table lines for refusing the hostile maps the bounds stop."""
     for case in ("nodes", "registers", "nodes-limit"):
         got = _run_worker("bound", case, per_build_timeout)
         if "total_s" in got:
@@ -243,6 +252,23 @@ def run(quick: bool, budget_s: float) -> Section:
                               f"| | | | {got['rss_peak_mb']:.0f} | {got['rss_peak_mb'] - got['rss_before_mb']:.1f} |")
         else:
             sec.detail.append(f"| bound: {case} | — | — | 1 | {got} | | | | | |")
+
+
+def run(quick: bool, budget_s: float) -> Section:
+    sec = Section("Compiler scaling")
+    rounds = 1 if quick else 3
+    sizes = SIZES_QUICK if quick else SIZES_FULL
+    per_build_timeout = 60.0 if quick else 90.0
+    real, cli_runs, synthetic = _measure(rounds, sizes, per_build_timeout, budget_s)
+    sec.detail.append("| map | registers | map bytes | rounds | build median (s) | compile (s) | render+write (s) "
+                      "| µs/register | peak RSS (MB) | RSS growth (MB) |")
+    sec.detail.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for model, runs in real:
+        _line(sec, f"maps/{model}.yaml", runs)
+    _line(sec, "`drivemap build` (all maps)", cli_runs)
+    per_size = _synthetic_lines(sec, synthetic)
+    _goal_rows(sec, quick, sizes, synthetic, per_size, per_build_timeout)
+    _bound_lines(sec, per_build_timeout)
     return sec
 
 

@@ -339,9 +339,17 @@ def _serial_figures(m: dict[str, Any]) -> dict[str, Any]:
 
 def _serial_report(sec: Section, results: dict[int, dict[str, Any]]) -> None:
     figs = {n: _serial_figures(m) for n, m in results.items()}
+    most = max(results)
+    lat = _latencies(results[most]["steady"], results[most]["logs"])
+    _serial_rows(sec, results, figs, lat)
+    _serial_detail(sec, results, figs, lat)
+
+
+def _serial_rows(sec: Section, results: dict[int, dict[str, Any]], figs: dict[int, dict[str, Any]],
+                 lat: list[float]) -> None:
+    """The serial runs' summary rows: saturated polls/s of one and of the most lines, steady CPU and latency."""
     most, one = max(results), min(results)
-    big, steady = results[most], results[most]["steady"]
-    lat = _latencies(steady, big["logs"])
+    steady = results[most]["steady"]
     f1, fn = figs[one], figs[most]
     drives = most * gateway_serial.DRIVES
     steady_cpu = {k: statistics.median(w[2][k] for w in steady["windows"]) for k in steady["windows"][0][2]}
@@ -360,6 +368,13 @@ def _serial_report(sec: Section, results: dict[int, dict[str, Any]]) -> None:
         Row("6 gateway", f"serial steady: latency value change -> MQTT (median / p99, {most} lines)", None, "info",
             None, f"{_pct(lat, 0.5):.0f} / {_pct(lat, 0.99):.0f} ms over {len(lat)} changes"),
     ]
+
+
+def _serial_detail(sec: Section, results: dict[int, dict[str, Any]], figs: dict[int, dict[str, Any]],
+                   lat: list[float]) -> None:
+    """The serial runs' detail: how they were measured, the line limit, the per-run table and what it means."""
+    most, one = max(results), min(results)
+    f1, fn = figs[one], figs[most]
     req, rep = f1["sizes"]
     carried = max(n for n, f in figs.items() if f["median"] >= 0.95 * f1["median"])
     sec.detail += [

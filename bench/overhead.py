@@ -243,6 +243,106 @@ def _rows(sec: Section, mode: str, results: dict[str, tuple[list[float], list[fl
     return missed
 
 
+Results = dict[str, tuple[list[float], list[float], list[float]]]
+
+
+def _rounds_sync(ops: dict[str, tuple[Callable[[], Any], Callable[[], Any]]], rounds: int, count: int,
+                 seconds: float) -> Results:
+    """Per operation: (per-round ratios, our per-round medians, their per-round medians)."""
+    results: Results = {}
+    for op, (ours, theirs) in ops.items():
+        ours(), theirs()  # warm
+        ratios: list[float] = []
+        a: list[float] = []
+        b: list[float] = []
+        for i in range(rounds):
+            ta, tb = paired(ours, theirs, count, seconds, swap=i % 2 == 1)
+            a.append(median(ta))
+            b.append(median(tb))
+            ratios.append(a[-1] / b[-1])
+        results[op] = (ratios, a, b)
+    return results
+
+
+async def _rounds_async(aops: dict[str, tuple[Callable[[], Awaitable[Any]], Callable[[], Awaitable[Any]]]],
+                        rounds: int, count: int, seconds: float) -> Results:
+    """Async twin of :func:`_rounds_sync`."""
+    res: Results = {}
+    for op, (ours, theirs) in aops.items():
+        await ours()
+        await theirs()
+        ratios: list[float] = []
+        a: list[float] = []
+        b: list[float] = []
+        for i in range(rounds):
+            ta, tb = await apaired(ours, theirs, count, seconds, swap=i % 2 == 1)
+            a.append(median(ta))
+            b.append(median(tb))
+            ratios.append(a[-1] / b[-1])
+        res[op] = (ratios, a, b)
+    return res
+
+
+async def _aprofile(op: str, fn: Callable[[], Awaitable[Any]]) -> str:
+    """cProfile of 200 awaited calls of ``fn`` (top by own time)."""
+    import cProfile
+    import io
+    import pstats
+
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(200):
+        await fn()
+    prof.disable()
+    out = io.StringIO()
+    pstats.Stats(prof, stream=out).strip_dirs().sort_stats("tottime").print_stats(15)
+    text = out.getvalue()
+    start = text.find("   ncalls")
+    return (f"async `{op}`: cProfile of 200 calls of the generated client (top by own "
+            f"time):\n\n```\n{text[start:].strip()}\n```")
+
+
+def _sync_part(sec: Section, client_mod: Any, host: str, port: int, reg: Any, requests: dict[str, int],
+               rounds: int, count: int, seconds: float) -> None:
+    """The sync clients: ratio rows, profiles of the missed operations, time outside ``execute()``."""
+    from pymodbus.client import ModbusTcpClient
+
+    client = client_mod.Client.tcp(host, port, 1, timeout=2.0)
+    raw = ModbusTcpClient(host, port=port, timeout=2.0)
+    with client:
+        raw.connect()
+        ops = _ops_sync(client, raw, reg)
+        results = _rounds_sync(ops, rounds, count, seconds)
+        missed = _rows(sec, "sync", results, requests)
+        for op in missed:
+            ours_fn = ops[op][0]
+            sec.profiles.append(f"sync `{op}`: cProfile of 200 calls of the generated client (top by own time):"
+                                f"\n\n```\n{profile_text(lambda f=ours_fn: [f() for _ in range(200)])}\n```")
+        _outside_rows(sec, client, raw, reg, max(rounds, 5))
+        raw.close()
+
+
+async def _async_part(sec: Section, client_mod: Any, host: str, port: int, reg: Any, rounds: int, count: int,
+                      seconds: float) -> tuple[Results, list[str]]:
+    """The async clients: (results, missed operations); profiles of the missed ones go to ``sec``."""
+    from pymodbus.client import AsyncModbusTcpClient
+
+    aclient = client_mod.AsyncClient.tcp(host, port, 1, timeout=2.0)
+    araw = AsyncModbusTcpClient(host, port=port, timeout=2.0)
+    await aclient.connect()
+    await araw.connect()
+    try:
+        aops = await _ops_async(aclient, araw, reg)
+        res = await _rounds_async(aops, rounds, count, seconds)
+        missed = [op for op, (r, _, _) in res.items() if median(r) > GOALS.get(op, GOAL)]
+        profiles = [await _aprofile(op, aops[op][0]) for op in missed]
+        sec.profiles.extend(profiles)
+        return res, missed
+    finally:
+        aclient.close()
+        araw.close()
+
+
 def run(quick: bool) -> Section:
     sec = Section("Client overhead (TCP loopback)")
     rounds = 3 if quick else 7
@@ -256,84 +356,12 @@ def run(quick: bool) -> Section:
     sec.detail.append("| mode | operation | requests/op | ratio (range) | drivemap µs/op | raw pymodbus µs/op "
                       "| overhead µs/request | rounds |")
     sec.detail.append("|---|---|---:|---:|---:|---:|---:|---:|")
-    from pymodbus.client import AsyncModbusTcpClient, ModbusTcpClient
-
     with Child("tcp", MODEL, "drivemap") as server:
         host, port = server.fields[0], int(server.fields[1])
-        # ---- sync
-        client = client_mod.Client.tcp(host, port, 1, timeout=2.0)
-        raw = ModbusTcpClient(host, port=port, timeout=2.0)
-        with client:
-            raw.connect()
-            ops = _ops_sync(client, raw, reg)
-            results: dict[str, tuple[list[float], list[float], list[float]]] = {}
-            for op, (ours, theirs) in ops.items():
-                ours(), theirs()  # warm
-                ratios: list[float] = []
-                a: list[float] = []
-                b: list[float] = []
-                for i in range(rounds):
-                    ta, tb = paired(ours, theirs, count, seconds, swap=i % 2 == 1)
-                    a.append(median(ta))
-                    b.append(median(tb))
-                    ratios.append(a[-1] / b[-1])
-                results[op] = (ratios, a, b)
-            missed = _rows(sec, "sync", results, requests)
-            for op in missed:
-                ours_fn = ops[op][0]
-                sec.profiles.append(f"sync `{op}`: cProfile of 200 calls of the generated client (top by own time):"
-                                    f"\n\n```\n{profile_text(lambda f=ours_fn: [f() for _ in range(200)])}\n```")
-            _outside_rows(sec, client, raw, reg, max(rounds, 5))
-            raw.close()
-
-        # ---- async
-        async def async_part() -> tuple[dict[str, tuple[list[float], list[float], list[float]]], list[str]]:
-            aclient = client_mod.AsyncClient.tcp(host, port, 1, timeout=2.0)
-            araw = AsyncModbusTcpClient(host, port=port, timeout=2.0)
-            await aclient.connect()
-            await araw.connect()
-            try:
-                aops = await _ops_async(aclient, araw, reg)
-                res: dict[str, tuple[list[float], list[float], list[float]]] = {}
-                for op, (ours, theirs) in aops.items():
-                    await ours()
-                    await theirs()
-                    ratios: list[float] = []
-                    a: list[float] = []
-                    b: list[float] = []
-                    for i in range(rounds):
-                        ta, tb = await apaired(ours, theirs, count, seconds, swap=i % 2 == 1)
-                        a.append(median(ta))
-                        b.append(median(tb))
-                        ratios.append(a[-1] / b[-1])
-                    res[op] = (ratios, a, b)
-                missed = [op for op, (r, _, _) in res.items() if median(r) > GOALS.get(op, GOAL)]
-                profiles = []
-                for op in missed:
-                    fn = aops[op][0]
-                    import cProfile
-                    import io
-                    import pstats
-
-                    prof = cProfile.Profile()
-                    prof.enable()
-                    for _ in range(200):
-                        await fn()
-                    prof.disable()
-                    out = io.StringIO()
-                    pstats.Stats(prof, stream=out).strip_dirs().sort_stats("tottime").print_stats(15)
-                    text = out.getvalue()
-                    start = text.find("   ncalls")
-                    profiles.append(f"async `{op}`: cProfile of 200 calls of the generated client (top by own "
-                                    f"time):\n\n```\n{text[start:].strip()}\n```")
-                sec.profiles.extend(profiles)
-                return res, missed
-            finally:
-                aclient.close()
-                araw.close()
-
+        _sync_part(sec, client_mod, host, port, reg, requests, rounds, count, seconds)
         started = time.perf_counter()
-        aresults, _ = asyncio.run(asyncio.wait_for(async_part(), timeout=120))
+        aresults, _ = asyncio.run(asyncio.wait_for(
+            _async_part(sec, client_mod, host, port, reg, rounds, count, seconds), timeout=120))
         _rows(sec, "async", aresults, requests)
         sec.detail.append("")
         sec.detail.append(f"Async part: {time.perf_counter() - started:.0f} s.")

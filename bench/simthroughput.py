@@ -21,49 +21,66 @@ MODEL = "edx"
 GOAL = 0.90
 
 
-def run(quick: bool) -> Section:
-    sec = Section("Simulator throughput (TCP loopback)")
+def _connect(servers: tuple[tuple[str, Child], ...]) -> dict[str, Any]:
+    """One raw sync pymodbus client per server, connected."""
     from pymodbus.client import ModbusTcpClient
 
+    clients: dict[str, Any] = {}
+    for name, child in servers:
+        c = ModbusTcpClient(child.fields[0], port=int(child.fields[1]), timeout=2.0)
+        if not c.connect():
+            raise RuntimeError(f"cannot connect to the {name} server")
+        clients[name] = c
+    return clients
+
+
+def _check_same(clients: dict[str, Any], requests: list[tuple[int, int]]) -> None:
+    """Both servers must answer the same words."""
+    for address, n in requests:
+        a = clients["drivemap"].read_holding_registers(address, count=n, device_id=1)
+        b = clients["simdevice"].read_holding_registers(address, count=n, device_id=1)
+        if a.isError() or b.isError() or a.registers != b.registers:
+            raise RuntimeError(f"servers disagree at 0x{address:04X}: {a} vs {b}")
+
+
+def _measure(clients: dict[str, Any], requests: list[tuple[int, int]], rounds: int, count: int,
+             seconds: float) -> tuple[dict[str, list[float]], list[float]]:
+    """Rounds of both servers taking turns: (req/s per server per round, per-round ratios)."""
+    rates: dict[str, list[float]] = {"drivemap": [], "simdevice": []}
+    ratios: list[float] = []
+    block = 25  # requests per turn: the servers take turns, so load bursts hit both alike
+    for i in range(rounds):
+        order = ["drivemap", "simdevice"] if i % 2 == 0 else ["simdevice", "drivemap"]
+        done = {name: 0 for name in order}
+        spent = {name: 0.0 for name in order}
+        deadline = time.perf_counter() + 2 * seconds
+        cycles = {name: itertools.cycle(requests) for name in order}
+        while done[order[0]] < count and time.perf_counter() < deadline:
+            for name in order:
+                c, cycle = clients[name], cycles[name]
+                t0 = time.perf_counter()
+                for _ in range(block):
+                    address, n = next(cycle)
+                    c.read_holding_registers(address, count=n, device_id=1)
+                spent[name] += time.perf_counter() - t0
+                done[name] += block
+        for name in order:
+            rates[name].append(done[name] / spent[name])
+        ratios.append(rates["drivemap"][-1] / rates["simdevice"][-1])
+    return rates, ratios
+
+
+def run(quick: bool) -> Section:
+    sec = Section("Simulator throughput (TCP loopback)")
     rounds = 3 if quick else 7
     count, seconds = (200, 0.3) if quick else (3000, 1.0)
     plan = importlib.import_module(f"drivemap_models.{MODEL}.client").Client.plan()
     requests = [(r.address, r.count) for r in plan]
     with Child("tcp", MODEL, "drivemap") as ours, Child("tcp", MODEL, "simdevice") as plain:
-        clients: dict[str, Any] = {}
-        for name, child in (("drivemap", ours), ("simdevice", plain)):
-            c = ModbusTcpClient(child.fields[0], port=int(child.fields[1]), timeout=2.0)
-            if not c.connect():
-                raise RuntimeError(f"cannot connect to the {name} server")
-            clients[name] = c
+        clients = _connect((("drivemap", ours), ("simdevice", plain)))
         try:
-            # both must answer the same words
-            for address, n in requests:
-                a = clients["drivemap"].read_holding_registers(address, count=n, device_id=1)
-                b = clients["simdevice"].read_holding_registers(address, count=n, device_id=1)
-                if a.isError() or b.isError() or a.registers != b.registers:
-                    raise RuntimeError(f"servers disagree at 0x{address:04X}: {a} vs {b}")
-            rates: dict[str, list[float]] = {"drivemap": [], "simdevice": []}
-            ratios: list[float] = []
-            block = 25  # requests per turn: the servers take turns, so load bursts hit both alike
-            for i in range(rounds):
-                order = ["drivemap", "simdevice"] if i % 2 == 0 else ["simdevice", "drivemap"]
-                done = {name: 0 for name in order}
-                spent = {name: 0.0 for name in order}
-                deadline = time.perf_counter() + 2 * seconds
-                cycles = {name: itertools.cycle(requests) for name in order}
-                while done[order[0]] < count and time.perf_counter() < deadline:
-                    for name in order:
-                        c, cycle = clients[name], cycles[name]
-                        t0 = time.perf_counter()
-                        for _ in range(block):
-                            address, n = next(cycle)
-                            c.read_holding_registers(address, count=n, device_id=1)
-                        spent[name] += time.perf_counter() - t0
-                        done[name] += block
-                for name in order:
-                    rates[name].append(done[name] / spent[name])
-                ratios.append(rates["drivemap"][-1] / rates["simdevice"][-1])
+            _check_same(clients, requests)
+            rates, ratios = _measure(clients, requests, rounds, count, seconds)
         finally:
             for c in clients.values():
                 c.close()

@@ -38,7 +38,8 @@ import logging
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
 from typing import Any
 
 from common import Row, Section, abounded, bounded, median, spread
@@ -156,6 +157,136 @@ class Line:
         os.unlink(self.path)
 
 
+Results = dict[tuple[str, str, str], dict[str, Any]]
+Marks = list[tuple[float, bool]]
+
+
+@dataclass
+class _Sweep:
+    """Timed rounds of each operation of one client against one device, recorded in ``results``."""
+
+    device: str
+    line: Line
+    frames: dict[str, tuple[int, int]]
+    results: Results
+    rounds: int
+    count: int
+    seconds: float
+
+    def record(self, mode: str, op: str, rates: list[float], marks: Marks) -> None:
+        req, resp = self.frames[op]
+        self.results[(self.device, mode, op)] = {"rates": rates, "phases": split(self.line.dump(), req, resp, marks)}
+
+    def sync(self, mode: str, ops: dict[str, Callable[[], Any]], marks: Marks) -> None:
+        for op, fn in ops.items():
+            fn()
+            self.line.clear()
+            marks.clear()
+            rates = []
+            for _ in range(self.rounds):
+                n, t = bounded(fn, self.count, self.seconds)
+                rates.append(n / t)
+            self.record(mode, op, rates, marks)
+
+    async def asynchronous(self, mode: str, ops: dict[str, Callable[[], Awaitable[Any]]], marks: Marks) -> None:
+        for op, afn in ops.items():
+            await afn()
+            self.line.clear()
+            marks.clear()
+            rates = []
+            for _ in range(self.rounds):
+                n, t = await abounded(afn, self.count, self.seconds)
+                rates.append(n / t)
+            self.record(mode, op, rates, marks)
+
+
+def _sync_generated(sweep: _Sweep, client_mod: Any, read_req: Any, reg: Any, facts: dict[str, Any]) -> int:
+    """The generated sync client; records its retries and timeouts; the write's raw value for the raw clients."""
+    spec = client_mod.SPEC
+    client = client_mod.Client.serial(sweep.line.master, 1, timeout=1.0, baudrate=BAUD, parity="none", stop_bits=1)
+    with client:
+        accs = [client.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
+        wacc = client.accessor(reg.name)
+        value = wacc.read()
+        raw_value: int = wacc.read_raw() & 0xFFFF
+        ops: dict[str, Callable[[], Any]] = {"read 16": lambda: client.read(*accs),
+                                             "write one": lambda: wacc.write(value)}
+        before = client.stats.transactions
+        ops["read 16"]()
+        assert client.stats.transactions - before == 1, "the 16-register read must be one request"
+        marks: Marks = []
+        trace(client.bus.client, marks)
+        sweep.sync("sync", ops, marks)
+        facts["retries"], facts["timeouts"] = client.stats.retries, client.stats.timeouts
+    return raw_value
+
+
+def _sync_raw(sweep: _Sweep, read_req: Any, reg: Any, raw_value: int, t35: float) -> None:
+    """Raw pymodbus, sync, keeping the same t3.5 after each reply."""
+    from pymodbus.client import ModbusSerialClient
+
+    raw = ModbusSerialClient(sweep.line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8, timeout=1.0,
+                             retries=0)
+    raw.connect()
+    try:
+        raw_ops: dict[str, Callable[[], Any]] = {
+            "read 16": lambda: (raw.read_holding_registers(read_req.address, count=read_req.count, device_id=1),
+                                time.sleep(t35)),
+            "write one": lambda: (raw.write_register(reg.address, raw_value, device_id=1), time.sleep(t35)),
+        }
+        marks: Marks = []
+        trace(raw, marks)
+        sweep.sync("raw-sync", raw_ops, marks)
+    finally:
+        raw.close()
+
+
+async def _async_generated(sweep: _Sweep, client_mod: Any, read_req: Any, reg: Any) -> None:
+    """The generated async client."""
+    spec = client_mod.SPEC
+    aclient = client_mod.AsyncClient.serial(sweep.line.master, 1, timeout=1.0, baudrate=BAUD, parity="none",
+                                            stop_bits=1)
+    await aclient.connect()
+    try:
+        aaccs = [aclient.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
+        awacc = aclient.accessor(reg.name)
+        avalue = await awacc.read()
+        amarks: Marks = []
+        trace(aclient.bus.client, amarks)
+        aops = {"read 16": lambda: aclient.read(*aaccs), "write one": lambda: awacc.write(avalue)}
+        await sweep.asynchronous("async", aops, amarks)
+    finally:
+        aclient.close()
+
+
+async def _async_raw(sweep: _Sweep, read_req: Any, reg: Any, raw_value: int, t35: float) -> None:
+    """Raw pymodbus, async, keeping the same t3.5 after each reply."""
+    from pymodbus.client import AsyncModbusSerialClient
+
+    araw = AsyncModbusSerialClient(sweep.line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8,
+                                   timeout=1.0, retries=0)
+    await araw.connect()
+    try:
+        async def aread() -> None:
+            await araw.read_holding_registers(read_req.address, count=read_req.count, device_id=1)
+            await asyncio.sleep(t35)
+
+        async def awrite() -> None:
+            await araw.write_register(reg.address, raw_value, device_id=1)
+            await asyncio.sleep(t35)
+
+        amarks: Marks = []
+        trace(araw, amarks)
+        await sweep.asynchronous("raw-async", {"read 16": aread, "write one": awrite}, amarks)
+    finally:
+        araw.close()
+
+
+async def _async_part(sweep: _Sweep, client_mod: Any, read_req: Any, reg: Any, raw_value: int, t35: float) -> None:
+    await _async_generated(sweep, client_mod, read_req, reg)
+    await _async_raw(sweep, read_req, reg, raw_value, t35)
+
+
 def run_device(device: str, line: Line, client_mod: Any, read_req: Any, reg: Any, rounds: int, count: int,
                seconds: float, frames: dict[str, tuple[int, int]],
                results: dict[tuple[str, str, str], dict[str, Any]]) -> dict[str, Any]:
@@ -164,155 +295,33 @@ def run_device(device: str, line: Line, client_mod: Any, read_req: Any, reg: Any
     kind = ("serial", MODEL, line.device, str(BAUD)) if device == "simulator" else ("lean", MODEL, line.device,
                                                                                     str(BAUD))
     facts: dict[str, Any] = {}
+    sweep = _Sweep(device, line, frames, results, rounds, count, seconds)
     with Child(*kind, max_seconds=200) as server:
         facts["processing"] = float(server.fields[1])
-
-        def measure(mode: str, op: str, rates: list[float], marks: list[tuple[float, bool]]) -> None:
-            req, resp = frames[op]
-            results[(device, mode, op)] = {"rates": rates, "phases": split(line.dump(), req, resp, marks)}
-
         # ---- sync: the generated client, then raw pymodbus with the same t3.5 after each reply
-        client = client_mod.Client.serial(line.master, 1, timeout=1.0, baudrate=BAUD, parity="none", stop_bits=1)
-        with client:
-            accs = [client.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
-            wacc = client.accessor(reg.name)
-            value = wacc.read()
-            raw_value = wacc.read_raw() & 0xFFFF
-            ops: dict[str, Callable[[], Any]] = {"read 16": lambda: client.read(*accs),
-                                                 "write one": lambda: wacc.write(value)}
-            before = client.stats.transactions
-            ops["read 16"]()
-            assert client.stats.transactions - before == 1, "the 16-register read must be one request"
-            marks: list[tuple[float, bool]] = []
-            trace(client.bus.client, marks)
-            for op, fn in ops.items():
-                fn()
-                line.clear()
-                marks.clear()
-                rates = []
-                for _ in range(rounds):
-                    n, t = bounded(fn, count, seconds)
-                    rates.append(n / t)
-                measure("sync", op, rates, marks)
-            facts["retries"], facts["timeouts"] = client.stats.retries, client.stats.timeouts
-
-        from pymodbus.client import AsyncModbusSerialClient, ModbusSerialClient
-
+        raw_value = _sync_generated(sweep, client_mod, read_req, reg, facts)
         t35 = facts["t35"] = silent_interval(spec.timing)
-        raw = ModbusSerialClient(line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8, timeout=1.0,
-                                 retries=0)
-        raw.connect()
-        try:
-            raw_ops: dict[str, Callable[[], Any]] = {
-                "read 16": lambda: (raw.read_holding_registers(read_req.address, count=read_req.count, device_id=1),
-                                    time.sleep(t35)),
-                "write one": lambda: (raw.write_register(reg.address, raw_value, device_id=1), time.sleep(t35)),
-            }
-            marks = []
-            trace(raw, marks)
-            for op, fn in raw_ops.items():
-                fn()
-                line.clear()
-                marks.clear()
-                rates = []
-                for _ in range(rounds):
-                    n, t = bounded(fn, count, seconds)
-                    rates.append(n / t)
-                measure("raw-sync", op, rates, marks)
-        finally:
-            raw.close()
-
+        _sync_raw(sweep, read_req, reg, raw_value, t35)
         # ---- async
-        async def async_part() -> None:
-            aclient = client_mod.AsyncClient.serial(line.master, 1, timeout=1.0, baudrate=BAUD, parity="none",
-                                                    stop_bits=1)
-            await aclient.connect()
-            try:
-                aaccs = [aclient.accessor(spec.register(k[0]).element_name(k[1])) for k, _ in read_req.cells]
-                awacc = aclient.accessor(reg.name)
-                avalue = await awacc.read()
-                amarks: list[tuple[float, bool]] = []
-                trace(aclient.bus.client, amarks)
-                aops = {"read 16": lambda: aclient.read(*aaccs), "write one": lambda: awacc.write(avalue)}
-                for op, afn in aops.items():
-                    await afn()
-                    line.clear()
-                    amarks.clear()
-                    rates = []
-                    for _ in range(rounds):
-                        n, t = await abounded(afn, count, seconds)
-                        rates.append(n / t)
-                    measure("async", op, rates, amarks)
-            finally:
-                aclient.close()
-            araw = AsyncModbusSerialClient(line.master, baudrate=BAUD, parity="N", stopbits=1, bytesize=8,
-                                           timeout=1.0, retries=0)
-            await araw.connect()
-            try:
-                async def aread() -> None:
-                    await araw.read_holding_registers(read_req.address, count=read_req.count, device_id=1)
-                    await asyncio.sleep(t35)
-
-                async def awrite() -> None:
-                    await araw.write_register(reg.address, raw_value, device_id=1)
-                    await asyncio.sleep(t35)
-
-                amarks = []
-                trace(araw, amarks)
-                for op, rfn in (("read 16", aread), ("write one", awrite)):
-                    await rfn()
-                    line.clear()
-                    amarks.clear()
-                    rates = []
-                    for _ in range(rounds):
-                        n, t = await abounded(rfn, count, seconds)
-                        rates.append(n / t)
-                    measure("raw-async", op, rates, amarks)
-            finally:
-                araw.close()
-
-        asyncio.run(asyncio.wait_for(async_part(), timeout=120))
+        asyncio.run(asyncio.wait_for(_async_part(sweep, client_mod, read_req, reg, raw_value, t35), timeout=120))
     return facts
 
 
-def run(quick: bool) -> Section:
-    sec = Section("Wire efficiency (paced virtual serial line, 115200 8N1)")
-    logging.getLogger("drivemap").setLevel(logging.ERROR)  # no baud-rate warnings in the table
-    client_mod = importlib.import_module(f"drivemap_models.{MODEL}.client")
-    spec = client_mod.SPEC
-    read_req, reg = pick(client_mod.Client)
-    rounds = 2 if quick else 5
-    count, seconds = (30, 0.4) if quick else (120, 0.8)
-    t35 = silent_interval(spec.timing)
-    frames = {"read 16": (8, 5 + 2 * read_req.count), "write one": (8, 8)}
-    results: dict[tuple[str, str, str], dict[str, Any]] = {}
-    facts: dict[str, dict[str, Any]] = {}
-    with Child("line", str(BAUD), max_seconds=250) as child:
-        line = Line(child)
-        try:
-            for device in DEVICES:
-                facts[device] = run_device(device, line, client_mod, read_req, reg, rounds, count, seconds, frames,
-                                           results)
-        finally:
-            line.remove()
-    processing = facts["simulator"]["processing"]
+def _limit_t(op: str, frames: dict[str, tuple[int, int]], t35: float, processing: float) -> float:
+    """Physical limit of one transaction of ``op`` (see the module docstring), seconds."""
+    req, resp = frames[op]
+    return (req + resp) * BYTE + max(t35, processing) + t35
 
-    def limit_t(op: str) -> float:
-        req, resp = frames[op]
-        return (req + resp) * BYTE + max(t35, processing) + t35
 
-    sec.detail.append(f"Model `{MODEL}` (realistic timing: reply {processing * 1000:.2f} ms after the request); "
-                      f"t3.5 at {BAUD} Bd = {t35 * 1000:.3f} ms (the map's floor); read = {read_req.count} registers "
-                      f"at 0x{read_req.address:04X}, write = 06h to `{reg.name}` (0x{reg.address:04X}). Devices: "
-                      "`simulator` = the generated simulator on pymodbus's serial server (`drivemap simulate`); "
-                      "`lean` = the reference device of `bench/servers.py` (same reply bytes, precise delay).")
-    sec.detail.append("")
+def _efficiency_table(sec: Section, results: Results, frames: dict[str, tuple[int, int]], t35: float,
+                      processing: float) -> None:
+    """Efficiency per device, client and operation: the table and the goal rows; stores ``eff`` in results."""
     sec.detail.append("| device | client | operation | frame bytes (req + resp) | limit T (ms) | limit req/s "
                       "| achieved req/s | efficiency (range) | lost per request (ms) | rounds |")
     sec.detail.append("|---|---|---|---|---:|---:|---:|---:|---:|---:|")
     for (device, mode, op), data in results.items():
         req, resp = frames[op]
-        t_limit = limit_t(op)
+        t_limit = _limit_t(op, frames, t35, processing)
         lim = 1.0 / t_limit
         rates = data["rates"]
         effs = [r / lim for r in rates]
@@ -332,8 +341,10 @@ def run(quick: bool) -> Section:
                           f"| {achieved:.1f} | {eff:.3f} ({spread(effs)}) | {(1 / achieved - t_limit) * 1000:.3f} "
                           f"| {len(rates)} |")
 
-    # ---- where the time goes
-    sec.detail.append("")
+
+def _phase_table(sec: Section, results: Results, frames: dict[str, tuple[int, int]], t35: float,
+                 processing: float) -> None:
+    """Where each transaction's time goes, per phase, against the ideal."""
     sec.detail.append("Where each transaction's time goes (medians over the timed rounds, ms), from the line's own "
                       "timestamps and the client's pymodbus trace hook; `ideal` is the physical limit's share. "
                       "Request/reply on the wire: first byte read from the sender -> last byte handed to the "
@@ -354,7 +365,7 @@ def run(quick: bool) -> Section:
         req, resp = frames[op]
         sec.detail.append(f"| ideal | — | {op} | {req * BYTE * 1000:.2f} | {max(t35, processing) * 1000:.2f} "
                           f"| {resp * BYTE * 1000:.2f} | {t35 * 1000:.2f} | 0 | {t35 * 1000:.2f} | 0 "
-                          f"| {limit_t(op) * 1000:.2f} | — |")
+                          f"| {_limit_t(op, frames, t35, processing) * 1000:.2f} | — |")
         for device in DEVICES:
             for mode in MODES:
                 ph = results.get((device, mode, op), {}).get("phases")
@@ -363,6 +374,39 @@ def run(quick: bool) -> Section:
                 cells = " | ".join(f"{ph[p] * 1000:.2f}" for p in PHASES)
                 sec.detail.append(f"| {device} | {mode} | {op} | {cells} | {ph['period'] * 1000:.2f} "
                                   f"| {int(ph['transactions'])} |")
+
+
+def run(quick: bool) -> Section:
+    sec = Section("Wire efficiency (paced virtual serial line, 115200 8N1)")
+    logging.getLogger("drivemap").setLevel(logging.ERROR)  # no baud-rate warnings in the table
+    client_mod = importlib.import_module(f"drivemap_models.{MODEL}.client")
+    spec = client_mod.SPEC
+    read_req, reg = pick(client_mod.Client)
+    rounds = 2 if quick else 5
+    count, seconds = (30, 0.4) if quick else (120, 0.8)
+    t35 = silent_interval(spec.timing)
+    frames = {"read 16": (8, 5 + 2 * read_req.count), "write one": (8, 8)}
+    results: Results = {}
+    facts: dict[str, dict[str, Any]] = {}
+    with Child("line", str(BAUD), max_seconds=250) as child:
+        line = Line(child)
+        try:
+            for device in DEVICES:
+                facts[device] = run_device(device, line, client_mod, read_req, reg, rounds, count, seconds, frames,
+                                           results)
+        finally:
+            line.remove()
+    processing = facts["simulator"]["processing"]
+    sec.detail.append(f"Model `{MODEL}` (realistic timing: reply {processing * 1000:.2f} ms after the request); "
+                      f"t3.5 at {BAUD} Bd = {t35 * 1000:.3f} ms (the map's floor); read = {read_req.count} registers "
+                      f"at 0x{read_req.address:04X}, write = 06h to `{reg.name}` (0x{reg.address:04X}). Devices: "
+                      "`simulator` = the generated simulator on pymodbus's serial server (`drivemap simulate`); "
+                      "`lean` = the reference device of `bench/servers.py` (same reply bytes, precise delay).")
+    sec.detail.append("")
+    _efficiency_table(sec, results, frames, t35, processing)
+    # ---- where the time goes
+    sec.detail.append("")
+    _phase_table(sec, results, frames, t35, processing)
     sec.detail.append("")
     retries = sum(f["retries"] for f in facts.values())
     timeouts = sum(f["timeouts"] for f in facts.values())
