@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import json
 import pydoc
 import re
 import subprocess
@@ -166,3 +167,25 @@ def test_in_memory_package_has_a_simulator() -> None:
     package = load_package(compile_map(ROOT / "maps" / "v2.yaml"))
     sim = package.simulator.Simulator()
     assert sim.spec == package.SPEC
+
+
+def test_codecs_are_made_on_first_use_and_kept() -> None:
+    """Importing a client makes no codec; each is made once, on first use, and is the same object after;
+    the mapping lists every register in map order, knows unknown names without making anything."""
+    script = textwrap.dedent("""
+        import json
+        from drivemap_models import ev
+        codecs = ev.CODECS
+        before = repr(codecs)
+        first = codecs["motor_speed"]
+        print(json.dumps([before, first is codecs["motor_speed"], "motor_speed" in codecs, "nope" in codecs,
+                          list(codecs) == [r.name for r in ev.SPEC.registers], len(codecs), repr(codecs)]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT / "generated", capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    before, same, known, unknown, ordered, count, after = json.loads(proc.stdout)
+    assert before == f"<Codecs of ev: {count} registers, 0 made>" and after.endswith(", 1 made>")
+    assert (same, known, unknown, ordered) == (True, True, False, True)
+    with pytest.raises(KeyError):
+        importlib.import_module("drivemap_models.ev").CODECS["nope"]

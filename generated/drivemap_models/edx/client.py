@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+from collections.abc import Mapping
 from typing import Any
 
 from drivemap.runtime.client import AsyncClientBase, ClientBase, SnapshotBase
@@ -237,14 +238,14 @@ EXCEPTIONS: dict[int, type[DeviceException]] = {
 }
 """Exception code -> the typed error the client raises."""
 
-CODECS: dict[str, Codec[Any]] = codecs_for(
+CODECS: Mapping[str, Codec[Any]] = codecs_for(
     SPEC,
     FaultCode,
     OperationSignal,
     Status,
     IoStatus,
 )
-"""Register name -> codec (raw value <-> Python value)."""
+"""Register name -> codec (raw value <-> Python value), each made on first use."""
 
 
 @dataclasses.dataclass(frozen=True, repr=False, init=False)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+from collections.abc import Mapping
 from typing import Any
 
 from drivemap.runtime.client import AsyncBus, AsyncClientBase, Bus, ClientBase, PagePolicy, SnapshotBase
@@ -276,7 +277,7 @@ EXCEPTIONS: dict[int, type[DeviceException]] = {
 }
 """Exception code -> the typed error the client raises."""
 
-CODECS: dict[str, Codec[Any]] = codecs_for(
+CODECS: Mapping[str, Codec[Any]] = codecs_for(
     SPEC,
     MotorState,
     MotorDirection,
@@ -290,7 +291,7 @@ CODECS: dict[str, Codec[Any]] = codecs_for(
     NetIn,
     Rs485CommSettings,
 )
-"""Register name -> codec (raw value <-> Python value)."""
+"""Register name -> codec (raw value <-> Python value), each made on first use."""
 
 
 @dataclasses.dataclass(frozen=True, repr=False, init=False)

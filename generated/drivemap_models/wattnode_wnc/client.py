@@ -8,6 +8,7 @@ documentation (``help(Client)`` lists them; ``Client.<register>.__doc__`` is one
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 from drivemap.runtime.client import AsyncClientBase, ClientBase, SnapshotBase
@@ -98,14 +99,14 @@ EXCEPTIONS: dict[int, type[DeviceException]] = {
 }
 """Exception code -> the typed error the client raises."""
 
-CODECS: dict[str, Codec[Any]] = codecs_for(
+CODECS: Mapping[str, Codec[Any]] = codecs_for(
     SPEC,
     Iopinmode,
     Paritymode,
     Modbusmode,
     Baudrate,
 )
-"""Register name -> codec (raw value <-> Python value)."""
+"""Register name -> codec (raw value <-> Python value), each made on first use."""
 
 
 @dataclasses.dataclass(frozen=True, repr=False, init=False)

@@ -23,6 +23,7 @@ the instance, so later reads of ``drive.motor_speed`` are plain attribute lookup
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, Generic, Self, TypeVar, overload
 
 from drivemap.runtime.client.codec import (
@@ -68,6 +69,7 @@ __all__ = [
     "BroadcastArrayReg",
     "BroadcastCommandReg",
     "BroadcastReg",
+    "Codecs",
     "CommandReg",
     "ReadOnlyArrayReg",
     "ReadOnlyReg",
@@ -297,9 +299,45 @@ def codec_for(device: DeviceSpec, spec: RegisterSpec, classes: dict[str, Any]) -
     return OptionalCodec(codec) if spec.not_available else codec
 
 
-def codecs_for(device: DeviceSpec, *classes: type) -> dict[str, Codec[Any]]:
-    """Register name -> codec (raw value <-> Python value), for every register of ``device``.
+class Codecs(Mapping[str, Codec[Any]]):
+    """Register name -> codec, each made on first use and kept (the same object every time after).
+
+    A client package's ``CODECS``: importing a 10,000-register client makes no codec until a register
+    is read or written. Iteration follows the map's register order; an unknown name is a KeyError."""
+
+    __slots__ = ("_classes", "_device", "_made")
+
+    def __init__(self, device: DeviceSpec, classes: dict[str, Any]) -> None:
+        self._device = device
+        self._classes = classes
+        self._made: dict[str, Codec[Any]] = {}
+
+    def __getitem__(self, name: str) -> Codec[Any]:
+        codec = self._made.get(name)
+        if codec is None:  # setdefault: two threads making one codec keep the first
+            codec = self._made.setdefault(name, codec_for(self._device, self._device.register(name), self._classes))
+        return codec
+
+    def __contains__(self, name: object) -> bool:
+        try:
+            self._device.register(name)  # type: ignore[arg-type]
+        except (KeyError, TypeError):
+            return False
+        return True
+
+    def __iter__(self) -> Iterator[str]:
+        return (reg.name for reg in self._device.registers)
+
+    def __len__(self) -> int:
+        return len(self._device.registers)
+
+    def __repr__(self) -> str:
+        return f"<Codecs of {self._device.model}: {len(self)} registers, {len(self._made)} made>"
+
+
+def codecs_for(device: DeviceSpec, *classes: type) -> Codecs:
+    """Register name -> codec (raw value <-> Python value), for every register of ``device``, each
+    made on first use (:class:`Codecs`).
 
     ``classes`` are the package's enums, flags and bit-field records (found by ``__name__``)."""
-    by_name = {cls.__name__: cls for cls in classes}
-    return {reg.name: codec_for(device, reg, by_name) for reg in device.registers}
+    return Codecs(device, {cls.__name__: cls for cls in classes})
