@@ -114,6 +114,17 @@ class Section:
     """Measured facts for the shortfall paragraph (sections that compute their own explanation)."""
 
 
+def print_section(section: Section) -> int:
+    """A section on stdout for a bench module run alone: its error (exit 1), else its rows and detail."""
+    if section.error:
+        print(section.error)
+        return 1
+    for row in section.rows:
+        print(f"{row.name}: {row.ratio if row.ratio is None else round(row.ratio, 3)} (goal {row.goal}) {row.absolute}")
+    print("\n".join(section.detail))
+    return 0
+
+
 def profile_text(fn: Callable[[], Any], top: int = 15, sort: str = "tottime") -> str:
     """cProfile of one call of ``fn``: the ``top`` entries by ``sort``."""
     import cProfile

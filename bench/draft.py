@@ -26,7 +26,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import ROOT, Row, Section  # noqa: E402
+from common import ROOT, Row, Section, print_section  # noqa: E402
 from draftscore import Score, compare, make_draft  # noqa: E402
 
 SEEDS = {"edx": "004_698379178adcef99.txt", "v2": "003_81ad9a58587804cf.txt",
@@ -92,14 +92,7 @@ def run(quick: bool = False) -> Section:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.parse_args(argv)
-    section = run()
-    if section.error:
-        print(section.error)
-        return 1
-    for row in section.rows:
-        print(f"{row.name}: {row.ratio if row.ratio is None else round(row.ratio, 3)} (goal {row.goal}) {row.absolute}")
-    print("\n".join(section.detail))
-    return 0
+    return print_section(run())
 
 
 if __name__ == "__main__":

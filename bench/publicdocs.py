@@ -35,7 +35,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import ROOT, Row, Section  # noqa: E402
+from common import ROOT, Row, Section, print_section  # noqa: E402
 from draftscore import Drafted, NoTable, Score, compare, entries, make_draft  # noqa: E402
 
 TITLE = "Draft recovery, public documents"
@@ -280,11 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--docs", default=None, help="the documents' folder (default: $DRIVEMAP_PUBLIC_DOCS)")
     args = ap.parse_args(argv)
-    section = run(folder=Path(args.docs) if args.docs else None)
-    for row in section.rows:
-        print(f"{row.name}: {row.ratio if row.ratio is None else round(row.ratio, 3)} (goal {row.goal}) {row.absolute}")
-    print("\n".join(section.detail))
-    return 0
+    return print_section(run(folder=Path(args.docs) if args.docs else None))
 
 
 if __name__ == "__main__":

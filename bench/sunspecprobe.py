@@ -33,7 +33,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import ROOT, Row, Section  # noqa: E402
+from common import ROOT, Row, Section, print_section  # noqa: E402
 
 TITLE = "SunSpec probe recovery"
 MODEL = "fronius_symo_hybrid"
@@ -181,14 +181,7 @@ def run(quick: bool = False) -> Section:
 
 
 def main() -> int:
-    section = run()
-    if section.error:
-        print(section.error)
-        return 1
-    for row in section.rows:
-        print(f"{row.name}: {row.ratio if row.ratio is None else round(row.ratio, 3)} (goal {row.goal}) {row.absolute}")
-    print("\n".join(section.detail))
-    return 0
+    return print_section(run())
 
 
 if __name__ == "__main__":

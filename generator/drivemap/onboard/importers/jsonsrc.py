@@ -16,7 +16,7 @@ from typing import Any
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
-from drivemap.onboard.importers.yamlsrc import Node, located
+from drivemap.onboard.importers.yamlsrc import Node, located, read_source
 
 __all__ = ["MISSING", "field", "load_json", "objects", "plain"]
 
@@ -50,14 +50,7 @@ class _Decoder(json.JSONDecoder):
 def load_json(path: Path) -> Any:
     """The document of ``path``; a located error for an unreadable file or malformed JSON."""
     shown = display(path)
-    try:
-        if path.stat().st_size > _MAX_BYTES:
-            raise CompileError([Diagnostic(Location(shown, 1, 1), "larger than 32 MiB: not an export")])
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise CompileError([Diagnostic(Location(shown, 1, 1), f"cannot read: {exc.strerror or exc}")]) from None
-    except UnicodeDecodeError:
-        raise CompileError([Diagnostic(Location(shown, 1, 1), "not UTF-8 text")]) from None
+    text = read_source(path, _MAX_BYTES, "larger than 32 MiB: not an export", encoding="utf-8-sig")
     try:
         return _Decoder(text).decode(text)
     except json.JSONDecodeError as exc:

@@ -67,17 +67,24 @@ def located(path: Path, where: Any, message: str) -> CompileError:
     return CompileError([Diagnostic(Location(display(path), line, col), message)])
 
 
-def load_yaml(path: Path) -> Any:
-    """The document of ``path``; a located error for unreadable or malformed YAML."""
+def read_source(path: Path, max_bytes: int, too_large: str, encoding: str = "utf-8") -> str:
+    """The text of a source file of at most ``max_bytes``; a located error (``too_large`` when it is
+    larger) for a file that cannot be read or is not UTF-8."""
     shown = display(path)
     try:
-        if path.stat().st_size > _MAX_BYTES:
-            raise CompileError([Diagnostic(Location(shown, 1, 1), "larger than 8 MiB: not a configuration file")])
-        text = path.read_text(encoding="utf-8")
+        if path.stat().st_size > max_bytes:
+            raise CompileError([Diagnostic(Location(shown, 1, 1), too_large)])
+        return path.read_text(encoding=encoding)
     except OSError as exc:
         raise CompileError([Diagnostic(Location(shown, 1, 1), f"cannot read: {exc.strerror or exc}")]) from None
     except UnicodeDecodeError:
         raise CompileError([Diagnostic(Location(shown, 1, 1), "not UTF-8 text")]) from None
+
+
+def load_yaml(path: Path) -> Any:
+    """The document of ``path``; a located error for unreadable or malformed YAML."""
+    shown = display(path)
+    text = read_source(path, _MAX_BYTES, "larger than 8 MiB: not a configuration file")
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
     except yaml.MarkedYAMLError as exc:
