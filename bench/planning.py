@@ -37,10 +37,10 @@ def _page(obj: Any) -> Ctx:
 
 def max_quantity(spec: Any) -> int:
     """Registers one read may carry: the map's 03h (else 04h) limit, the frame-size limit, else 125."""
-    fc = next((f for code in (0x03, 0x04) for f in spec.function_codes if f.code == code), None)
+    fc = next((f for code in (0x03, 0x04) for f in spec.protocol.function_codes if f.code == code), None)
     limit = fc.max_quantity if fc is not None and fc.max_quantity else 125
-    if spec.max_frame_bytes:
-        limit = min(limit, (spec.max_frame_bytes - 5) // 2)  # unit + fc + byte count + 2N + CRC(2)
+    if spec.protocol.max_frame_bytes:
+        limit = min(limit, (spec.protocol.max_frame_bytes - 5) // 2)  # unit + fc + byte count + 2N + CRC(2)
     return max(1, limit)
 
 

@@ -300,7 +300,7 @@ def run_device(device: str, line: Line, client_mod: Any, read_req: Any, reg: Any
         facts["processing"] = float(server.fields[1])
         # ---- sync: the generated client, then raw pymodbus with the same t3.5 after each reply
         raw_value = _sync_generated(sweep, client_mod, read_req, reg, facts)
-        t35 = facts["t35"] = silent_interval(spec.timing)
+        t35 = facts["t35"] = silent_interval(spec.protocol.timing)
         _sync_raw(sweep, read_req, reg, raw_value, t35)
         # ---- async
         asyncio.run(asyncio.wait_for(_async_part(sweep, client_mod, read_req, reg, raw_value, t35), timeout=120))
@@ -384,7 +384,7 @@ def run(quick: bool) -> Section:
     read_req, reg = pick(client_mod.Client)
     rounds = 2 if quick else 5
     count, seconds = (30, 0.4) if quick else (120, 0.8)
-    t35 = silent_interval(spec.timing)
+    t35 = silent_interval(spec.protocol.timing)
     frames = {"read 16": (8, 5 + 2 * read_req.count), "write one": (8, 8)}
     results: Results = {}
     facts: dict[str, dict[str, Any]] = {}

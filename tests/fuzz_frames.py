@@ -173,7 +173,7 @@ class Fuzzer:
     def __post_init__(self) -> None:
         self.readable = [r for r in self.spec.registers if r.readable]
         self.writable = [r for r in self.spec.registers if r.writable]
-        self.codes = [f.code for f in self.spec.function_codes]
+        self.codes = [f.code for f in self.spec.protocol.function_codes]
 
     # ---- valid requests (unit + PDU) -----------------------------------------------------------
     def unit(self) -> int:
@@ -182,7 +182,7 @@ class Fuzzer:
             return self.rng.choice(UNITS)
         if r < 0.85:
             return 0  # broadcast
-        return self.rng.choice([3, 4, 17, self.spec.unit_max, 255])
+        return self.rng.choice([3, 4, 17, self.spec.protocol.unit_max, 255])
 
     def _address(self, pool: list[RegisterSpec]) -> int:
         if pool and self.rng.random() < 0.9:

@@ -68,7 +68,7 @@ def preset(sim: Simulator) -> list[str]:
                 _preset_one(sim, reg, name, k)
             except SimulatorError:
                 skipped.append(name)
-    for name, value in STEADY.get(spec.model, {}).items():
+    for name, value in STEADY.get(spec.name, {}).items():
         sim.set(name, value)
     return skipped
 

@@ -46,4 +46,4 @@ def serial_server(model: str, mode: str, units: tuple[int, ...] = (1,), *, baudr
 
 
 def serial_mode(model: str, mode: str) -> bool:
-    return mode in package(model).SPEC.modes
+    return mode in package(model).SPEC.protocol.modes

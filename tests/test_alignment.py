@@ -41,8 +41,8 @@ def test_simulator_serves_aligned_requests() -> None:
 
 def test_an_exception_code_of_the_rule_is_answered() -> None:
     sim = simulator("sdm630")
-    rules = tuple(replace(r, exception=0x03) for r in sim.spec.alignment)
-    sim.spec = replace(sim.spec, alignment=rules)
+    rules = tuple(replace(r, exception=0x03) for r in sim.spec.protocol.alignment)
+    sim.spec = replace(sim.spec, protocol=replace(sim.spec.protocol, alignment=rules))
     assert sim.handle(1, bytes.fromhex("0400010002")) == b"\x84\x03"
 
 
@@ -63,8 +63,8 @@ def test_client_refuses_misaligned_raw_reads_before_the_wire(args: tuple[str, in
 
 def test_whole_values_names_the_register_cut() -> None:
     spec = package("sdm630").SPEC
-    rule = replace(spec.alignment[0], start_multiple=1, quantity_multiple=1)
-    loose = replace(spec, alignment=(rule,))
+    rule = replace(spec.protocol.alignment[0], start_multiple=1, quantity_multiple=1)
+    loose = replace(spec, protocol=replace(spec.protocol, alignment=(rule,)))
     broken = violation(loose, "input", 1, 2, "read")
     assert broken is not None and "starts inside phase_1_voltage (0x0000..0x0001)" in broken[1]
     broken = violation(loose, "input", 0, 3, "read")
@@ -97,8 +97,8 @@ def test_the_plan_of_every_sdm630_register_keeps_the_rules() -> None:
 def test_the_planner_rounds_its_limit_to_the_quantity_multiple() -> None:
     spec = package("sdm630").SPEC
     rule = AlignmentSpec("input", quantity_multiple=3, source="test")
-    odd = replace(spec, alignment=(rule,), function_codes=tuple(
-        replace(fc, max_quantity=80) for fc in spec.function_codes))
+    codes = tuple(replace(fc, max_quantity=80) for fc in spec.protocol.function_codes)
+    odd = replace(spec, protocol=replace(spec.protocol, alignment=(rule,), function_codes=codes))
     assert aligned_limit(odd, "input", 80) == 78
     assert aligned_limit(odd, "holding", 80) == 80
     assert aligned_limit(spec, "input", 80) == 80

@@ -21,7 +21,7 @@ UNCLEAR = ("edx", "v2", "vfd1000")
 @pytest.mark.parametrize("model", UNCLEAR)
 def test_broadcast_client_refused_with_the_maps_reason(model: str) -> None:
     pkg = package(model)
-    fc06 = pkg.SPEC.function(0x06)
+    fc06 = pkg.SPEC.protocol.function(0x06)
     assert fc06.broadcast is None and fc06.broadcast_reason
     bus = pkg.Bus.tcp("127.0.0.1", 9, timeout=TIMEOUT)  # never connected: the refusal comes first
     with pytest.raises(NotBroadcastable) as info:

@@ -23,10 +23,10 @@ from tests.helpers_client import TIMEOUT, package, serial_server, tcp_server
 from tests.test_client_tcp import rtu_over_tcp_server
 
 v2 = package("v2")
-GAP_S = v2.SPEC.timing.inter_frame_gap_ms / 1000.0
+GAP_S = v2.SPEC.protocol.timing.inter_frame_gap_ms / 1000.0
 
 
-def _read(timing: TimingSpec = v2.SPEC.timing, **kw: Any) -> Exchange:
+def _read(timing: TimingSpec = v2.SPEC.protocol.timing, **kw: Any) -> Exchange:
     return Exchange(1, ReadHoldingRegistersRequest(address=0, count=1), timing, **kw)
 
 
@@ -38,7 +38,7 @@ def test_v2_has_an_inter_frame_gap() -> None:
 async def test_quiet_after_by_transport(factory: Any) -> None:  # async: AsyncBus needs a loop
     tcp = factory.tcp("127.0.0.1", 1)
     gateway = factory.rtu_over_tcp("127.0.0.1", 1)
-    line = factory.serial("/dev/null-not-opened", v2.SPEC.serial, baudrate=38400, parity="none", stopbits=1)
+    line = factory.serial("/dev/null-not-opened", v2.SPEC.protocol.serial, baudrate=38400, parity="none", stopbits=1)
     t35 = 3.5 * 10 / 38400  # 8N1: 10 bits per character
 
     assert tcp.quiet_after(_read()) == 0.0
@@ -50,7 +50,7 @@ async def test_quiet_after_by_transport(factory: Any) -> None:  # async: AsyncBu
     assert tcp.quiet_after(_read(expect_reply=False)) == pytest.approx(bgap)
     assert gateway.quiet_after(_read(expect_reply=False)) == pytest.approx(max(GAP_S, bgap))
     assert line.quiet_after(_read(expect_reply=False)) == pytest.approx(max(GAP_S, bgap) + t35)
-    write = Exchange(1, WriteSingleRegisterRequest(address=0, registers=[1]), v2.SPEC.timing, hold_ms=250.0)
+    write = Exchange(1, WriteSingleRegisterRequest(address=0, registers=[1]), v2.SPEC.protocol.timing, hold_ms=250.0)
     for bus in (tcp, gateway, line):
         assert bus.quiet_after(write) == pytest.approx(0.25)
 

@@ -148,7 +148,7 @@ def test_eeprom_write_waits_before_next_request(monkeypatch: pytest.MonkeyPatch,
 
 def test_configuration_reflect(ev_drive: Any) -> None:
     sim, drive = ev_drive
-    assert ev.SPEC.configuration is not None
+    assert ev.SPEC.protocol.configuration is not None
     drive.net_x_input_function[0].write(ev.NetInputFunction(0))
     assert drive.pending_configuration == ("net_x_input_function[0]",)
     drive.apply_configuration()
@@ -203,8 +203,8 @@ def test_device_exceptions_are_typed(model: str, code: int) -> None:
     err = info.value
     expected = pkg.EXCEPTIONS[code]
     assert type(err) is expected and isinstance(err, DriveError)
-    assert err.code == code and err.name == pkg.SPEC.exception(code).name
-    assert err.meaning == pkg.SPEC.exception(code).meaning
+    assert err.code == code and err.name == pkg.SPEC.protocol.exception(code).name
+    assert err.meaning == pkg.SPEC.protocol.exception(code).meaning
     assert f"0x{code:02X}" in str(err)
 
 
@@ -233,7 +233,7 @@ def test_broadcast_client_refuses_reads_before_sending() -> None:
         bus = ev.Bus.tcp(host, port, timeout=TIMEOUT)
         with bus:
             bc = ev.Client.broadcast(bus)
-            assert bc.unit == ev.SPEC.broadcast_address
+            assert bc.unit == ev.SPEC.protocol.broadcast_address
             with pytest.raises(BroadcastRead):
                 bc.read_all()
             assert not hasattr(bc, "motor_state")  # read-only registers are not exposed

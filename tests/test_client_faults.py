@@ -58,7 +58,7 @@ def _async_client(pkg: Any, line: VirtualSerialLine, unit: int = 1, **kw: Any) -
 
 
 def _map_retries(spec: DeviceSpec) -> int:
-    return spec.timing.retries if spec.timing.retries is not None else DEFAULT_RETRIES
+    return spec.protocol.timing.retries if spec.protocol.timing.retries is not None else DEFAULT_RETRIES
 
 
 def _with_spec(cls: Any, spec: DeviceSpec) -> Any:
@@ -140,7 +140,8 @@ def test_corrupt_replies_crc_lrc_retried_then_timeout(model: str, mode: str) -> 
 
 @pytest.mark.parametrize("retries", [0, 4])
 def test_retry_count_comes_from_the_map(retries: int) -> None:
-    spec = dataclasses.replace(ev.SPEC, timing=dataclasses.replace(ev.SPEC.timing, retries=retries))
+    timing = dataclasses.replace(ev.SPEC.protocol.timing, retries=retries)
+    spec = dataclasses.replace(ev.SPEC, protocol=dataclasses.replace(ev.SPEC.protocol, timing=timing))
     client_cls = _with_spec(ev.Client, spec)
     with serial_server("ev", "rtu") as (_sim, line):
         drive = client_cls.serial(line.master_port, unit=1, baudrate=BAUD, parity="none", timeout=TIMEOUT)
@@ -289,9 +290,9 @@ def test_duplicated_and_late_replies_do_not_leak_into_later_transactions() -> No
 # ----------------------------------------------------------------------------- partial writes
 def _small_10h(spec: DeviceSpec, max_quantity: int) -> DeviceSpec:
     codes = tuple(dataclasses.replace(f, max_quantity=max_quantity) if f.code == 0x10 else f
-                  for f in spec.function_codes)
+                  for f in spec.protocol.function_codes)
     assert any(isinstance(f, FunctionSpec) and f.code == 0x10 for f in codes)
-    return dataclasses.replace(spec, function_codes=codes)
+    return dataclasses.replace(spec, protocol=dataclasses.replace(spec.protocol, function_codes=codes))
 
 
 def test_split_10h_write_timeout_reports_written_unconfirmed_not_written() -> None:
@@ -415,7 +416,7 @@ async def test_fifty_concurrent_async_callers_on_one_serial_line() -> None:
         return unit, name, value
 
     with serial_server("ev", "rtu", units=(1, 2)) as (sim, line):
-        bus = ev.AsyncBus.serial(line.master_port, ev.SPEC.serial, baudrate=BAUD, parity="none", timeout=1.0)
+        bus = ev.AsyncBus.serial(line.master_port, ev.SPEC.protocol.serial, baudrate=BAUD, parity="none", timeout=1.0)
         async with bus:
             clients = {1: ev.AsyncClient(bus, unit=1), 2: ev.AsyncClient(bus, unit=2)}
 

@@ -11,7 +11,7 @@ from drivemap.runtime.errors import AccessError, BroadcastRead, DriveTimeout, No
 from tests.helpers_client import MODELS, TIMEOUT, package, serial_server
 
 BAUD = 38400
-CASES = [(m, mode) for m in MODELS for mode in ("rtu", "ascii") if mode in package(m).SPEC.modes]
+CASES = [(m, mode) for m in MODELS for mode in ("rtu", "ascii") if mode in package(m).SPEC.protocol.modes]
 
 
 def _client(pkg: Any, line: Any, mode: str, unit: int = 1, **kw: Any) -> Any:
@@ -113,7 +113,7 @@ def test_broadcast_two_units_one_line(monkeypatch: pytest.MonkeyPatch, mode: str
 
     monkeypatch.setattr(bus_module, "time", Clock)
     with serial_server("ev", mode, units=(1, 2)) as (sim, line):
-        bus = pkg.Bus.serial(line.master_port, pkg.SPEC.serial, mode=mode, baudrate=BAUD, parity="none",
+        bus = pkg.Bus.serial(line.master_port, pkg.SPEC.protocol.serial, mode=mode, baudrate=BAUD, parity="none",
                              timeout=TIMEOUT)
         with bus:
             one, two = pkg.Client(bus, unit=1), pkg.Client(bus, unit=2)
@@ -146,7 +146,7 @@ def test_not_broadcastable_is_refused_before_connecting() -> None:
 def test_shared_bus_serialises_units() -> None:
     pkg = package("v2")
     with serial_server("v2", "rtu", units=(1, 2)) as (sim, line):
-        bus = pkg.Bus.serial(line.master_port, pkg.SPEC.serial, baudrate=BAUD, parity="none", timeout=TIMEOUT)
+        bus = pkg.Bus.serial(line.master_port, pkg.SPEC.protocol.serial, baudrate=BAUD, parity="none", timeout=TIMEOUT)
         with bus:
             a, b = pkg.Client(bus, unit=1), pkg.Client(bus, unit=2)
             a.frequency_command.write(10.0)

@@ -96,7 +96,7 @@ async def test_async_serial_retry_and_timeout() -> None:
 
 async def test_async_broadcast_and_vendor_exception() -> None:
     with serial_server("v2", "rtu", units=(1, 2)) as (sim, line):
-        bus = v2.AsyncBus.serial(line.master_port, v2.SPEC.serial, baudrate=38400, parity="none", timeout=TIMEOUT)
+        bus = v2.AsyncBus.serial(line.master_port, v2.SPEC.protocol.serial, baudrate=38400, parity="none", timeout=TIMEOUT)
         async with bus:
             with pytest.raises(NotBroadcastable, match="0 表一齐发送指令"):  # 06h/10h broadcast not stated
                 v2.AsyncClient.broadcast(bus)

@@ -134,7 +134,7 @@ def test_load_package_runs_no_rendered_code() -> None:
         jinja2.Environment.get_template = refuse
         before = set(sys.modules)
         package = load_package(model)
-        assert package.Client.SPEC.model == "ev" and package.simulator.Simulator.SPEC is package.SPEC
+        assert package.Client.SPEC.name == "ev" and package.simulator.Simulator.SPEC is package.SPEC
         print(sorted(m for m in set(sys.modules) - before if m.startswith(("drivemap.backends", "jinja2"))))
     """)
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,

@@ -31,7 +31,8 @@ def test_map_gives_advice_not_refusal() -> None:
         reg = ev.SPEC.register(name)
         assert not reg.refuse_while_running
         assert reg.running_advice and "001 §4.6 NOTE" in reg.running_advice and f"{name}_ram" in reg.running_advice
-    assert ev.SPEC.running_state == ("motor_state", (2,))
+    state = ev.SPEC.protocol.running_state
+    assert state is not None and (state.register, state.values) == ("motor_state", (2,))
 
 
 def test_write_while_running_warns_and_is_not_refused() -> None:

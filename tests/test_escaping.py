@@ -202,7 +202,7 @@ def test_hostile_text_builds_imports_and_round_trips(built: Path) -> None:
     sys.path.insert(0, str(built / "out"))
     try:
         package = importlib.import_module("hostile_pkg.hostile_text")
-        assert package.SPEC.title == HOSTILE["title"]  # exact, lone surrogate and all
+        assert package.SPEC.device.title == HOSTILE["title"]  # exact, lone surrogate and all
         assert [m.name for m in package.RunState] == ["STOP", "RUN"]
         assert set(package.client.Control.__dataclass_fields__) == {"run", "direction", "mode"}
         assert package.IllegalFunctionError.MEANING == HOSTILE["label_quote"]

@@ -171,7 +171,7 @@ def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
             words = item.offset if item.register_type in ("coil", "discrete_input") else item.offset // 2
             assert r.start_address + words == item.word, (item.name, hex(r.start_address))
             assert words + item.register_count <= r.register_count, item.name
-    fc = spec.function(0x03)
+    fc = spec.protocol.function(0x03)
     limit = fc.max_quantity if fc and fc.max_quantity else 125
     assert all(r.register_count <= limit for r in got)
     claimed = int(text.split("this file makes ESPHome send ")[1].split()[0])

@@ -68,7 +68,7 @@ def test_every_attribute_of_a_generated_client_is_reserved(model: str) -> None:
     package = importlib.import_module(f"drivemap_models.{model}")
     bus = Bus.tcp("127.0.0.1", 1)
     try:
-        client = package.Client(bus, unit=package.SPEC.unit_min or 1)
+        client = package.Client(bus, unit=package.SPEC.protocol.unit_min or 1)
         client.plan()  # fills the per-class caches (attributes set on first use)
         client._snapshot({})
         attributes = {n for n in dir(client) if not n.startswith("__")}

@@ -91,7 +91,7 @@ def test_generated_python_imports_and_runs_nothing(built: tuple[Path, Path, list
             module = importlib.import_module(name)
             assert module is not None
         spec = importlib.import_module("generated_hostile.hostile.spec").SPEC
-        assert spec.title == texts[0]  # the text survives literally
+        assert spec.device.title == texts[0]  # the text survives literally
         for module_name in modules:
             mod = importlib.import_module(f"generated_hostile.hostile.{module_name}")
             for attr in dir(mod):

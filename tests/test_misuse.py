@@ -190,7 +190,7 @@ def test_bad_serial_settings(overrides: dict[str, Any]) -> None:
     with pytest.raises(InvalidArgument):
         ev.Client.serial("/dev/null-no-such-port", **overrides)
     with pytest.raises(InvalidArgument):
-        AsyncBus.serial("/dev/null-no-such-port", ev.SPEC.serial, **overrides)
+        AsyncBus.serial("/dev/null-no-such-port", ev.SPEC.protocol.serial, **overrides)
 
 
 @contextlib.contextmanager

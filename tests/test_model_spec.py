@@ -15,14 +15,19 @@ from drivemap.model.nodes import (
     Alignment,
     Bit,
     CommError,
+    Device,
     Enum,
     EnumValue,
     ExceptionCode,
     FunctionCode,
+    Model,
     Page,
     PolicyCase,
+    Protocol,
     Register,
+    ReplyQuirk,
     Reserved,
+    RunningState,
     Timing,
 )
 from drivemap.model.rules import AllowedValue
@@ -49,6 +54,13 @@ NODES: list[tuple[type, type, set[str]]] = [
     (ExceptionCode, runtime.ExceptionSpec, set()),
     (CommError, runtime.CommErrorSpec, set()),
     (PolicyCase, runtime.PolicySpec, set()),
+    (Model, runtime.DeviceSpec, {"device", "protocol", "registers", "reserved", "identity", "enums"}),
+    (Device, runtime.ProductSpec, set()),
+    (Protocol, runtime.ProtocolSpec,
+     {"function_codes", "exceptions", "comm_errors", "exception_policy", "comm_error_policy", "timing",
+      "running_state", "reply_quirks", "alignment"}),
+    (RunningState, runtime.RunningStateSpec, set()),
+    (ReplyQuirk, runtime.ReplyQuirkSpec, set()),
 ]
 
 
@@ -115,3 +127,36 @@ def test_model_numbers_are_the_runtimes() -> None:
             value = getattr(reg, name)
             assert value is None or isinstance(value, float) != float(value).is_integer()
             assert repr(value) == repr(getattr(spec.register(reg.name), name))
+
+
+def test_the_device_record_is_one_shape() -> None:
+    """The model is the runtime's DeviceSpec: what the runtime reads of the protocol is the model's
+    own protocol fields (serial defaults and fixed unit ids taken from the ports when the model is built)."""
+    model = compile_map(ROOT / "maps" / "ev.yaml")
+    spec = spec_from_model(model)
+    assert isinstance(model, runtime.DeviceSpec) and type(spec) is runtime.DeviceSpec
+    assert spec.device == runtime.ProductSpec("ev", model.device.title) and spec.name == model.name == "ev"
+    assert type(spec.protocol) is runtime.ProtocolSpec
+    assert spec.protocol == project(model.protocol, runtime.ProtocolSpec)
+    assert model.protocol.fixed_units == spec.protocol.fixed_units == (17,)  # the RS-232 port's fixed id
+    assert model.protocol.serial == spec.protocol.serial and spec.protocol.serial.parity == "none"
+    assert spec.protocol.configuration == runtime.CommandSpec("configuration", 1)
+    assert spec.protocol.running_state == runtime.RunningStateSpec("motor_state", (2,))
+    assert model.protocol.valid_unit(17) and not model.protocol.valid_unit(0)  # the runtime's rule, on the model
+
+
+def test_the_flat_names_of_earlier_releases_warn_and_still_answer() -> None:
+    """Users' code that read ``SPEC.timing`` or ``SPEC.model`` keeps working, with a DeprecationWarning."""
+    import copy
+    import pickle
+
+    spec = spec_from_model(compile_map(ROOT / "maps" / "vfd1000.yaml"))
+    with pytest.warns(DeprecationWarning, match=r"DeviceSpec\.timing is now DeviceSpec\.protocol\.timing"):
+        assert spec.timing is spec.protocol.timing  # type: ignore[attr-defined]
+    with pytest.warns(DeprecationWarning, match="device"):
+        assert spec.model == "vfd1000"  # type: ignore[attr-defined]
+    with pytest.warns(DeprecationWarning):
+        assert spec.policy("illegal_address") == spec.protocol.policy("illegal_address")  # type: ignore[attr-defined]
+    with pytest.raises(AttributeError, match="no_such_field"):
+        spec.no_such_field  # type: ignore[attr-defined]  # noqa: B018
+    assert pickle.loads(pickle.dumps(spec)) == spec == copy.deepcopy(spec)

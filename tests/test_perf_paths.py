@@ -34,7 +34,7 @@ def test_reply_length_of_each_function() -> None:
     assert reply_length(WriteSingleCoilRequest(address=0, bits=[True])) == 8
 
 
-@pytest.mark.parametrize("mode", [m for m in ("rtu", "ascii") if m in ev.SPEC.modes])
+@pytest.mark.parametrize("mode", [m for m in ("rtu", "ascii") if m in ev.SPEC.protocol.modes])
 def test_sync_serial_bus_reads_replies_through_the_receiver(mode: str) -> None:
     exception = {"rtu": rtu("01 83 02"), "ascii": ascii_frame("01 83 02")}[mode]
     with serial_server("ev", mode) as (sim, line):

@@ -21,10 +21,10 @@ Item = tuple[int, int, object, object]  # (address, words, page, key)
 
 
 def _max_read(spec) -> int:  # noqa: ANN001
-    fc = spec.function(0x03) or spec.function(0x04)
+    fc = spec.protocol.function(0x03) or spec.protocol.function(0x04)
     limit = fc.max_quantity or 125
-    if spec.max_frame_bytes:
-        limit = min(limit, (spec.max_frame_bytes - 5) // 2)
+    if spec.protocol.max_frame_bytes:
+        limit = min(limit, (spec.protocol.max_frame_bytes - 5) // 2)
     return limit
 
 
@@ -142,11 +142,12 @@ def test_subset_plan_is_cached_and_minimal() -> None:
 
 
 def _spec(registers: list[Any], reserved: tuple[Any, ...] = (), max_quantity: int = 16) -> Any:
-    from drivemap.runtime.spec import DeviceSpec, FunctionSpec, SerialSpec, TimingSpec
+    from drivemap.runtime.spec import DeviceSpec, FunctionSpec, ProductSpec, ProtocolSpec, SerialSpec, TimingSpec
 
-    return DeviceSpec(model="synthetic", title="synthetic", modes=("rtu",), unit_min=1, unit_max=247,
-                      broadcast_address=None, serial=SerialSpec(), function_codes=(FunctionSpec(3, max_quantity, None),),
-                      exceptions=(), timing=TimingSpec(), registers=tuple(registers), reserved=reserved)
+    protocol = ProtocolSpec(modes=("rtu",), unit_min=1, unit_max=247, broadcast_address=None, serial=SerialSpec(),
+                            function_codes=(FunctionSpec(3, max_quantity, None),), exceptions=(), timing=TimingSpec())
+    return DeviceSpec(device=ProductSpec("synthetic", "synthetic"), protocol=protocol, registers=tuple(registers),
+                      reserved=reserved)
 
 
 def test_pages_share_unpaged_neighbours() -> None:

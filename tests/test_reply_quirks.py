@@ -39,8 +39,8 @@ def _serial_client(line: Any, cls: Any = None) -> Any:
 
 
 def test_the_map_lists_the_quirk() -> None:
-    assert vfd.SPEC.reply_quirks == ("two_byte_byte_count",)
-    assert all(not package(m).SPEC.reply_quirks for m in ("edx", "ev", "v2"))
+    assert vfd.SPEC.protocol.quirks == ("two_byte_byte_count",)
+    assert all(not package(m).SPEC.protocol.quirks for m in ("edx", "ev", "v2"))
 
 
 def test_client_accepts_the_printed_reply_on_a_serial_line() -> None:
@@ -78,7 +78,7 @@ def test_without_the_quirk_the_printed_reply_is_refused() -> None:
     """The acceptance comes from the map: the same client without reply_quirks cannot frame the reply."""
 
     class Plain(vfd.Client):  # type: ignore[misc, name-defined]
-        SPEC = dataclasses.replace(vfd.SPEC, reply_quirks=())
+        SPEC = dataclasses.replace(vfd.SPEC, protocol=dataclasses.replace(vfd.SPEC.protocol, reply_quirks=()))
 
     with serial_server("vfd1000", "rtu", baudrate=BAUD, sim=_sim("two_byte_byte_count")) as (_sim_, line):
         with _serial_client(line, Plain) as drive:

@@ -83,7 +83,7 @@ def package(name: str) -> ModuleType:
 
 def serial_overrides(model: Model, mode: str) -> dict[str, Any]:
     """Settings for a pty line: the map's defaults where it has them, else explicit ones."""
-    spec = package(model.name).SPEC.serial
+    spec = package(model.name).SPEC.protocol.serial
     options: dict[str, Any] = {"mode": mode}
     if spec.baudrate is None:
         options["baudrate"] = 9600

@@ -40,7 +40,7 @@ from tests.test_client_faults import ascii_frame, rtu
 ev = package("ev")
 BAUD = 9600
 TIMEOUT = 0.3
-MODES = [m for m in ("rtu", "ascii") if m in ev.SPEC.modes]
+MODES = [m for m in ("rtu", "ascii") if m in ev.SPEC.protocol.modes]
 #: (stale_guard, paced line): the guard forced on a line paced like a wire; auto on a plain pty
 GUARDS = [pytest.param(True, True, id="guard-on-paced"), pytest.param(None, False, id="guard-auto-pty")]
 

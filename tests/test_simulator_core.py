@@ -152,7 +152,7 @@ def test_every_exception_path(model: str) -> None:
     assert sim.handle(1, read(0xFFF0, 1)) == exc(0x03, addr_code)
     assert sim.handle(1, write(0xFFF0, 1)) == exc(0x06, addr_code)
     # quantity above the maximum (and 0)
-    limit = sim.spec.function(0x03).max_quantity or 125
+    limit = sim.spec.protocol.function(0x03).max_quantity or 125
     assert sim.handle(1, read(0x0000, limit + 1)) == exc(0x03, qty_code)
     assert sim.handle(1, read(0x0000, 0)) == exc(0x03, qty_code)
     # write to a read-only register
@@ -165,7 +165,7 @@ def test_every_exception_path(model: str) -> None:
         bad = max(reg.enum_values) + 1 if reg.enum_values else int(round(((reg.max or 0) - reg.offset) / reg.scale)) + 1
         assert sim.handle(1, write(reg.address, bad)) == exc(0x06, range_code)
     # 10h whose byte count does not match the quantity
-    if sim.spec.function(0x10) is not None:
+    if sim.spec.protocol.function(0x10) is not None:
         reply = sim.handle(1, write_many(0x0000, [1, 2], count=2))
         assert reply == (None if len_code is None else exc(0x10, len_code))
 

@@ -163,7 +163,7 @@ def test_malformed_pdus_get_the_dialects_exception_over_tcp(model: str) -> None:
     with tcp_server(model) as (sim, host, port):
         for name, (template, case) in MALFORMED.items():
             pdu = template[:1] + reg.address.to_bytes(2, "big") + template[3:]
-            if pdu[0] not in {f.code for f in spec.function_codes}:
+            if pdu[0] not in {f.code for f in spec.protocol.function_codes}:
                 continue
             code = sim.exception_code(case)
             expected = code if code is not None else STANDARD_CODES[case]  # silence is for serial lines

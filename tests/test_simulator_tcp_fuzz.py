@@ -55,7 +55,7 @@ def spec_of(model: str) -> DeviceSpec:
 
 
 def timeout_of(spec: DeviceSpec) -> float:
-    ms = spec.timing.response_timeout_ms
+    ms = spec.protocol.timing.response_timeout_ms
     return ms / 1000.0 if ms is not None else DEFAULT_RESPONSE_TIMEOUT_S
 
 

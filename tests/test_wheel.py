@@ -137,7 +137,7 @@ def test_a_configured_project_from_a_subfolder(env: Path, tmp_path: Path) -> Non
     ok(env, sub, "build")
     assert (work / "src" / "plantdrives" / "acme" / "client.py").is_file()
     assert "up to date" in ok(env, sub, "check")
-    proc = subprocess.run([str(env / "python"), "-c", "import plantdrives.acme as m; print(m.SPEC.model)"],
+    proc = subprocess.run([str(env / "python"), "-c", "import plantdrives.acme as m; print(m.SPEC.name)"],
                           cwd=work / "src", capture_output=True, text=True, timeout=60)
     assert proc.stdout.strip() == "acme", proc.stderr
 

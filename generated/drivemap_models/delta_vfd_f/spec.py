@@ -7,6 +7,8 @@ from drivemap.runtime.spec import (
     DeviceSpec,
     ExceptionSpec,
     FunctionSpec,
+    ProductSpec,
+    ProtocolSpec,
     RegisterSpec,
     ReservedSpec,
     SerialSpec,
@@ -16,29 +18,30 @@ from drivemap.runtime.spec import (
 __all__ = ["SPEC"]
 
 SPEC = DeviceSpec(
-    model='delta_vfd_f',
-    title='Delta VFD-F AC motor drive: status monitor registers 2102H-210EH',
-    modes=('rtu', 'ascii'),
-    unit_min=1,
-    unit_max=247,
-    broadcast_address=None,
-    serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
-    function_codes=(
-        FunctionSpec(code=0x03, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply'),
-        FunctionSpec(code=0x06, max_quantity=None, broadcast=None, broadcast_reason='not on this page'),
-    ),
-    exceptions=(
-        ExceptionSpec(code=0x02, name='exception_02', meaning="printed in the example only ('exception code 02H'); the code table is not on this page"),
-    ),
-    timing=TimingSpec(
-        silent_interval_chars=None,
-        silent_interval_floor_ms=None,
-        silent_interval_floor_above_bps=None,
-        processing_ms=None,
-        inter_frame_gap_ms=None,
-        broadcast_gap_ms=None,
-        response_timeout_ms=None,
-        retries=None,
+    device=ProductSpec(model='delta_vfd_f', title='Delta VFD-F AC motor drive: status monitor registers 2102H-210EH'),
+    protocol=ProtocolSpec(
+        modes=('rtu', 'ascii'),
+        unit_min=1,
+        unit_max=247,
+        broadcast_address=None,
+        serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
+        function_codes=(
+            FunctionSpec(code=0x03, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply'),
+            FunctionSpec(code=0x06, max_quantity=None, broadcast=None, broadcast_reason='not on this page'),
+        ),
+        exceptions=(
+            ExceptionSpec(code=0x02, name='exception_02', meaning="printed in the example only ('exception code 02H'); the code table is not on this page"),
+        ),
+        timing=TimingSpec(
+            silent_interval_chars=None,
+            silent_interval_floor_ms=None,
+            silent_interval_floor_above_bps=None,
+            processing_ms=None,
+            inter_frame_gap_ms=None,
+            broadcast_gap_ms=None,
+            response_timeout_ms=None,
+            retries=None,
+        ),
     ),
     registers=(
         RegisterSpec(

@@ -12,6 +12,8 @@ from drivemap.runtime.spec import (
     FunctionSpec,
     IdentitySpec,
     PolicySpec,
+    ProductSpec,
+    ProtocolSpec,
     RegisterSpec,
     ReservedSpec,
     SerialSpec,
@@ -21,34 +23,43 @@ from drivemap.runtime.spec import (
 __all__ = ["SPEC"]
 
 SPEC = DeviceSpec(
-    model='fronius_symo_hybrid',
-    title='Fronius Symo Hybrid inverter via Fronius Datamanager (SunSpec int+SF register map)',
-    modes=('tcp', 'rtu'),
-    unit_min=1,
-    unit_max=100,
-    broadcast_address=0,
-    serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
-    function_codes=(
-        FunctionSpec(code=0x03, max_quantity=125, broadcast=False),
-        FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='2049 p.55: a broadcast (unit id 0) gets no response and broadcasts "can therefore only be used for write commands"; whether the Datamanager executes a broadcast write is not stated'),
-        FunctionSpec(code=0x10, max_quantity=123, broadcast=None, broadcast_reason='as for 06h: 2049 p.55 does not say whether a broadcast write is executed'),
-    ),
-    exceptions=(
-        ExceptionSpec(code=0x01, name='illegal_function', meaning='ILLEGAL FUNCTION: The function code in the request is not supported by the slave.'),
-        ExceptionSpec(code=0x02, name='illegal_data_address', meaning='ILLEGAL DATA ADDRESS: Invalid register addresses have been requested.'),
-        ExceptionSpec(code=0x03, name='illegal_data_value', meaning='ILLEGAL DATA VALUE: A value in the request is outside of the valid range (fields of a request, e.g. invalid number of registers, and invalid setting values for the SunSpec inverter control models).'),
-        ExceptionSpec(code=0x04, name='slave_device_failure', meaning='SLAVE DEVICE FAILURE: An error occurred during an attempt to write one or more registers.'),
-        ExceptionSpec(code=0x0B, name='gateway_target_failed', meaning='GATEWAY TARGET DEVICE FAILED TO RESPOND (Modbus TCP only): the device is not in the Solar Net ring, is switched off, or the ring is open.'),
-    ),
-    timing=TimingSpec(
-        silent_interval_chars=None,
-        silent_interval_floor_ms=None,
-        silent_interval_floor_above_bps=None,
-        processing_ms=None,
-        inter_frame_gap_ms=None,
-        broadcast_gap_ms=None,
-        response_timeout_ms=10000,
-        retries=None,
+    device=ProductSpec(model='fronius_symo_hybrid', title='Fronius Symo Hybrid inverter via Fronius Datamanager (SunSpec int+SF register map)'),
+    protocol=ProtocolSpec(
+        modes=('tcp', 'rtu'),
+        unit_min=1,
+        unit_max=100,
+        broadcast_address=0,
+        serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
+        function_codes=(
+            FunctionSpec(code=0x03, max_quantity=125, broadcast=False),
+            FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='2049 p.55: a broadcast (unit id 0) gets no response and broadcasts "can therefore only be used for write commands"; whether the Datamanager executes a broadcast write is not stated'),
+            FunctionSpec(code=0x10, max_quantity=123, broadcast=None, broadcast_reason='as for 06h: 2049 p.55 does not say whether a broadcast write is executed'),
+        ),
+        exceptions=(
+            ExceptionSpec(code=0x01, name='illegal_function', meaning='ILLEGAL FUNCTION: The function code in the request is not supported by the slave.'),
+            ExceptionSpec(code=0x02, name='illegal_data_address', meaning='ILLEGAL DATA ADDRESS: Invalid register addresses have been requested.'),
+            ExceptionSpec(code=0x03, name='illegal_data_value', meaning='ILLEGAL DATA VALUE: A value in the request is outside of the valid range (fields of a request, e.g. invalid number of registers, and invalid setting values for the SunSpec inverter control models).'),
+            ExceptionSpec(code=0x04, name='slave_device_failure', meaning='SLAVE DEVICE FAILURE: An error occurred during an attempt to write one or more registers.'),
+            ExceptionSpec(code=0x0B, name='gateway_target_failed', meaning='GATEWAY TARGET DEVICE FAILED TO RESPOND (Modbus TCP only): the device is not in the Solar Net ring, is switched off, or the ring is open.'),
+        ),
+        timing=TimingSpec(
+            silent_interval_chars=None,
+            silent_interval_floor_ms=None,
+            silent_interval_floor_above_bps=None,
+            processing_ms=None,
+            inter_frame_gap_ms=None,
+            broadcast_gap_ms=None,
+            response_timeout_ms=10000,
+            retries=None,
+        ),
+        exception_policy=(
+            PolicySpec('illegal_function', 0x01),
+            PolicySpec('illegal_address', 0x02),
+            PolicySpec('illegal_quantity', 0x03),
+            PolicySpec('bad_length', 0x03),
+            PolicySpec('out_of_range', 0x03),
+        ),
+        max_frame_bytes=256,
     ),
     registers=(
         RegisterSpec(
@@ -2203,14 +2214,6 @@ SPEC = DeviceSpec(
     reserved=(
         ReservedSpec(start=0x9CD4, end=0x9CD4, readable=True),
     ),
-    exception_policy=(
-        PolicySpec('illegal_function', 0x01),
-        PolicySpec('illegal_address', 0x02),
-        PolicySpec('illegal_quantity', 0x03),
-        PolicySpec('bad_length', 0x03),
-        PolicySpec('out_of_range', 0x03),
-    ),
-    max_frame_bytes=256,
     identity=(
         IdentitySpec(
             register='sunspec_id',

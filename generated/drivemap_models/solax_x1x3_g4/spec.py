@@ -9,6 +9,8 @@ from drivemap.runtime.spec import (
     EnumSpec,
     ExceptionSpec,
     FunctionSpec,
+    ProductSpec,
+    ProtocolSpec,
     RegisterSpec,
     SerialSpec,
     TimingSpec,
@@ -17,31 +19,32 @@ from drivemap.runtime.spec import (
 __all__ = ["SPEC"]
 
 SPEC = DeviceSpec(
-    model='solax_x1x3_g4',
-    title='SolaX X1/X3 G4 hybrid (energy storage) inverter: real-time input registers',
-    modes=('rtu',),
-    unit_min=1,
-    unit_max=247,
-    broadcast_address=None,
-    serial=SerialSpec(mode='rtu', baudrate=19200, parity='none', stop_bits=1, data_bits=8),
-    function_codes=(
-        FunctionSpec(code=0x04, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply; the document does not mention broadcast'),
-    ),
-    exceptions=(
-        ExceptionSpec(code=0x01, name='abnormal_01', meaning='printed only as an abnormal code (0x01); the document gives no meaning'),
-        ExceptionSpec(code=0x02, name='abnormal_02', meaning='printed only as an abnormal code (0x02); the document gives no meaning'),
-        ExceptionSpec(code=0x03, name='abnormal_03', meaning='printed only as an abnormal code (0x03); the document gives no meaning'),
-        ExceptionSpec(code=0x04, name='abnormal_04', meaning='printed only as an abnormal code (0x04); the document gives no meaning'),
-    ),
-    timing=TimingSpec(
-        silent_interval_chars=None,
-        silent_interval_floor_ms=None,
-        silent_interval_floor_above_bps=None,
-        processing_ms=None,
-        inter_frame_gap_ms=None,
-        broadcast_gap_ms=None,
-        response_timeout_ms=1000,
-        retries=None,
+    device=ProductSpec(model='solax_x1x3_g4', title='SolaX X1/X3 G4 hybrid (energy storage) inverter: real-time input registers'),
+    protocol=ProtocolSpec(
+        modes=('rtu',),
+        unit_min=1,
+        unit_max=247,
+        broadcast_address=None,
+        serial=SerialSpec(mode='rtu', baudrate=19200, parity='none', stop_bits=1, data_bits=8),
+        function_codes=(
+            FunctionSpec(code=0x04, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply; the document does not mention broadcast'),
+        ),
+        exceptions=(
+            ExceptionSpec(code=0x01, name='abnormal_01', meaning='printed only as an abnormal code (0x01); the document gives no meaning'),
+            ExceptionSpec(code=0x02, name='abnormal_02', meaning='printed only as an abnormal code (0x02); the document gives no meaning'),
+            ExceptionSpec(code=0x03, name='abnormal_03', meaning='printed only as an abnormal code (0x03); the document gives no meaning'),
+            ExceptionSpec(code=0x04, name='abnormal_04', meaning='printed only as an abnormal code (0x04); the document gives no meaning'),
+        ),
+        timing=TimingSpec(
+            silent_interval_chars=None,
+            silent_interval_floor_ms=None,
+            silent_interval_floor_above_bps=None,
+            processing_ms=None,
+            inter_frame_gap_ms=None,
+            broadcast_gap_ms=None,
+            response_timeout_ms=1000,
+            retries=None,
+        ),
     ),
     registers=(
         RegisterSpec(

@@ -10,7 +10,10 @@ from drivemap.runtime.spec import (
     ExceptionSpec,
     FunctionSpec,
     PolicySpec,
+    ProductSpec,
+    ProtocolSpec,
     RegisterSpec,
+    ReplyQuirkSpec,
     ReservedSpec,
     SerialSpec,
     TimingSpec,
@@ -19,32 +22,44 @@ from drivemap.runtime.spec import (
 __all__ = ["SPEC"]
 
 SPEC = DeviceSpec(
-    model='vfd1000',
-    title='General-purpose inverter (communication control 1000H, PC.00-PC.02 communication parameters)',
-    modes=('rtu',),
-    unit_min=1,
-    unit_max=247,
-    broadcast_address=0,
-    serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
-    function_codes=(
-        FunctionSpec(code=0x03, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply, and 002 §RTU frame format does not say what the inverters do with a broadcast read (every inverter answering at once would collide on the line)'),
-        FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='002 §RTU frame format only names the address ("0" stands for the broadcast address); it does not say which function codes an inverter executes when addressed by 0, nor that it then stays silent (same wording as edx 004 §1.3 and v2 003 §2, read the same way)'),
-    ),
-    exceptions=(
-        ExceptionSpec(code=0x01, name='illegal_function', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal function.'),
-        ExceptionSpec(code=0x02, name='illegal_data_address', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal data address.'),
-        ExceptionSpec(code=0x03, name='illegal_data_value', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal data value.'),
-        ExceptionSpec(code=0x06, name='server_device_busy', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: server device busy.'),
-    ),
-    timing=TimingSpec(
-        silent_interval_chars=3.5,
-        silent_interval_floor_ms=None,
-        silent_interval_floor_above_bps=None,
-        processing_ms=None,
-        inter_frame_gap_ms=None,
-        broadcast_gap_ms=None,
-        response_timeout_ms=None,
-        retries=None,
+    device=ProductSpec(model='vfd1000', title='General-purpose inverter (communication control 1000H, PC.00-PC.02 communication parameters)'),
+    protocol=ProtocolSpec(
+        modes=('rtu',),
+        unit_min=1,
+        unit_max=247,
+        broadcast_address=0,
+        serial=SerialSpec(mode='rtu', baudrate=None, parity=None, stop_bits=None, data_bits=8),
+        function_codes=(
+            FunctionSpec(code=0x03, max_quantity=None, broadcast=False, broadcast_reason='map choice: a read needs a reply, and 002 §RTU frame format does not say what the inverters do with a broadcast read (every inverter answering at once would collide on the line)'),
+            FunctionSpec(code=0x06, max_quantity=1, broadcast=None, broadcast_reason='002 §RTU frame format only names the address ("0" stands for the broadcast address); it does not say which function codes an inverter executes when addressed by 0, nor that it then stays silent (same wording as edx 004 §1.3 and v2 003 §2, read the same way)'),
+        ),
+        exceptions=(
+            ExceptionSpec(code=0x01, name='illegal_function', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal function.'),
+            ExceptionSpec(code=0x02, name='illegal_data_address', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal data address.'),
+            ExceptionSpec(code=0x03, name='illegal_data_value', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: illegal data value.'),
+            ExceptionSpec(code=0x06, name='server_device_busy', meaning='Not printed in this manual (exception table missing); standard Modbus meaning: server device busy.'),
+        ),
+        timing=TimingSpec(
+            silent_interval_chars=3.5,
+            silent_interval_floor_ms=None,
+            silent_interval_floor_above_bps=None,
+            processing_ms=None,
+            inter_frame_gap_ms=None,
+            broadcast_gap_ms=None,
+            response_timeout_ms=None,
+            retries=None,
+        ),
+        exception_policy=(
+            PolicySpec('illegal_function', 0x01),
+            PolicySpec('illegal_address', 0x02),
+            PolicySpec('illegal_quantity', 0x03),
+            PolicySpec('out_of_range', 0x03),
+            PolicySpec('read_only', 0x02),
+            PolicySpec('busy', 0x06),
+        ),
+        reply_quirks=(
+            ReplyQuirkSpec('two_byte_byte_count'),
+        ),
     ),
     registers=(
         RegisterSpec(
@@ -251,15 +266,6 @@ SPEC = DeviceSpec(
         ReservedSpec(start=0x3011, end=0x3011, readable=True),
         ReservedSpec(start=0x3013, end=0x3013, readable=True),
     ),
-    exception_policy=(
-        PolicySpec('illegal_function', 0x01),
-        PolicySpec('illegal_address', 0x02),
-        PolicySpec('illegal_quantity', 0x03),
-        PolicySpec('out_of_range', 0x03),
-        PolicySpec('read_only', 0x02),
-        PolicySpec('busy', 0x06),
-    ),
-    reply_quirks=('two_byte_byte_count',),
     enums=(
         EnumSpec(
             name='ControlCommand',

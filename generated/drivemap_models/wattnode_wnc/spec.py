@@ -8,6 +8,8 @@ from drivemap.runtime.spec import (
     EnumMemberSpec,
     EnumSpec,
     FunctionSpec,
+    ProductSpec,
+    ProtocolSpec,
     RegisterSpec,
     SerialSpec,
     TimingSpec,
@@ -16,28 +18,29 @@ from drivemap.runtime.spec import (
 __all__ = ["SPEC"]
 
 SPEC = DeviceSpec(
-    model='wattnode_wnc',
-    title='Continental Control Systems WattNode MODBUS (WNC series) energy meter: integer registers',
-    modes=('rtu',),
-    unit_min=1,
-    unit_max=247,
-    broadcast_address=None,
-    serial=SerialSpec(mode='rtu', baudrate=None, parity='none', stop_bits=1, data_bits=8),
-    function_codes=(
-        FunctionSpec(code=0x03, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
-        FunctionSpec(code=0x06, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
-        FunctionSpec(code=0x10, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
-    ),
-    exceptions=(),
-    timing=TimingSpec(
-        silent_interval_chars=None,
-        silent_interval_floor_ms=None,
-        silent_interval_floor_above_bps=None,
-        processing_ms=None,
-        inter_frame_gap_ms=None,
-        broadcast_gap_ms=None,
-        response_timeout_ms=None,
-        retries=None,
+    device=ProductSpec(model='wattnode_wnc', title='Continental Control Systems WattNode MODBUS (WNC series) energy meter: integer registers'),
+    protocol=ProtocolSpec(
+        modes=('rtu',),
+        unit_min=1,
+        unit_max=247,
+        broadcast_address=None,
+        serial=SerialSpec(mode='rtu', baudrate=None, parity='none', stop_bits=1, data_bits=8),
+        function_codes=(
+            FunctionSpec(code=0x03, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
+            FunctionSpec(code=0x06, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
+            FunctionSpec(code=0x10, max_quantity=None, broadcast=None, broadcast_reason='map choice: the list does not mention broadcast'),
+        ),
+        exceptions=(),
+        timing=TimingSpec(
+            silent_interval_chars=None,
+            silent_interval_floor_ms=None,
+            silent_interval_floor_above_bps=None,
+            processing_ms=None,
+            inter_frame_gap_ms=None,
+            broadcast_gap_ms=None,
+            response_timeout_ms=None,
+            retries=None,
+        ),
     ),
     registers=(
         RegisterSpec(

@@ -33,7 +33,7 @@ def make_bus(cfg: BusConfig, package: Any) -> AsyncBus:
         return AsyncBus.rtu_over_tcp(cfg.host, cfg.port, timeout=cfg.timeout, retries=cfg.retries)
     assert cfg.serial is not None
     overrides = {k: v for k, v in cfg.serial.items() if k != "port"}
-    return AsyncBus.serial(cfg.serial["port"], package.SPEC.serial, timeout=cfg.timeout, retries=cfg.retries,
+    return AsyncBus.serial(cfg.serial["port"], package.SPEC.protocol.serial, timeout=cfg.timeout, retries=cfg.retries,
                            **overrides)
 
 

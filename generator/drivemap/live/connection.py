@@ -140,17 +140,17 @@ def resolve_link(args: argparse.Namespace, target: Target | None, *, unit: int |
 
 
 def _default_unit(target: Target | None) -> int:
-    if target is None or target.spec.valid_unit(1):
+    if target is None or target.spec.protocol.valid_unit(1):
         return 1
-    return target.spec.unit_min
+    return target.spec.protocol.unit_min
 
 
 def serial_link(args: argparse.Namespace, target: Target | None, base: Link) -> Link:
-    spec = target.spec.serial if target is not None else None
+    spec = target.spec.protocol.serial if target is not None else None
     mode = args.mode or (spec.mode if spec else "rtu")
-    if target is not None and mode not in target.spec.modes:
+    if target is not None and mode not in target.spec.protocol.modes:
         raise LiveError(EXIT_INPUT, f"{target.model.name} does not speak Modbus {mode.upper()} "
-                                    f"(the map lists {', '.join(target.spec.modes)})")
+                                    f"(the map lists {', '.join(target.spec.protocol.modes)})")
     baudrate = args.baudrate or (spec.baudrate if spec else None)
     if baudrate is None:
         raise LiveError(EXIT_INPUT, f"the map gives no default baud rate; pass --baudrate N{_listed(target, 'baudrates')}"

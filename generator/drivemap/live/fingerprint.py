@@ -125,7 +125,7 @@ def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
     if not spec.identity:
         return None
     fit = Fit(target.model.name, by="identity")
-    if not spec.valid_unit(unit):
+    if not spec.protocol.valid_unit(unit):
         fit.problems.append(f"unit {unit} is outside the map's unit ids")
         return fit
     client = target.client_class(bus, unit)
@@ -151,7 +151,7 @@ def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
 def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
     """Read the map's first planned batches (pages left alone) from ``unit`` and judge the values."""
     fit = Fit(target.model.name)
-    if not target.spec.valid_unit(unit):
+    if not target.spec.protocol.valid_unit(unit):
         fit.problems.append(f"unit {unit} is outside the map's unit ids")
         return fit
     client = target.client_class(bus, unit)

@@ -126,8 +126,8 @@ def project_targets(maps: list[str] | None) -> list[Target]:
 
 def parse_units(text: str | None, targets: list[Target]) -> list[int]:
     if text is None:
-        low = min((t.spec.unit_min for t in targets), default=1)
-        high = min(max((t.spec.unit_max for t in targets), default=247), 247)
+        low = min((t.spec.protocol.unit_min for t in targets), default=1)
+        high = min(max((t.spec.protocol.unit_max for t in targets), default=247), 247)
         return list(range(low, high + 1))
     units: list[int] = []
     try:
@@ -157,7 +157,7 @@ def _baudrates(args: argparse.Namespace, targets: list[Target]) -> list[int]:
             return [int(b) for b in text.split(",")]
         except ValueError:
             raise LiveError(EXIT_INPUT, f"--baudrates wants numbers like 9600,19200, not {text!r}") from None
-    defaults = [t.spec.serial.baudrate for t in targets if t.spec.serial.baudrate]
+    defaults = [t.spec.protocol.serial.baudrate for t in targets if t.spec.protocol.serial.baudrate]
     listed = sorted({b for t in targets for port in t.model.protocol.ports for b in port.baudrates})
     return list(dict.fromkeys([*defaults, *(listed or STANDARD_BAUDRATES)]))
 
@@ -169,7 +169,7 @@ def _parities(args: argparse.Namespace, targets: list[Target]) -> list[str]:
         if None in chosen:
             raise LiveError(EXIT_INPUT, f"--parities wants none, even, odd, not {text!r}")
         return [p for p in chosen if p]
-    defaults = [t.spec.serial.parity for t in targets if t.spec.serial.parity]
+    defaults = [t.spec.protocol.serial.parity for t in targets if t.spec.protocol.serial.parity]
     listed = [p for t in targets for port in t.model.protocol.ports for p in port.parity]
     ordered = [PARITIES.get(p, "") for p in [*defaults, *listed, "none", "even", "odd"]]
     return [p for p in dict.fromkeys(ordered) if p]
@@ -242,8 +242,8 @@ def probes(targets: list[Target]) -> list[tuple[int, int, DeviceSpec]]:
         first = next((r for r in target.model.registers if r.readable and r.page is None), None)
         if first is None:
             continue
-        quiet = target.spec.policy("illegal_address") is None and any(
-            p.case == "illegal_address" for p in target.spec.exception_policy)
+        quiet = target.spec.protocol.policy("illegal_address") is None and any(
+            p.case == "illegal_address" for p in target.spec.protocol.exception_policy)
         if not out or quiet:
             out.append((first.address, read_function(target.spec) or 0x03, target.spec))
     return out or [(0, 0x03, targets[0].spec)]
@@ -254,7 +254,7 @@ def fits_of(found: Found, targets: list[Target]) -> list[Fit]:
     bus = open_bus(replace(found.link, timeout=max(found.link.timeout or 0.1, 0.3)))
     try:
         for target in targets:
-            if found.link.serial and found.link.mode not in target.spec.modes:
+            if found.link.serial and found.link.mode not in target.spec.protocol.modes:
                 continue
             fits.append(identify(bus, target, found.unit) or fingerprint(bus, target, found.unit))
     finally:

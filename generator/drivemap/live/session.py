@@ -113,16 +113,16 @@ def identity_message(session: Session) -> str:
 def check_unit(target: Target, unit: int) -> None:
     """A unit id the map does not allow is a command-line error (before opening anything)."""
     spec = target.spec
-    if not spec.valid_unit(unit):
-        fixed = f" (or fixed port units {', '.join(map(str, spec.fixed_units))})" if spec.fixed_units else ""
+    if not spec.protocol.valid_unit(unit):
+        fixed = f" (or fixed port units {', '.join(map(str, spec.protocol.fixed_units))})" if spec.protocol.fixed_units else ""
         raise LiveError(EXIT_INPUT, f"--unit {unit}: outside {target.model.name}'s unit ids "
-                                    f"{spec.unit_min}..{spec.unit_max}{fixed}")
+                                    f"{spec.protocol.unit_min}..{spec.protocol.unit_max}{fixed}")
 
 
 def read_words(bus: Bus, core: Core, address: int, count: int, code: int | None = None) -> list[int]:
     code = code if code is not None else read_function(core.spec) or 0x03
     cls = READ_REQUESTS[code]
-    reply = core.raise_for(bus.exchange(Exchange(core.unit, cls(address=address, count=count), core.spec.timing)), code)
+    reply = core.raise_for(bus.exchange(Exchange(core.unit, cls(address=address, count=count), core.spec.protocol.timing)), code)
     if code <= 0x02:
         return [1 if b else 0 for b in reply.bits[:count]]
     return list(reply.registers)

@@ -211,5 +211,5 @@ def read_limit(session: Session) -> int:
     from drivemap.runtime.client.planner import read_function
 
     code = read_function(session.target.spec) or 0x03
-    fc = session.target.spec.function(code)
+    fc = session.target.spec.protocol.function(code)
     return fc.max_quantity if fc is not None and fc.max_quantity else 125

@@ -15,7 +15,7 @@ from drivemap.model.nodes import (
     AllowedValue,
     Bit,
     Checksum,
-    CommandRef,
+    CommandSpec,
     CommError,
     Device,
     Enum,
@@ -48,6 +48,7 @@ from drivemap.model.nodes import (
     normalize_raw,
     type_words,
 )
+from drivemap.runtime.spec import SerialSpec
 
 __all__ = ["build_model", "number", "whole"]
 
@@ -170,15 +171,29 @@ def _lengths(item: dict[str, int] | None) -> LengthRange | None:
     return LengthRange(item["min"], item["max"]) if item else None
 
 
+def _serial(port: Port) -> SerialSpec:
+    """The runtime's serial defaults: those of the first port."""
+    return SerialSpec(
+        mode=port.default_mode or port.modes[0], baudrate=port.default_baudrate, parity=port.default_parity,
+        stop_bits=port.default_stop_bits,
+        data_bits=8 if 8 in port.data_bits or not port.data_bits else port.data_bits[0],
+    )
+
+
 def _protocol(p: dict[str, Any]) -> Protocol:
     cfg = p.get("configuration")
+    ports = tuple(_port(x) for x in p["ports"])
+    lo, hi = p["unit_ids"]["min"], p["unit_ids"]["max"]
     return Protocol(
         modes=tuple(p["modes"]),
-        unit_min=p["unit_ids"]["min"],
-        unit_max=p["unit_ids"]["max"],
+        unit_min=lo,
+        unit_max=hi,
         unit_source=p["unit_ids"]["source"],
         broadcast_address=p.get("broadcast_address"),
-        ports=tuple(_port(x) for x in p["ports"]),
+        ports=ports,
+        serial=_serial(ports[0]),
+        fixed_units=tuple(sorted({x.fixed_unit for x in ports if x.fixed_unit is not None
+                                  and not lo <= x.fixed_unit <= hi})),
         function_codes=tuple(
             FunctionCode(
                 f["code"], f.get("max_quantity"), f.get("broadcast"), f.get("broadcast_reason"), name=f["name"],
@@ -204,7 +219,7 @@ def _protocol(p: dict[str, Any]) -> Protocol:
         comm_error_history=p.get("comm_error_history"),
         timing=_timing(p["timing"]),
         max_frame_bytes=p.get("max_frame_bytes"),
-        configuration=CommandRef(cfg["register"], cfg["value"]) if cfg else None,
+        configuration=CommandSpec(cfg["register"], cfg["value"]) if cfg else None,
         checksum=_checksum(p.get("checksum")),
         source=p["source"],
         notes=p.get("notes"),

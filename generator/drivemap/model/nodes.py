@@ -18,7 +18,7 @@ from drivemap.model.family import IdentityCheck, Variant
 from drivemap.model.modicon import Table
 from drivemap.model.protocol import (
     Checksum,
-    CommandRef,
+    CommandSpec,
     CommError,
     Device,
     ExceptionCode,
@@ -45,6 +45,7 @@ from drivemap.runtime.spec import (
     SIGNED_TYPES,
     TYPE_WORDS,
     BitSpec,
+    DeviceSpec,
     EnumMemberSpec,
     EnumSpec,
     PageSpec,
@@ -293,8 +294,11 @@ class Example:
         return self.corrected_response if self.corrected_response is not None else self.response
 
 
-@dataclass(frozen=True)
-class Model:
+@dataclass(frozen=True, kw_only=True)
+class Model(DeviceSpec):
+    """A compiled map: the runtime's :class:`DeviceSpec` (device, protocol, registers, reserved, identity,
+    enums, each node extending its runtime class) with the map's groups, known issues and examples."""
+
     path: str
     device: Device
     protocol: Protocol
@@ -310,10 +314,6 @@ class Model:
     #: set when the map extends another (model.family)
     variant: Variant | None = None
     _by_name: dict[str, Register] = field(default_factory=dict, compare=False, repr=False)
-
-    @property
-    def name(self) -> str:
-        return self.device.model
 
     def register(self, name: str) -> Register:
         return self._by_name[name]
@@ -356,7 +356,7 @@ __all__ = [
     "Cell",
     "Checksum",
     "CommError",
-    "CommandRef",
+    "CommandSpec",
     "Device",
     "Enum",
     "EnumValue",

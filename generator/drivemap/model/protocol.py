@@ -8,12 +8,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivemap.model.rules import Alignment
-from drivemap.runtime.spec import CommErrorSpec, ExceptionSpec, FunctionSpec, PolicySpec, TimingSpec
+from drivemap.runtime.spec import (
+    CommandSpec,
+    CommErrorSpec,
+    ExceptionSpec,
+    FunctionSpec,
+    PolicySpec,
+    ProductSpec,
+    ProtocolSpec,
+    ReplyQuirkSpec,
+    RunningStateSpec,
+    TimingSpec,
+)
 
 __all__ = [
     "Checksum",
     "CommError",
-    "CommandRef",
+    "CommandSpec",
     "Device",
     "ExceptionCode",
     "FunctionCode",
@@ -42,9 +53,9 @@ class Manual:
 
 
 @dataclass(frozen=True)
-class Device:
-    model: str
-    title: str
+class Device(ProductSpec):
+    """The device: the runtime's :class:`ProductSpec` (model, title) and what the map says of its manual."""
+
     vendor: str | None
     manual: Manual
     coverage: str | None
@@ -150,17 +161,9 @@ class Checksum:
 
 
 @dataclass(frozen=True)
-class CommandRef:
-    register: str
-    value: int
+class RunningState(RunningStateSpec):
+    """How the drive reports that it runs: the runtime's :class:`RunningStateSpec`, its source and notes."""
 
-
-@dataclass(frozen=True)
-class RunningState:
-    """How the drive reports that it runs: ``register`` shows one of ``values`` (raw)."""
-
-    register: str
-    values: tuple[int, ...]
     source: str
     notes: str | None
 
@@ -178,38 +181,31 @@ class RunningAdvice:
 
 
 @dataclass(frozen=True)
-class ReplyQuirk:
-    """A non-standard reply form the device may send (``protocol.reply_quirks``)."""
+class ReplyQuirk(ReplyQuirkSpec):
+    """A non-standard reply form the device may send: the runtime's :class:`ReplyQuirkSpec`, source and reason."""
 
-    quirk: str
     source: str
     reason: str
 
 
-@dataclass(frozen=True)
-class Protocol:
-    modes: tuple[str, ...]
-    unit_min: int
-    unit_max: int
+@dataclass(frozen=True, kw_only=True)
+class Protocol(ProtocolSpec):
+    """How the device speaks: the runtime's :class:`ProtocolSpec` (its ``serial`` and ``fixed_units`` taken
+    from the ports) with the map's sources, ports and checksum notes."""
+
     unit_source: str
-    broadcast_address: int | None
     ports: tuple[Port, ...]
     function_codes: tuple[FunctionCode, ...]
     exceptions: tuple[ExceptionCode, ...]
-    comm_errors: tuple[CommError, ...]
-    exception_policy: tuple[PolicyCase, ...]
-    comm_error_policy: tuple[PolicyCase, ...]
-    comm_error_history: str | None
+    comm_errors: tuple[CommError, ...] = ()
+    exception_policy: tuple[PolicyCase, ...] = ()
+    comm_error_policy: tuple[PolicyCase, ...] = ()
     timing: Timing
-    max_frame_bytes: int | None
-    configuration: CommandRef | None
     checksum: Checksum | None
     source: str
     notes: str | None
     running_state: RunningState | None = None
     reply_quirks: tuple[ReplyQuirk, ...] = ()
-    max_gap: int = 0
-    """Undocumented words the read planner may read across (0: none)."""
     alignment: tuple[Alignment, ...] = ()
     """Rules on request start addresses and quantities (``protocol.alignment``)."""
 
@@ -217,16 +213,4 @@ class Protocol:
         for fc in self.function_codes:
             if fc.code == code:
                 return fc
-        return None
-
-    def policy(self, case: str) -> PolicyCase | None:
-        for item in self.exception_policy:
-            if item.case == case:
-                return item
-        return None
-
-    def comm_policy(self, case: str) -> PolicyCase | None:
-        for item in self.comm_error_policy:
-            if item.case == case:
-                return item
         return None

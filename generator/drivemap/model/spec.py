@@ -6,10 +6,9 @@ and ``drivemap build`` use; the generated ``spec.py`` is this object printed
 Nothing here renders or executes generated text.
 
 The model's nodes that describe what the runtime describes *are* the runtime's classes, extended
-by compile-time facts only (``Register`` is a ``RegisterSpec``, ``Bit`` a ``BitSpec``, ...), so the
-runtime's part of a node is a projection onto its runtime class (:func:`project`), not a copy
-field by field. Only the device record is assembled here: the model splits it into device,
-protocol and ports, and gives configuration, running state and reply quirks in richer forms.
+by compile-time facts only (the ``Model`` is a ``DeviceSpec``, its ``Register`` a ``RegisterSpec``,
+its ``Protocol`` a ``ProtocolSpec``, ...), so the runtime's description of a map is the model
+projected onto the runtime's classes (:func:`project`), not a copy field by field.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from typing import Any, TypeVar
 from drivemap.model.nodes import Model
 from drivemap.runtime.client.dynamic import client_package
 from drivemap.runtime.sim.model import ModelSimulator, simulator_main
-from drivemap.runtime.spec import DeviceSpec, SerialSpec, TimingSpec
+from drivemap.runtime.spec import DeviceSpec
 
 __all__ = ["load_package", "project", "spec_from_model"]
 
@@ -50,37 +49,9 @@ def project(node: object, cls: type[_T]) -> _T:
                   if f.init})
 
 
-def _serial(model: Model) -> SerialSpec:
-    port = model.protocol.ports[0]
-    return SerialSpec(
-        mode=port.default_mode or port.modes[0], baudrate=port.default_baudrate, parity=port.default_parity,
-        stop_bits=port.default_stop_bits,
-        data_bits=8 if 8 in port.data_bits or not port.data_bits else port.data_bits[0],
-    )
-
-
 def spec_from_model(model: Model) -> DeviceSpec:
     """The runtime's description of ``model``: registers, dialect, timing, enums (no YAML, no generated code)."""
-    p = model.protocol
-    return DeviceSpec(
-        model=model.name, title=model.device.title, modes=p.modes, unit_min=p.unit_min, unit_max=p.unit_max,
-        broadcast_address=p.broadcast_address, serial=_serial(model),
-        function_codes=_projected(p.function_codes), exceptions=_projected(p.exceptions),
-        timing=project(p.timing, TimingSpec),
-        registers=_projected(model.registers),
-        reserved=_projected(model.reserved), comm_errors=_projected(p.comm_errors),
-        exception_policy=_projected(p.exception_policy), comm_error_policy=_projected(p.comm_error_policy),
-        comm_error_history=p.comm_error_history,
-        configuration=(p.configuration.register, p.configuration.value) if p.configuration else None,
-        max_frame_bytes=p.max_frame_bytes,
-        fixed_units=tuple(sorted({x.fixed_unit for x in p.ports if x.fixed_unit is not None
-                                  and not p.unit_min <= x.fixed_unit <= p.unit_max})),
-        running_state=(p.running_state.register, p.running_state.values) if p.running_state else None,
-        reply_quirks=tuple(q.quirk for q in p.reply_quirks),
-        max_gap=p.max_gap,
-        alignment=_projected(p.alignment), identity=_projected(model.identity),
-        enums=_projected(model.enums),
-    )
+    return project(model, DeviceSpec)
 
 
 def load_package(model: Model) -> types.ModuleType:
@@ -91,9 +62,9 @@ def load_package(model: Model) -> types.ModuleType:
     name = f"drivemap_inmemory_{model.name}"
     package = client_package(spec, name)
     package.__path__ = []  # a package, so that ``importlib.import_module(f"{name}.simulator")`` works
-    simulator = types.ModuleType(f"{name}.simulator", f"Simulator of {spec.title}")
+    simulator = types.ModuleType(f"{name}.simulator", f"Simulator of {spec.device.title}")
     simulator.Simulator = type("Simulator", (ModelSimulator,), {"SPEC": spec, "__module__": simulator.__name__})  # type: ignore[attr-defined]
-    simulator.MODEL = spec.model  # type: ignore[attr-defined]
+    simulator.MODEL = spec.name  # type: ignore[attr-defined]
     simulator.main = simulator_main(simulator.Simulator)  # type: ignore[attr-defined]
     sys.modules[simulator.__name__] = package.simulator = simulator  # type: ignore[attr-defined]
     return package

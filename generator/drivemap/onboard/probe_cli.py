@@ -135,7 +135,7 @@ def map_limits(limits: dict[str, int], spec: DeviceSpec) -> dict[str, int]:
     """The map's max_quantity of each read function bounds that table's reads too."""
     out = dict(limits)
     for table, code in READ_CODES.items():
-        fc = spec.function(code)
+        fc = spec.protocol.function(code)
         if fc is not None and fc.max_quantity:
             out[table] = min(out[table], fc.max_quantity)
     return out
@@ -145,7 +145,7 @@ def map_pairs(spec: DeviceSpec) -> set[str]:
     """The tables whose reads the map's alignment rules (``protocol.alignment``) want at even starts or
     in even quantities, over the whole table: the probe reads them in pairs at even addresses only (a
     rule on a block of the table leaves the probe to find out, as without --map)."""
-    return {rule.table for rule in spec.alignment if "read" in rule.operations and (rule.start, rule.end) == (0, 0xFFFF)
+    return {rule.table for rule in spec.protocol.alignment if "read" in rule.operations and (rule.start, rule.end) == (0, 0xFFFF)
             and 2 in (rule.start_multiple, rule.quantity_multiple)}
 
 

@@ -43,7 +43,7 @@ def _layout(spec: DeviceSpec) -> dict[str, dict[int, list[tuple[int, int, str]]]
 
 def rules_for(spec: DeviceSpec, table: str, operation: str) -> tuple[AlignmentSpec, ...]:
     """The rules of ``table`` that apply to ``operation`` ("read" or "write")."""
-    return tuple(r for r in spec.alignment if r.table == table and operation in r.operations)
+    return tuple(r for r in spec.protocol.alignment if r.table == table and operation in r.operations)
 
 
 def _cut(spec: DeviceSpec, table: str, address: int, end: int) -> str | None:
@@ -80,7 +80,7 @@ def violation(spec: DeviceSpec, table: str, address: int, count: int, operation:
 
 def refuse_misaligned(spec: DeviceSpec, table: str, address: int, count: int, operation: str) -> None:
     """Raise :class:`MisalignedRequest` (naming the rule's source) for a request that breaks a rule."""
-    if spec.alignment:
+    if spec.protocol.alignment:
         broken = violation(spec, table, address, count, operation)
         if broken is not None:
             raise MisalignedRequest(f"{broken[1]} (the map's alignment rule, {broken[0].source})")

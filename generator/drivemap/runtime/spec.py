@@ -9,7 +9,9 @@ plus compile-time facts), so each fact the runtime reads is declared here once.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 #: Words (registers) of each fixed-size type; strings have ``length`` words; a coil or discrete input is one bit.
 TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
@@ -264,9 +266,40 @@ class EnumSpec:
 
 
 @dataclass(frozen=True)
-class DeviceSpec:
+class ProductSpec:
+    """What the device is: the map's model name and the manual's title for it."""
+
     model: str
     title: str
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """A command: writing ``value`` to ``register`` (e.g. the write that applies the configuration)."""
+
+    register: str
+    value: int
+
+
+@dataclass(frozen=True)
+class RunningStateSpec:
+    """How the drive reports that it runs: ``register`` reads one of ``values`` (raw)."""
+
+    register: str
+    values: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class ReplyQuirkSpec:
+    """A non-standard reply form the device may send, which the client accepts (runtime.quirks)."""
+
+    quirk: str
+
+
+@dataclass(frozen=True)
+class ProtocolSpec:
+    """How the device speaks Modbus: modes, unit ids, function codes, exceptions, timing and its dialect."""
+
     modes: tuple[str, ...]
     unit_min: int
     unit_max: int
@@ -275,37 +308,32 @@ class DeviceSpec:
     function_codes: tuple[FunctionSpec, ...]
     exceptions: tuple[ExceptionSpec, ...]
     timing: TimingSpec
-    registers: tuple[RegisterSpec, ...]
-    reserved: tuple[ReservedSpec, ...] = ()
     comm_errors: tuple[CommErrorSpec, ...] = ()
     exception_policy: tuple[PolicySpec, ...] = ()
     comm_error_policy: tuple[PolicySpec, ...] = ()
     comm_error_history: str | None = None
-    configuration: tuple[str, int] | None = None
+    #: the write that applies registers which take effect at configuration, or None
+    configuration: CommandSpec | None = None
     max_frame_bytes: int | None = None
     #: unit ids a port fixes outside the settable range (e.g. EV's RS-232 port answers as 17)
     fixed_units: tuple[int, ...] = ()
-    #: (register, raw values) by which the drive reports that it is running, or None
-    running_state: tuple[str, tuple[int, ...]] | None = None
+    #: how the drive reports that it is running, or None
+    running_state: RunningStateSpec | None = None
     #: non-standard reply forms the client accepts besides the standard ones (runtime.quirks)
-    reply_quirks: tuple[str, ...] = ()
+    reply_quirks: tuple[ReplyQuirkSpec, ...] = ()
     #: undocumented words the read planner may read across (0: none)
     max_gap: int = 0
     #: rules on request start addresses and quantities (runtime.alignment)
     alignment: tuple[AlignmentSpec, ...] = ()
-    #: registers and values that identify the device (runtime.client.identity); () when the map names none
-    identity: tuple[IdentitySpec, ...] = ()
-    enums: tuple[EnumSpec, ...] = ()
-    _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
+
+    @property
+    def quirks(self) -> tuple[str, ...]:
+        """The names of the reply quirks."""
+        return tuple(q.quirk for q in self.reply_quirks)
 
     def valid_unit(self, unit: int) -> bool:
         """Whether a device of this model can have unit id ``unit`` (broadcast excluded)."""
         return (self.unit_min <= unit <= self.unit_max or unit in self.fixed_units) and unit != self.broadcast_address
-
-    def register(self, name: str) -> RegisterSpec:
-        if not self._index:
-            self._index.update({r.name: r for r in self.registers})
-        return self._index[name]
 
     def function(self, code: int) -> FunctionSpec | None:
         for fc in self.function_codes:
@@ -331,3 +359,43 @@ class DeviceSpec:
             if item.code == code:
                 return item
         return None
+
+
+#: The attributes a DeviceSpec had before it was split into ``device`` and ``protocol``: the part that holds each.
+_MOVED = {"model": "device", "title": "device",
+          **{f: "protocol" for f in ProtocolSpec.__dataclass_fields__},
+          **{m: "protocol" for m in ("valid_unit", "function", "policy", "comm_policy", "exception")}}
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    """One device: what it is (``device``), how it speaks (``protocol``), its registers, enums and identity."""
+
+    device: ProductSpec
+    protocol: ProtocolSpec
+    registers: tuple[RegisterSpec, ...]
+    reserved: tuple[ReservedSpec, ...] = ()
+    #: registers and values that identify the device (runtime.client.identity); () when the map names none
+    identity: tuple[IdentitySpec, ...] = ()
+    enums: tuple[EnumSpec, ...] = ()
+    _index: dict[str, RegisterSpec] = field(init=False, default_factory=dict, compare=False, repr=False)
+
+    @property
+    def name(self) -> str:
+        """The model name (``device.model``)."""
+        return self.device.model
+
+    def register(self, name: str) -> RegisterSpec:
+        if not self._index:
+            self._index.update({r.name: r for r in self.registers})
+        return self._index[name]
+
+    if not TYPE_CHECKING:  # type checkers see only the current names
+
+        def __getattr__(self, name: str) -> object:
+            """The flat attributes of earlier releases (``SPEC.timing``, ``SPEC.model``), with a DeprecationWarning."""
+            part = _MOVED.get(name)
+            if part is None:
+                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+            warnings.warn(f"DeviceSpec.{name} is now DeviceSpec.{part}.{name}", DeprecationWarning, stacklevel=2)
+            return getattr(object.__getattribute__(self, part), name)

@@ -19,13 +19,15 @@ from drivemap.runtime.spec import DeviceSpec, RegisterSpec, TimingSpec
 __all__ = ["context", "print_spec"]
 
 #: Classes printed with positional arguments on one line.
-_POSITIONAL = frozenset({"BitSpec", "PageSpec", "PolicySpec", "EnumMemberSpec"})
+_POSITIONAL = frozenset({"BitSpec", "PageSpec", "PolicySpec", "EnumMemberSpec", "CommandSpec", "RunningStateSpec",
+                         "ReplyQuirkSpec"})
 #: Classes printed with keyword arguments on one line.
-_ONE_LINE = frozenset({"SerialSpec", "FunctionSpec", "ExceptionSpec", "CommErrorSpec", "ReservedSpec"})
+_ONE_LINE = frozenset({"ProductSpec", "SerialSpec", "FunctionSpec", "ExceptionSpec", "CommErrorSpec", "ReservedSpec"})
 #: Fields printed even at their default.
 _ALWAYS = {
-    "DeviceSpec": frozenset({"model", "title", "modes", "unit_min", "unit_max", "broadcast_address", "serial",
-                             "function_codes", "exceptions", "timing", "registers"}),
+    "DeviceSpec": frozenset({"device", "protocol", "registers"}),
+    "ProtocolSpec": frozenset({"modes", "unit_min", "unit_max", "broadcast_address", "serial", "function_codes",
+                               "exceptions", "timing"}),
     "RegisterSpec": frozenset({"name", "address", "source"}),
     "TimingSpec": frozenset(f.name for f in dataclasses.fields(TimingSpec)),
     "SerialSpec": frozenset({"mode", "baudrate", "parity", "stop_bits", "data_bits"}),
@@ -117,5 +119,5 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "package": options.package,
         "model": model,
         "spec": text,
-        "imports": sorted(name for name in _classes(spec, set()) if f"{name}(" in text),
+        "imports": sorted((name for name in _classes(spec, set()) if f"{name}(" in text), key=str.lower),
     }

@@ -35,17 +35,17 @@ def _caller_stacklevel() -> int:
 
 
 def warn_if_running(spec: DeviceSpec, written: Sequence[tuple[RegisterSpec, str]], state_raw: int) -> None:
-    """Warn when ``state_raw`` (the value of ``spec.running_state``'s register) means running.
+    """Warn when ``state_raw`` (the value of ``spec.protocol.running_state``'s register) means running.
 
     ``written``: (register, element name) of every element about to be written that carries advice.
     """
-    if spec.running_state is None or state_raw not in spec.running_state[1]:
+    if spec.protocol.running_state is None or state_raw not in spec.protocol.running_state.values:
         return
     names = ", ".join(name for _, name in written)
     advice = "; ".join(dict.fromkeys(reg.running_advice or "" for reg, _ in written))
     warnings.warn(
-        f"{spec.model}: writing {names} while the drive reports running "
-        f"({spec.running_state[0]} = {state_raw}); the manual advises: {advice}",
+        f"{spec.name}: writing {names} while the drive reports running "
+        f"({spec.protocol.running_state.register} = {state_raw}); the manual advises: {advice}",
         RunningWriteWarning,
         stacklevel=_caller_stacklevel(),
     )

@@ -67,12 +67,12 @@ class _Common(Generic[S, B]):
     def __init__(self, bus: B, unit: int = 1, *, page_policy: PagePolicy = "raise", _broadcast: bool = False,
                  _owns_bus: bool = False) -> None:
         spec = self.SPEC
-        if not _broadcast and not spec.valid_unit(unit):
-            raise InvalidValue(f"unit {unit} outside the map's range {spec.unit_min}..{spec.unit_max}"
-                               + (f" (or fixed port units {list(spec.fixed_units)})" if spec.fixed_units else ""))
+        if not _broadcast and not spec.protocol.valid_unit(unit):
+            raise InvalidValue(f"unit {unit} outside the map's range {spec.protocol.unit_min}..{spec.protocol.unit_max}"
+                               + (f" (or fixed port units {list(spec.protocol.fixed_units)})" if spec.protocol.fixed_units else ""))
         self.bus = bus
-        if spec.reply_quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
-            accept_reply_quirks(bus.client, spec.reply_quirks)  # type: ignore[attr-defined]
+        if spec.protocol.quirks:  # the map's non-standard reply forms, accepted on this bus (runtime.quirks)
+            accept_reply_quirks(bus.client, spec.protocol.quirks)  # type: ignore[attr-defined]
         self._owns_bus = _owns_bus
         self._setup(unit, page_policy, _broadcast, bus.stats)  # type: ignore[attr-defined]
 
@@ -94,7 +94,7 @@ class _Common(Generic[S, B]):
     def serial(cls, port: str, unit: int = 1, *, timeout: float | None = None, retries: int | None = None,
                page_policy: PagePolicy = "raise", **overrides: Any) -> Self:
         """A client with its own serial line (mode, baud rate, parity: the map's defaults unless overridden)."""
-        bus = cls._BUS.serial(port, cls.SPEC.serial, timeout=timeout, retries=retries, **overrides)
+        bus = cls._BUS.serial(port, cls.SPEC.protocol.serial, timeout=timeout, retries=retries, **overrides)
         return cls(bus, unit, page_policy=page_policy, _owns_bus=True)
 
     @property
@@ -197,7 +197,7 @@ class _Common(Generic[S, B]):
         """The accessor for ``"name"`` or ``"name[i]"``."""
         base, _, rest = name.partition("[")
         if base not in self._registers_declared():
-            raise UnknownRegister(f"{self.SPEC.model} has no register {base!r}")
+            raise UnknownRegister(f"{self.SPEC.name} has no register {base!r}")
         acc = getattr(self, base)
         if rest:
             digits = rest[:-1]
@@ -331,7 +331,7 @@ class _Common(Generic[S, B]):
         if reader is None:
             return general
         make = reader.make_async if self._ASYNC else reader.make_sync
-        return make(exchanges(reader.plan, self._core.unit, self.SPEC.timing), general, fallback)
+        return make(exchanges(reader.plan, self._core.unit, self.SPEC.protocol.timing), general, fallback)
 
     def _snapshot_program(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], visit: bool) -> Program:
         """The program of ``read(...)`` of ``keys`` (``visit``: ``read_all``, pages visited and restored)."""
@@ -404,21 +404,21 @@ def broadcast_refusal(spec: DeviceSpec) -> DriveError:
     :class:`UnsupportedFunction` without a broadcast address; else :class:`NotBroadcastable` with
     each write function's state (not stated in the manual / not allowed) and the map's reason.
     """
-    if spec.broadcast_address is None:
-        return UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
+    if spec.protocol.broadcast_address is None:
+        return UnsupportedFunction(f"{spec.name}: the map gives no broadcast address")
     reasons = []
-    for fc in spec.function_codes:
+    for fc in spec.protocol.function_codes:
         if fc.code in (0x06, 0x10) and fc.broadcast is not True:
             state = "not stated in the manual" if fc.broadcast is None else "not allowed by the map"
             reasons.append(f"{fc.code:02X}h by broadcast: {state}" + (f" ({fc.broadcast_reason})" if fc.broadcast_reason else ""))
     why = "; ".join(reasons) if reasons else "no register can be written by a function the map allows by broadcast"
-    return NotBroadcastable(f"{spec.model}: no broadcast client (unit {spec.broadcast_address}): {why}")
+    return NotBroadcastable(f"{spec.name}: no broadcast client (unit {spec.protocol.broadcast_address}): {why}")
 
 
 def broadcast_unit(spec: DeviceSpec) -> int:
-    if spec.broadcast_address is None:
-        raise UnsupportedFunction(f"{spec.model}: the map gives no broadcast address")
-    return spec.broadcast_address
+    if spec.protocol.broadcast_address is None:
+        raise UnsupportedFunction(f"{spec.name}: the map gives no broadcast address")
+    return spec.protocol.broadcast_address
 
 
 

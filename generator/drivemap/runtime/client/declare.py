@@ -332,7 +332,7 @@ class Codecs(Mapping[str, Codec[Any]]):
         return len(self._device.registers)
 
     def __repr__(self) -> str:
-        return f"<Codecs of {self._device.model}: {len(self)} registers, {len(self._made)} made>"
+        return f"<Codecs of {self._device.name}: {len(self)} registers, {len(self._made)} made>"
 
 
 def codecs_for(device: DeviceSpec, *classes: type) -> Codecs:

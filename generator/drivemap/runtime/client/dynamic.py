@@ -68,11 +68,11 @@ def _value_classes(spec: DeviceSpec, module: str) -> list[type]:
 
 
 def _exceptions(spec: DeviceSpec, module: str) -> list[type[DeviceException]]:
-    names = exception_classes([(ex.name, ex.code) for ex in spec.exceptions])
+    names = exception_classes([(ex.name, ex.code) for ex in spec.protocol.exceptions])
     return [type(cls, (DeviceException,), {"CODE": ex.code, "NAME": ex.name, "MEANING": ex.meaning,
                                             "__module__": module,
                                             "__doc__": f"Exception 0x{ex.code:02X} {ex.name}: {ex.meaning}."})
-            for ex, cls in zip(spec.exceptions, names, strict=True)]
+            for ex, cls in zip(spec.protocol.exceptions, names, strict=True)]
 
 
 def _snapshot(spec: DeviceSpec, module: str) -> type[SnapshotBase]:
@@ -83,7 +83,7 @@ def _snapshot(spec: DeviceSpec, module: str) -> type[SnapshotBase]:
 
 
 def _broadcasts(spec: DeviceSpec) -> list[RegisterSpec]:
-    if spec.broadcast_address is None:
+    if spec.protocol.broadcast_address is None:
         return []
     return [r for r in spec.registers if r.broadcast and r.writable]
 
@@ -99,8 +99,8 @@ def _broadcast_constructor(made: dict[str, Any], name: str, unit: int | None) ->
 def client_package(spec: DeviceSpec, name: str | None = None) -> types.ModuleType:
     """The client package of ``spec`` as a module (registered in ``sys.modules`` under ``name``,
     by default ``drivemap_spec_<model>``, so that pickling and logging find its classes)."""
-    module = name or f"drivemap_spec_{spec.model}"
-    package = types.ModuleType(module, f"drivemap client of {spec.title}, built from its spec")
+    module = name or f"drivemap_spec_{spec.name}"
+    package = types.ModuleType(module, f"drivemap client of {spec.device.title}, built from its spec")
     values = _value_classes(spec, module)
     exceptions = _exceptions(spec, module)
     codecs = codecs_for(spec, *values)
@@ -115,7 +115,7 @@ def client_package(spec: DeviceSpec, name: str | None = None) -> types.ModuleTyp
     if broadcast:
         bregisters = type("_BroadcastRegisters", (), {
             "__module__": module, **{r.name: REG_CLASSES[broadcast_kind_of(r)]() for r in broadcast}})
-        unit = spec.broadcast_address
+        unit = spec.protocol.broadcast_address
 
         def sync_init(self: Any, bus: Bus, unit: int | None = unit, *, page_policy: PagePolicy = "raise",
                       _broadcast: bool = True, _owns_bus: bool = False) -> None:

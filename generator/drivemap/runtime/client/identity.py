@@ -114,7 +114,7 @@ def identity_mismatches(spec: DeviceSpec, raws: Mapping[Key, int],
 def _raise(spec: DeviceSpec, unit: int, found: tuple[Mismatch, ...]) -> None:
     if found:
         lines = "; ".join(str(m) for m in found)
-        raise IdentityMismatch(f"unit {unit} is not a {spec.model}: {lines}", found)
+        raise IdentityMismatch(f"unit {unit} is not a {spec.name}: {lines}", found)
 
 
 def _client(client_or_session: Any) -> Any:

@@ -111,17 +111,17 @@ class ReadRequest:
 def read_function(spec: DeviceSpec, table: str = "holding") -> int | None:
     """The read function code of ``table`` (01h, 02h, 03h, 04h) when the map lists it, else None."""
     code = READ_CODES[table]
-    return code if spec.function(code) is not None else None
+    return code if spec.protocol.function(code) is not None else None
 
 
 def max_read_words(spec: DeviceSpec, table: str = "holding") -> int:
     """Largest read of ``table`` the map allows: its max_quantity, the frame limit, else the Modbus limit."""
     code = read_function(spec, table)
-    fc = spec.function(code) if code is not None else None
+    fc = spec.protocol.function(code) if code is not None else None
     bits = table in ("coil", "discrete")
     limit = fc.max_quantity if fc is not None and fc.max_quantity else (MODBUS_MAX_READ_BITS if bits else MODBUS_MAX_READ)
-    if spec.max_frame_bytes:
-        room = spec.max_frame_bytes - 5  # addr + fc + count + data + CRC
+    if spec.protocol.max_frame_bytes:
+        room = spec.protocol.max_frame_bytes - 5  # addr + fc + count + data + CRC
         limit = min(limit, room * 8 if bits else room // 2)
     return max(1, limit)
 
@@ -129,12 +129,12 @@ def max_read_words(spec: DeviceSpec, table: str = "holding") -> int:
 def max_write_words(spec: DeviceSpec, table: str = "holding") -> int:
     """Largest multiple write the map allows (10h; 0Fh for coils; 0 when the map has none)."""
     bits = table == "coil"
-    fc = spec.function(0x0F if bits else 0x10)
+    fc = spec.protocol.function(0x0F if bits else 0x10)
     if fc is None:
         return 0
     limit = fc.max_quantity if fc.max_quantity else (MODBUS_MAX_WRITE_BITS if bits else MODBUS_MAX_WRITE)
-    if spec.max_frame_bytes:
-        room = spec.max_frame_bytes - 9  # addr + fc + start + qty + bytes + data + CRC
+    if spec.protocol.max_frame_bytes:
+        room = spec.protocol.max_frame_bytes - 9  # addr + fc + start + qty + bytes + data + CRC
         limit = min(limit, room * 8 if bits else room // 2)
     return max(1, limit)
 
@@ -362,8 +362,8 @@ def plan_reads(spec: DeviceSpec, targets: Iterable[Key], holes: Collection[Hole]
             continue
         layout = None
         table_holes = frozenset(a for t, a in holes if t == table)
-        if spec.max_gap or table_holes:
-            layout = _Layout(spec.max_gap, _documented(spec, table) if spec.max_gap else frozenset(), table_holes)
+        if spec.protocol.max_gap or table_holes:
+            layout = _Layout(spec.protocol.max_gap, _documented(spec, table) if spec.protocol.max_gap else frozenset(), table_holes)
         limit = aligned_limit(spec, table, max_read_words(spec, table))
         plans.extend((table, page, taken) for page, taken in _plan_table(line, wanted, limit, layout))
     requests: list[ReadRequest] = []

@@ -60,7 +60,7 @@ def check_read(spec: DeviceSpec, table: object, address: object, count: object, 
     if not isinstance(table, str) or table not in TABLES:
         raise InvalidValue(f"table must be one of {', '.join(TABLES)}, not {table!r}")
     code = TABLES[table]
-    function = spec.function(code)
+    function = spec.protocol.function(code)
     if function is None:
         raise UnsupportedFunction(f"the map does not list {code:02X}h (read {table})")
     address, count = _whole("address", address), _whole("count", count)

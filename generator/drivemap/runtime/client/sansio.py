@@ -101,12 +101,12 @@ class Core:
         if reply.isError():
             code = reply.exception_code
             cls = self.exceptions.get(code, DeviceException)
-            known = self.spec.exception(code)
+            known = self.spec.protocol.exception(code)
             raise cls(code, function, name=known.name if known else None, meaning=known.meaning if known else None)
         return reply
 
     def exchange(self, pdu: ModbusPDU, hold_ms: float = 0.0) -> Exchange:
-        return Exchange(self.unit, pdu, self.spec.timing, not self.broadcast, hold_ms)
+        return Exchange(self.unit, pdu, self.spec.protocol.timing, not self.broadcast, hold_ms)
 
     def plan_with_holes(self, keys: Iterable[Key]) -> tuple[ReadRequest, ...]:
         """The plan for ``keys`` that avoids this client's holes (cached until a new hole is found)."""
@@ -156,7 +156,7 @@ class Core:
         code = READ_CODES[table]
         if code not in self.tables.read_codes:
             raise UnsupportedFunction(f"the map does not list {code:02X}h (read {table})")
-        reply = yield Exchange(self.unit, READ_REQUESTS[code](address=address, count=count), self.spec.timing,
+        reply = yield Exchange(self.unit, READ_REQUESTS[code](address=address, count=count), self.spec.protocol.timing,
                                expect_reply=not self.broadcast)
         if reply is None or reply.isError():
             reply = self.raise_for(reply, code)
@@ -204,7 +204,7 @@ class Core:
             self.check_readable(keys)
         tables = self.tables
         read_codes = tables.read_codes
-        unit, timing, expect_reply = self.unit, self.spec.timing, not self.broadcast
+        unit, timing, expect_reply = self.unit, self.spec.protocol.timing, not self.broadcast
         out: dict[Key, int] = {}
         for req in plan:
             if req.page is not None:
@@ -294,7 +294,7 @@ class Core:
         """One part of a split read; returns whether the device refused it."""
         self.stats.extra_requests += 1
         reply = yield Exchange(self.unit, READ_REQUESTS[req.code](address=req.address, count=req.count),
-                               self.spec.timing, not self.broadcast)
+                               self.spec.protocol.timing, not self.broadcast)
         if reply is not None and reply.isError() and reply.exception_code == ILLEGAL_ADDRESS:
             if len(req.units) > 1:
                 yield from self._split(req, out)
@@ -367,7 +367,7 @@ class Core:
             if reg.page is not None:
                 yield from self._page_ops(reg.page)
             pdu, code = self._write_request(reg.table, reg.element_address(key[1]), words)  # _write_words, inlined
-            reply = yield Exchange(self.unit, pdu, self.spec.timing, not self.broadcast, reg.write_delay_ms or 0.0)
+            reply = yield Exchange(self.unit, pdu, self.spec.protocol.timing, not self.broadcast, reg.write_delay_ms or 0.0)
             if not self.broadcast:
                 self.raise_for(reply, code)
             self._after_write(reg, key, int(raw))  # raw fits its type (raw_to_words checked): the words' value
@@ -385,10 +385,10 @@ class Core:
     def _advise_if_running(self, items: Sequence[tuple[RegisterSpec, Key]]) -> Op[None]:
         """The map's running_advice: read its running_state register and warn if the drive runs
         (:mod:`drivemap.runtime.client.advice`); never refuses. A broadcast client cannot read: no check."""
-        state = self.spec.running_state
+        state = self.spec.protocol.running_state
         if state is None or self.broadcast:
             return
-        sel = self.spec.register(state[0])
+        sel = self.spec.register(state.register)
         yield from self._page_ops(sel.page)
         words = yield from self._read_words(sel.table, sel.address, sel.words)
         warn_if_running(self.spec, [(reg, reg.element_name(key[1])) for reg, key in items], words_to_raw(sel, words))
@@ -464,9 +464,9 @@ class Core:
             log.warning("%s: written; takes effect after the drive is powered off and on again", name)
 
     def apply_configuration(self) -> Op[None]:
-        if self.spec.configuration is None:
+        if self.spec.protocol.configuration is None:
             raise UnsupportedFunction("the map defines no configuration command")
-        name, value = self.spec.configuration
+        name, value = self.spec.protocol.configuration.register, self.spec.protocol.configuration.value
         reg = self.spec.register(name)
         self.check_write((name, 0))
         yield from self._page_ops(reg.page)
@@ -474,7 +474,7 @@ class Core:
         self.pending_configuration.clear()
 
     def loopback(self, data: int) -> Op[int]:
-        if self.spec.function(0x08) is None:
+        if self.spec.protocol.function(0x08) is None:
             raise UnsupportedFunction("the map does not list 08h (diagnostics / loopback)")
         if not isinstance(data, int) or isinstance(data, bool) or not 0 <= data <= 0xFFFF:
             raise InvalidValue("loopback data must be an int 0..0xFFFF")

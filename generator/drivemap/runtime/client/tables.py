@@ -49,13 +49,13 @@ def spec_tables(spec: DeviceSpec) -> SpecTables:
     tables = SpecTables(
         readable=frozenset(r.name for r in spec.registers if r.readable),
         selectors=selectors,
-        read_codes=frozenset(c for c in READ_CODES.values() if spec.function(c) is not None),
+        read_codes=frozenset(c for c in READ_CODES.values() if spec.protocol.function(c) is not None),
         all_keys=tuple(k for u in units(spec) for k, _ in u.keys),
         decode={r.name: _decode_entry(r, selectors) for r in spec.registers if r.readable},
-        fc05=spec.function(0x05),
-        fc06=spec.function(0x06),
-        fc0f=spec.function(0x0F),
-        fc10=spec.function(0x10),
+        fc05=spec.protocol.function(0x05),
+        fc06=spec.protocol.function(0x06),
+        fc0f=spec.protocol.function(0x0F),
+        fc10=spec.protocol.function(0x10),
         write_limits={"holding": max_write_words(spec, "holding"), "coil": max_write_words(spec, "coil")},
     )
     _TABLES[id(spec)] = (spec, tables)

@@ -86,7 +86,7 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
         return None
     pdu, code = prepared
     key = acc.key
-    ex = Exchange(core.unit, pdu, core.spec.timing, True, reg.write_delay_ms or 0.0)
+    ex = Exchange(core.unit, pdu, core.spec.protocol.timing, True, reg.write_delay_ms or 0.0)
     encode = codec.encode
     after = reg.name in core.tables.selectors or reg.reflect in ("configuration", "power_cycle")
     fast = _fast_raw(codec, reg)

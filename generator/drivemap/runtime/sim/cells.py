@@ -60,13 +60,13 @@ def word_shift(reg: RegisterSpec, word: int) -> int:
 
 def gap_words(spec: DeviceSpec, documented: frozenset[tuple[str, int]]) -> frozenset[tuple[str, int]]:
     """Undocumented words between two documented ones at most ``max_gap`` apart (the device reads them)."""
-    if not spec.max_gap:
+    if not spec.protocol.max_gap:
         return frozenset()
     out: set[tuple[str, int]] = set()
     for table in {t for t, _ in documented}:
         addresses = sorted(a for t, a in documented if t == table)
         for low, high in zip(addresses, addresses[1:], strict=False):
-            if 1 < high - low <= spec.max_gap + 1:
+            if 1 < high - low <= spec.protocol.max_gap + 1:
                 out.update((table, a) for a in range(low + 1, high))
     return frozenset(out)
 

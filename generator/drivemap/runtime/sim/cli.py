@@ -104,7 +104,7 @@ async def _serve_until_signal(server: SimServer) -> None:
         await stop.wait()
     finally:
         await server.stop()
-        print(f"{server.sim.spec.model} simulator stopped", flush=True)
+        print(f"{server.sim.spec.name} simulator stopped", flush=True)
 
 
 def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:

@@ -50,7 +50,7 @@ class ModelSimulator(Simulator):
         super().__init__(
             spec,
             units if units is not None else (default_unit(spec),),
-            behaviour=behaviour if behaviour is not None else behaviour_for(spec.model),
+            behaviour=behaviour if behaviour is not None else behaviour_for(spec.name),
             state_file=state_file,
             realistic_timing=realistic_timing,
             refuse_advised_while_running=refuse_advised_while_running,
@@ -61,7 +61,7 @@ class ModelSimulator(Simulator):
 
 def default_unit(spec: DeviceSpec) -> int:
     """Unit 1 where the map allows it, else its lowest unit id."""
-    return 1 if spec.unit_min <= 1 <= spec.unit_max else spec.unit_min
+    return 1 if spec.protocol.unit_min <= 1 <= spec.protocol.unit_max else spec.protocol.unit_min
 
 
 class SimulatorMain(Protocol):
@@ -73,6 +73,6 @@ def simulator_main(simulator: type[ModelSimulator]) -> SimulatorMain:
 
     def main(argv: Sequence[str] | None = None) -> int:
         """Serve this simulator (same options as ``drivemap simulate``) until Ctrl-C."""
-        return simcli.main(simulator.SPEC.model, simulator, argv)
+        return simcli.main(simulator.SPEC.name, simulator, argv)
 
     return main

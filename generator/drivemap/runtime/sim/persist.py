@@ -66,7 +66,7 @@ class Persistence:
 
     def _state_file(self, path: Path) -> simstate.StateFile:
         bounds = {name: raw_bounds(self._cells[name][0]) for name in self._eeprom_cells()}
-        return simstate.StateFile(path, self.spec.model, bounds, self.spec.valid_unit)
+        return simstate.StateFile(path, self.spec.name, bounds, self.spec.protocol.valid_unit)
 
     def _load_state(self, path: Path) -> None:
         """Load the file completely (units not simulated now and unknown cells are kept for the next write)

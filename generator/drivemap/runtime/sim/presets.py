@@ -59,7 +59,7 @@ def check(spec: DeviceSpec, name: str, value: Any, factors: Mapping[str, SimValu
     reg = cells.get(name)
     if reg is None:
         close = difflib.get_close_matches(name, list(cells), n=3)
-        raise ValueError(f"{spec.model} has no register {name!r}" + (f" (did you mean {', '.join(close)}?)" if close else ""))
+        raise ValueError(f"{spec.name} has no register {name!r}" + (f" (did you mean {', '.join(close)}?)" if close else ""))
     members = (enums or {}).get(reg.name)
     if isinstance(value, str) and reg.enum_values and reg.type != "string":
         if not members or value.strip().upper() not in members:

@@ -233,8 +233,8 @@ class _WatchRTU(FramerRTU):
         simulated unit with a right CRC, or (offset, None) of the first one still incomplete, or (0, None)."""
         sim = self.simulator
         units = set(sim.unit_ids)
-        if sim.spec.broadcast_address is not None:
-            units.add(sim.spec.broadcast_address)
+        if sim.spec.protocol.broadcast_address is not None:
+            units.add(sim.spec.protocol.broadcast_address)
         for start in range(1, len(data) - 1):
             if data[start] not in units:
                 continue
@@ -300,7 +300,7 @@ def _silence_seconds(sim: Simulator, baudrate: int) -> float:
     When the host delivers one frame in two pieces further apart than this, the framer keeps them
     together because together they form a frame with a right CRC (see :class:`_WatchRTU`).
     """
-    timing = sim.spec.timing
+    timing = sim.spec.protocol.timing
     floor_above = timing.silent_interval_floor_above_bps
     if floor_above is not None and baudrate > floor_above and timing.silent_interval_floor_ms:
         return timing.silent_interval_floor_ms / 1000.0
@@ -336,12 +336,12 @@ class SimServer:
         self.sim = sim
         self.tcp = tcp
         self.serial = serial
-        spec_serial = sim.spec.serial
+        spec_serial = sim.spec.protocol.serial
         self.mode = mode or spec_serial.mode or "rtu"
         if serial is not None and self.mode not in ("rtu", "ascii"):
             raise SimulatorError(f"serial mode must be rtu or ascii, not {self.mode!r}")
-        if serial is not None and self.mode not in sim.spec.modes:
-            raise SimulatorError(f"{sim.spec.model} does not speak Modbus {self.mode.upper()} (modes: {', '.join(sim.spec.modes)})")
+        if serial is not None and self.mode not in sim.spec.protocol.modes:
+            raise SimulatorError(f"{sim.spec.name} does not speak Modbus {self.mode.upper()} (modes: {', '.join(sim.spec.protocol.modes)})")
         self.baudrate = baudrate or spec_serial.baudrate or _DEFAULT_BAUDRATE
         self.parity = _PARITY.get(parity if parity is not None else spec_serial.parity, "N")
         self.stop_bits = stop_bits or spec_serial.stop_bits or 1
@@ -356,9 +356,9 @@ class SimServer:
         if self.address is not None:
             host, port = self.address
             shown = f"[{host}]" if ":" in host else host
-            return f"{self.sim.spec.model} simulator listening on tcp {shown}:{port} (units {units})"
+            return f"{self.sim.spec.name} simulator listening on tcp {shown}:{port} (units {units})"
         return (
-            f"{self.sim.spec.model} simulator listening on serial {self.serial} "
+            f"{self.sim.spec.name} simulator listening on serial {self.serial} "
             f"({self.mode}, {self.baudrate} baud, {self.data_bits}{self.parity}{self.stop_bits}, units {units})"
         )
 
@@ -446,7 +446,7 @@ class ThreadedSimServer:
         return self.server.address
 
     def start(self, timeout: float = 10.0) -> ThreadedSimServer:
-        self._thread = threading.Thread(target=self._run, name=f"{self.sim.spec.model}-simulator", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"{self.sim.spec.name}-simulator", daemon=True)
         self._thread.start()
         if not self._ready.wait(timeout):
             raise TimeoutError("simulator server did not start")

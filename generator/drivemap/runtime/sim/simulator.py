@@ -106,9 +106,9 @@ class Simulator(WriteRequests, Persistence):
         self.refuse_advised_while_running = refuse_advised_while_running
         self.reply_quirks = tuple(dict.fromkeys(reply_quirks))
         for quirk in self.reply_quirks:
-            if quirk not in spec.reply_quirks:
-                raise SimulatorError(f"{spec.model}: the map lists no reply quirk {quirk!r} "
-                                     f"(it lists: {', '.join(spec.reply_quirks) or 'none'})")
+            if quirk not in spec.protocol.quirks:
+                raise SimulatorError(f"{spec.name}: the map lists no reply quirk {quirk!r} "
+                                     f"(it lists: {', '.join(spec.protocol.quirks) or 'none'})")
         self.state_file = Path(state_file) if state_file is not None else None
         self._lock = threading.RLock()
         self._dirty = False
@@ -117,8 +117,8 @@ class Simulator(WriteRequests, Persistence):
         if not unit_ids:
             raise SimulatorError("a simulator needs at least one unit id")
         for uid in unit_ids:
-            if not spec.valid_unit(uid):
-                raise SimulatorError(f"unit id {uid} is outside {spec.unit_min}..{spec.unit_max} of {spec.model}")
+            if not spec.protocol.valid_unit(uid):
+                raise SimulatorError(f"unit id {uid} is outside {spec.protocol.unit_min}..{spec.protocol.unit_max} of {spec.name}")
         self.units: dict[int, Unit] = {uid: Unit(self, uid) for uid in unit_ids}
         self._state: simstate.StateFile | None = None
         if self.state_file is not None:
@@ -246,7 +246,7 @@ class Simulator(WriteRequests, Persistence):
         """
         if not self.realistic_timing:
             return 0.0
-        t = self.spec.timing
+        t = self.spec.protocol.timing
         if t.processing_ms is not None:
             return (t.processing_ms[0] + t.processing_ms[1]) / 2000.0
         if t.inter_frame_gap_ms is not None:
@@ -273,7 +273,7 @@ class Simulator(WriteRequests, Persistence):
         current: str | None = case
         while current is not None and current not in seen:
             seen.add(current)
-            for item in self.spec.exception_policy:
+            for item in self.spec.protocol.exception_policy:
                 if item.case == current:
                     return item.code
             current = FALLBACK.get(current)
@@ -291,7 +291,7 @@ class Simulator(WriteRequests, Persistence):
             return None
         with self._lock:
             try:
-                if self.spec.broadcast_address is not None and unit_id == self.spec.broadcast_address:
+                if self.spec.protocol.broadcast_address is not None and unit_id == self.spec.protocol.broadcast_address:
                     for each in self.units.values():
                         self.behaviour.on_request(each)
                     self._broadcast(pdu)
@@ -318,7 +318,7 @@ class Simulator(WriteRequests, Persistence):
                 self._save_if_dirty()
 
     def _broadcast(self, pdu: bytes) -> None:
-        fc = self.spec.function(pdu[0])
+        fc = self.spec.protocol.function(pdu[0])
         if fc is None or fc.broadcast is not True or pdu[0] not in (0x05, 0x06, 0x0F, 0x10):
             return  # the device ignores broadcast requests it cannot execute
         for unit in self.units.values():
@@ -328,14 +328,14 @@ class Simulator(WriteRequests, Persistence):
                 self._record(unit, refused.case)
 
     def _record(self, unit: Unit, case: str) -> None:
-        for item in self.spec.comm_error_policy:
+        for item in self.spec.protocol.comm_error_policy:
             if item.case == case:
                 if item.code is not None:
                     unit.record_comm_error(item.code)
                 return
 
     def _serve(self, unit: Unit, code: int, data: bytes, *, broadcast: bool) -> bytes:
-        fc = self.spec.function(code)
+        fc = self.spec.protocol.function(code)
         if fc is None:
             raise Refused("illegal_function")
         if code in (0x03, 0x04):
@@ -384,7 +384,7 @@ class Simulator(WriteRequests, Persistence):
 
     def _aligned(self, table: str, address: int, quantity: int, operation: str) -> None:
         """Refuse a request that breaks an alignment rule of the map with the rule's exception code."""
-        broken = violation(self.spec, table, address, quantity, operation) if self.spec.alignment else None
+        broken = violation(self.spec, table, address, quantity, operation) if self.spec.protocol.alignment else None
         if broken is not None:
             raise Refused("illegal_address", broken[0].exception)
 
@@ -471,7 +471,7 @@ class Simulator(WriteRequests, Persistence):
         if name not in self._cells:
             if name in self._regs:
                 raise SimulatorError(f"{name} is an array; name an element, e.g. {name}[0]")
-            raise SimulatorError(f"{self.spec.model} has no register {name!r}")
+            raise SimulatorError(f"{self.spec.name} has no register {name!r}")
         return name
 
     def _reg_of(self, name: str) -> RegisterSpec:

@@ -243,7 +243,7 @@ class Unit:
 
     def record_comm_error(self, code: int) -> None:
         """Push a communication error code into the history register (newest first)."""
-        name = self.sim.spec.comm_error_history
+        name = self.sim.spec.protocol.comm_error_history
         if name is None:
             return
         reg = self.sim.spec.register(name)

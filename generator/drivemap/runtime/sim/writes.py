@@ -117,9 +117,9 @@ class WriteRequests:
             if reg.storage == "eeprom":
                 self._dirty = True
             if (
-                self.spec.configuration is not None
-                and reg.name == self.spec.configuration[0]
-                and raw == self.spec.configuration[1]
+                self.spec.protocol.configuration is not None
+                and reg.name == self.spec.protocol.configuration.register
+                and raw == self.spec.protocol.configuration.value
             ):
                 unit.apply_configuration()
             self.behaviour.on_write(unit, cell, raw)

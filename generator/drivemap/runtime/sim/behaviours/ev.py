@@ -132,7 +132,7 @@ class Ev(Behaviour):
         if not limit_ms or since * 1000.0 <= limit_ms or unit.scratch.get("timed_out"):
             return
         unit.scratch["timed_out"] = True
-        code = unit.sim.spec.comm_policy("timeout")
+        code = unit.sim.spec.protocol.comm_policy("timeout")
         if code is not None:
             unit.record_comm_error(code)
         action = unit.raw("comm_error_action") if unit.has("comm_error_action") else ACTION_ALARM
