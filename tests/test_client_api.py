@@ -38,10 +38,8 @@ def ev_drive() -> Any:
 
 def test_issue_example(ev_drive: Any) -> None:
     sim, drive = ev_drive
-    drive.digital_speed_ram[0].write(1000)
-    assert sim.get("digital_speed_ram[0]") == 1000
-    drive.net_in.write(ev.NetIn.X0)
-    assert sim.get_raw("net_in") == 1
+    # the monitors first: once X0 (start/stop by default) is on, the simulated motor ramps and its
+    # next tick rewrites motor_speed
     sim.set("motor_state", int(ev.MotorState.RUN))
     sim.set("motor_speed", 1234)
     snap = drive.read(drive.motor_state, drive.motor_speed)
@@ -49,6 +47,10 @@ def test_issue_example(ev_drive: Any) -> None:
     assert snap.motor_speed == 1234
     assert snap[drive.motor_speed] == 1234
     assert snap.digital_speed is None  # not read
+    drive.digital_speed_ram[0].write(1000)
+    assert sim.get("digital_speed_ram[0]") == 1000
+    drive.net_in.write(ev.NetIn.X0)
+    assert sim.get_raw("net_in") == 1
     assert drive.read_by_name("digital_speed_ram[0]") == 1000
     drive.write_by_name("digital_speed_ram[1]", 1500)
     assert drive.digital_speed_ram[1].read() == 1500
