@@ -390,7 +390,23 @@ class DeviceSpec:
             self._index.update({r.name: r for r in self.registers})
         return self._index[name]
 
-    if not TYPE_CHECKING:  # type checkers see only the current names
+    if not TYPE_CHECKING:  # type checkers see only the current names and the generated __init__
+
+        def __init__(self, device: ProductSpec | None = None, protocol: ProtocolSpec | None = None,
+                     registers: tuple[RegisterSpec, ...] = (), reserved: tuple[ReservedSpec, ...] = (),
+                     identity: tuple[IdentitySpec, ...] = (), enums: tuple[EnumSpec, ...] = (),
+                     **flat: object) -> None:
+            """The dataclass's fields, or the flat form a ``spec.py`` of an earlier release prints
+            (``DeviceSpec(model=..., title=..., modes=..., ...)``), with a DeprecationWarning."""
+            if flat:
+                warnings.warn("DeviceSpec(model=..., modes=..., ...) is the form of an earlier release; "
+                              "run `drivemap build` to write the current one", DeprecationWarning, stacklevel=2)
+                device, protocol = _split_flat(flat)
+            if device is None or protocol is None:
+                raise TypeError("DeviceSpec needs device and protocol")
+            for name, value in (("device", device), ("protocol", protocol), ("registers", registers),
+                                ("reserved", reserved), ("identity", identity), ("enums", enums), ("_index", {})):
+                object.__setattr__(self, name, value)
 
         def __getattr__(self, name: str) -> object:
             """The flat attributes of earlier releases (``SPEC.timing``, ``SPEC.model``), with a DeprecationWarning."""
@@ -399,3 +415,17 @@ class DeviceSpec:
                 raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
             warnings.warn(f"DeviceSpec.{name} is now DeviceSpec.{part}.{name}", DeprecationWarning, stacklevel=2)
             return getattr(object.__getattribute__(self, part), name)
+
+
+def _split_flat(flat: dict[str, object]) -> tuple[ProductSpec, ProtocolSpec]:
+    """The device and protocol of a flat DeviceSpec of an earlier release (tuples where now classes are)."""
+    given = dict(flat)
+    device = ProductSpec(str(given.pop("model")), str(given.pop("title")))
+    configuration, running = given.get("configuration"), given.get("running_state")
+    if isinstance(configuration, tuple):
+        given["configuration"] = CommandSpec(*configuration)
+    if isinstance(running, tuple):
+        given["running_state"] = RunningStateSpec(*running)
+    given["reply_quirks"] = tuple(q if isinstance(q, ReplyQuirkSpec) else ReplyQuirkSpec(str(q))
+                                  for q in given.get("reply_quirks", ()))  # type: ignore[attr-defined]
+    return device, ProtocolSpec(**given)  # type: ignore[arg-type]
