@@ -25,9 +25,8 @@ import dataclasses
 import enum
 import json
 import math
-import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from drivemap.gateway.config import DeviceConfig, PollGroup
@@ -66,7 +65,6 @@ class Command:
     source: str = "mqtt"
     value: Any = None
     done: asyncio.Future[None] | None = None
-    accepted_at: float = field(default_factory=time.monotonic)
 
 
 @dataclass

@@ -85,15 +85,12 @@ class Line:
         self._wake = asyncio.Event()
         self.stopping = False
         self.polls_done = 0
-        self.commands_accepted = 0
-        self.commands_done = 0
         self.faults = 0
         self.started = time.monotonic()
 
     def submit(self, cmd: Command) -> None:
         """Queue a checked command (it goes out before the next poll)."""
         self._commands.append(cmd)
-        self.commands_accepted += 1
         self._wake.set()
 
     @property
@@ -205,7 +202,6 @@ class Line:
         except Exception as exc:  # noqa: BLE001 - answered like any failed command, and logged
             log.exception("%s: %s <- %r failed", device.name, cmd.target, cmd.given)
             error = exc
-        self.commands_done += 1
         log.info("%s: %s <- %r: %s", device.name, cmd.target, cmd.given, "ok" if error is None else error)
         self.sink.publish_outcome(device, outcome(cmd, error))
         if cmd.done is not None and not cmd.done.done():
