@@ -176,3 +176,18 @@ def test_a_spec_py_written_by_an_earlier_release_still_imports_and_equals_todays
     with pytest.warns(DeprecationWarning, match="earlier release"):
         loader.loader.exec_module(module)
     assert module.SPEC == spec_from_model(compile_map(ROOT / "maps" / f"{model}.yaml"))
+
+
+def test_the_json_export_says_what_the_map_says_of_the_protocol_not_the_runtimes_derived_facts() -> None:
+    """The model's protocol also holds the runtime's serial defaults and fixed unit ids (derived from the
+    ports); the export contract is the map's protocol (its unit_ids as unit_min/unit_max/unit_source)."""
+    import json
+
+    from drivemap.backends.export import export
+
+    schema = json.loads((ROOT / "schemas" / "drivemap.schema.json").read_text(encoding="utf-8"))
+    map_keys = set(schema["properties"]["protocol"]["properties"]) - {"unit_ids"}
+    for path in MAPS:
+        keys = list(export(compile_map(path))["protocol"])
+        assert set(keys) == map_keys | {"unit_min", "unit_max", "unit_source"}, path.stem
+        assert keys[:3] == ["modes", "unit_min", "unit_max"]

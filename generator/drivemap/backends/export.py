@@ -65,12 +65,26 @@ def _function(fc: FunctionCode) -> dict[str, Any]:
             "source": fc.source, "notes": fc.notes, "broadcast_reason": fc.broadcast_reason}
 
 
+#: The contract's protocol keys, in its order: what the map says (the runtime's ``serial`` and
+#: ``fixed_units``, derived from the ports, are not part of it).
+PROTOCOL_KEYS = ("modes", "unit_min", "unit_max", "unit_source", "broadcast_address", "ports", "function_codes",
+                 "exceptions", "comm_errors", "exception_policy", "comm_error_policy", "comm_error_history", "timing",
+                 "max_frame_bytes", "configuration", "checksum", "source", "notes", "running_state", "reply_quirks",
+                 "max_gap", "alignment")
+
+
+def _protocol(model: Model) -> dict[str, Any]:
+    p = model.protocol
+    return {key: [_function(fc) for fc in p.function_codes] if key == "function_codes" else _plain(getattr(p, key))
+            for key in PROTOCOL_KEYS}
+
+
 def export(model: Model) -> dict[str, Any]:
     """The export contract of one compiled model."""
     return {
         "model": model.device.model,
         "title": model.device.title,
-        "protocol": {**_plain(model.protocol), "function_codes": [_function(fc) for fc in model.protocol.function_codes]},
+        "protocol": _protocol(model),
         "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
         "reserved": [
             {
