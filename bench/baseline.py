@@ -18,6 +18,10 @@ rounds:
   median drivemap and raw pymodbus time per call: the round's ratio, as in section 2;
 * **wire efficiency**: each round runs each tree's own ``wire.run`` (quick form: its line relay, its
   simulator, its clients) and keeps section 3's rows with a goal (``WIRE_ROWS``);
+* **wire calls** (detail only): section 3's rows counted, not timed, on each tree's code
+  (``wirecalls.py``, this checkout's, run by the child on that tree's runtime, generated client and
+  simulator and its own ``wire.pick``): Python calls and bytecode instructions per transaction and the
+  waits the request path is set to keep, which the machine's load does not move;
 * **import time**: each tree builds its synthetic map of ``IMPORT_SIZE`` registers with its own
   ``imports.build`` (its compiler, its ``synthetic.py``); each round imports it with that tree's
   ``imports._child`` (a fresh interpreter, cold then cached or the reverse), trees interleaved.
@@ -42,6 +46,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+import wirecalls
 from common import ROOT, Row, Section, median, spread
 
 TITLE = "Against the baseline (same run)"
@@ -50,7 +55,9 @@ BASELINE = "35fa167"
 IMPORT_SIZE = 10000
 OPS = ("read_all", "read 8", "read one", "write one")
 #: Section 3's rows with a goal: the generated client on the generated simulator.
-WIRE_ROWS = ("sync read 16", "sync write one", "async read 16", "async write one")
+WIRE_ROWS = wirecalls.ROWS
+#: Transactions per row counted by ``wirecalls`` (calls and instructions per transaction do not vary with it).
+WIRE_CALLS = 100
 
 CHILD = Path(__file__).resolve().parent / "baseline_child.py"
 DEFINITION = f"""\
@@ -69,7 +76,10 @@ spread** when it is past it but not past the baseline's worst round and not ever
 worse; **WORSE** otherwise. Ratios of different runs differ with the loopback round trip (the same µs of
 overhead is a larger ratio on a faster round trip), which is why only figures of one run are compared. The µs
 table (diagnostic, not in the summary) splits the time: on the network, and with pymodbus's `execute()`
-replaced by the replies it gave (the client's own layers' CPU, the least of 5 loops per round)."""
+replaced by the replies it gave (the client's own layers' CPU, the least of 5 loops per round). The last table
+counts section 3's rows instead of timing them (`bench/wirecalls.py`): Python calls and bytecode instructions per
+transaction of each tree's client (and of its simulator's own work) and the waits on the request path; equal
+counts and waits mean a difference in the wire rows above is the paced line's noise."""
 
 
 def baseline_tree(dest: Path, commit: str | None = None) -> str | None:
@@ -184,6 +194,11 @@ def _wire_rounds(trees: dict[str, Path], rounds: int) -> dict[str, dict[str, lis
     return out
 
 
+def _wire_calls(trees: dict[str, Path], transactions: int) -> dict[str, dict[str, Any]]:
+    """tree -> section 3's rows counted on that tree's code (``wirecalls.py``: calls, instructions, waits)."""
+    return {name: _call(tree, "wirecalls", str(transactions)) for name, tree in trees.items()}
+
+
 def _import_rounds(trees: dict[str, Path], tmp: Path, size: int, rounds: int) -> dict[str, dict[str, list[float]]]:
     """tree -> "cold"/"cached" -> per-round import seconds of that tree's synthetic client; "construct" ->
     import and first ``Client.tcp()`` (cached)."""
@@ -289,15 +304,22 @@ def run(quick: bool) -> Section:
         over = _overhead_rounds(trees, rounds, count, seconds, stub_calls)
         took["wire"] = time.perf_counter()
         wire = _wire_rounds(trees, wire_rounds)
+        took["calls"] = time.perf_counter()
+        calls = _wire_calls(trees, WIRE_CALLS)
         took["import"] = time.perf_counter()
         imp = _import_rounds(trees, tmp, size, import_rounds)
         took["end"] = time.perf_counter()
     sec.detail += [f"Baseline: commit `{BASELINE}`; current: {_head()}. Client overhead: model vfd1000, {rounds} "
                    f"rounds of up to {count} call pairs per operation ({took['wire'] - took['overhead']:.0f} s); "
                    f"wire: {wire_rounds} rounds of each tree's section 3 in its quick form "
-                   f"({took['import'] - took['wire']:.0f} s); import: a synthetic map of {size} registers, "
+                   f"({took['calls'] - took['wire']:.0f} s); import: a synthetic map of {size} registers, "
                    f"{import_rounds} rounds ({took['end'] - took['import']:.0f} s).", ""]
     _report(sec, over, wire, imp, size)
+    sec.detail += ["", f"Section 3's rows counted, not timed ({took['import'] - took['calls']:.0f} s; "
+                   "`bench/wirecalls.py` on each tree's code: the same client calls as section 3 on a pty answered "
+                   f"by the tree's simulator without delay, {WIRE_CALLS} transactions per row after a warm-up, "
+                   "each begun after the bus's quiet time so no wait loop is counted; the load of the machine "
+                   "does not move these figures):", "", *wirecalls.compare(calls["baseline"], calls["current"])]
     return sec
 
 

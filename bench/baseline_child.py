@@ -7,12 +7,15 @@ is taken off ``sys.path`` so the tree's bench modules are the ones imported (the
     python bench/baseline_child.py import PATH PACKAGE CACHED
     python bench/baseline_child.py construct PATH PACKAGE   (import + the first ``Client.tcp()``, no connection)
     python bench/baseline_child.py wire        (the tree's section 3 in its quick form: efficiency by row name)
+    python bench/baseline_child.py wirecalls N (section 3's rows counted on the tree's code: ``wirecalls.py``,
+                                                this checkout's, loaded by path; the tree may predate it)
 """
 
 from __future__ import annotations
 
 import asyncio
 import importlib
+import importlib.util
 import json
 import sys
 import time
@@ -139,6 +142,13 @@ def main(argv: list[str]) -> None:
         return
     if argv[0] == "overhead":
         print(json.dumps(overhead_main(argv[1:])))
+        return
+    if argv[0] == "wirecalls":
+        spec = importlib.util.spec_from_file_location("wirecalls", Path(__file__).resolve().parent / "wirecalls.py")
+        assert spec is not None and spec.loader is not None
+        wirecalls = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(wirecalls)
+        print(json.dumps(wirecalls.measure(int(argv[1]))))
         return
     if argv[0] == "wire":
         wire = importlib.import_module("wire")

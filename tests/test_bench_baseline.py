@@ -14,6 +14,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
 import baseline  # noqa: E402
+import wirecalls  # noqa: E402
 
 
 def _has_commit(commit: str) -> bool:
@@ -106,3 +107,53 @@ def test_tree_metadata_carries_the_trees_entry_points(tmp_path: Path) -> None:
                          check=True).stdout
     assert out.strip() == "['elsewhere.ev:Ev']"
     assert str(folder) in env["PYTHONPATH"].split(":")
+
+
+def _row(calls: float, opcodes: dict[str, float]) -> dict[str, object]:
+    return {"calls": calls, "opcodes": sum(opcodes.values()), "opcodes by function": opcodes,
+            "waits": {"select timeouts (ms) per transaction": {"1.00": 1.0}, "time.sleep calls per transaction": 0.9}}
+
+
+def _counted(extra: float = 0.0, settle: float = 0.001, sleeps: float = 0.9) -> dict[str, object]:
+    out: dict[str, object] = {row: _row(10 + extra, {"a/x.py:transact": 50 + extra, "b/y.py:read": 20})
+                              for row in wirecalls.ROWS}
+    out["sync read 16"]["waits"]["time.sleep calls per transaction"] = sleeps  # type: ignore[index]
+    out["device"] = {"reply delay": 0.004, "read 16": {"calls": 5, "opcodes": 9.0},
+                     "write one": {"calls": 6, "opcodes": 9.0}}
+    out["sync design"] = {"guard settle": settle, "quiet after a reply": 0.00175}
+    return out
+
+
+def test_wire_calls_compare_names_what_differs() -> None:
+    """Equal counts and waits read as equal (the machine-dependent sleep count is left out); one more
+    instruction in a function, or a longer settle time, is named."""
+    same = wirecalls.compare(_counted(), _counted(sleeps=0.5))
+    assert [line.split(" | ")[-1] for line in same[2:6]] == ["none |"] * 4
+    assert same[-1].endswith("the same in both trees.")
+    changed = wirecalls.compare(_counted(), _counted(extra=1.0, settle=0.002))
+    assert "| sync read 16 | 10.0 → 11.0 | 70.0 → 71.0 | transact 50→51 |" in changed
+    assert changed[-1].endswith("DIFFERENT: sync design: guard settle: 0.001 → 0.002.")
+
+
+def test_wire_calls_are_counted_not_timed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Section 3's rows counted on this tree: the counts do not depend on how many transactions are
+    counted, and one more call on the request path, or a longer settle time, shows in every row it touches."""
+    from drivemap.runtime.client import busbase, staleguard
+
+    first, second = wirecalls.measure(6), wirecalls.measure(10)
+    assert wirecalls.compare(first, second)[2:6] == wirecalls.compare(first, first)[2:6]
+    assert all(first[row]["calls"] > 100 and first[row]["calls"] == second[row]["calls"] for row in wirecalls.ROWS)
+    assert wirecalls.compare(first, second)[-1].endswith("the same in both trees.")
+    plain = busbase._BusBase._wait_s
+
+    def one_more_call(self: busbase._BusBase) -> float:
+        return plain(self)
+
+    monkeypatch.setattr(busbase._BusBase, "_wait_s", one_more_call)
+    monkeypatch.setattr(staleguard, "_MIN_SETTLE_S", 0.002)
+    slower = wirecalls.measure(6)
+    assert [slower[row]["calls"] - first[row]["calls"] for row in wirecalls.ROWS] == [1.0] * 4
+    lines = wirecalls.compare(first, slower)
+    assert all("one_more_call 0→" in line for line in lines[2:6])
+    assert "sync design: guard settle: 0.001 → 0.002" in lines[-1]
+    assert "sync read 16: select timeouts (ms) per transaction: {'1.00': 1.0, " in lines[-1]
