@@ -58,7 +58,8 @@ def _meter_workbook(path: Path) -> Path:
                 [None, 1655, "SlowBaud", None, "Read/Write", None, "1 = 1200 baud, 2 = 2400 baud"],
                 [None, 1656, "CurrentStep", None, "Read-Only", None, "1 = 0.1 A, 10 = 1 A"],
                 [None, 1657, "Voltage", None, "Read-Only", None, "Line voltage (1 = 0.1 V)"],
-                [None, 1658, "ErrorStatus", None, "Read-Only", None, "Newest error or event (0 = no errors)"]]:
+                [None, 1658, "ErrorStatus", None, "Read-Only", None, "Newest error or event (0 = no errors)"],
+                [None, 1659, "CurrentFine", "0.1 A", "Read-Only", None, "1 = 0.1 A, 10 = 1 A"]]:
         sheet.append(row)
     book.save(path)
     return path
@@ -91,6 +92,9 @@ def test_a_value_list_that_could_be_a_resolution_is_left_for_review(tmp_path: Pa
     # one resolution stated once is still a scale; "0 = no errors" alone is no list
     assert (regs["voltage"]["scale"], regs["voltage"]["unit"]) == (0.1, "V")
     assert "enum" not in regs["error_status"] and "scale" not in regs["error_status"]
+    # the Units column states the resolution: the list restates it
+    fine = regs["current_fine"]
+    assert (fine["scale"], fine["unit"]) == (0.1, "A") and "enum" not in fine and "value list" not in fine["notes"]
 
 
 def test_a_value_list_in_a_csv_description(tmp_path: Path) -> None:

@@ -82,10 +82,7 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
 def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], missing: list[str],
                   notes: list[str], direction: str | None = None) -> tuple[float | None, bool]:
     """Scale and unit; returns (scale, whether the range that follows is in raw counts). A value list
-    in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is read as neither."""
-    listed = value_list(raw.text)
-    if listed is not None:
-        notes.append(f"value list '{listed.printed}': values or a resolution? neither drafted")
+    in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
     factor = parse_number(raw.cells.get("scale", ""))
@@ -97,7 +94,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
         unit = found.unit if found is not None else None
         found = Scale(factor, unit, raw.cells["scale"])
     raw_range = False
-    if (found is None or found.scale is None) and listed is None:
+    listed = value_list(raw.text) if found is None or found.scale is None else None
+    if listed is not None:
+        notes.append(f"value list '{listed.printed}': values or a resolution? neither drafted")
+    elif found is None or found.scale is None:
         in_text = parse_scale(raw.text + " " + raw.cells.get("range", ""), footnote=ctx.footnote)
         if in_text is not None and (found is None or in_text.scale is not None):
             raw_range = in_text.scale is not None and bool(re.search(r"=|means|對應|对应", in_text.printed))
