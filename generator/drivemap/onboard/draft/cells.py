@@ -140,9 +140,14 @@ _NUMBER = r"[-−+]?\d+(?:\.\d+)?"
 _RANGE = re.compile(rf"({_NUMBER})\s*(?:~|～|to|–|—|\.\.|-)\s*({_NUMBER})")
 
 
+_REFERENCE = re.compile(r"(?:\btable|\btab\.|\bfig(?:ure|\.)?|\bchapter|\bsection|\bsec\.|\bappendix|表|图|圖)\s*$", re.I)
+"""``Table 2-2``, ``Figure 3-1``: the numbers of a table or figure, not a range."""
+
+
 def parse_range(text: str) -> tuple[float, float, str] | None:
     """``0 ~ 1000``, ``-10000~10000``, ``0-65535 r/min`` -> (low, high, the text after it)."""
-    m = _RANGE.search(text.replace("−", "-"))
+    text = text.replace("−", "-")
+    m = next((m for m in _RANGE.finditer(text) if not _REFERENCE.search(text[:m.start()])), None)
     if not m:
         return None
     low, high = _num(m.group(1)), _num(m.group(2))
@@ -171,7 +176,6 @@ _ENUM_LABEL_FIRST = re.compile(
 _BIT_ITEM = re.compile(r"(?:^|[\s,;；])bit[ \t]*(?P<b>\d{1,2})(?![ \t]*[-~～][ \t]*\d)[ \t]*[:：=-][ \t]*"
                        r"(?P<l>[^,;；\n]+?)(?=[ \t]*(?:[,;；\n]|$|bits?[ \t]*\d))", re.I)
 """``bit3: label``; a label ends at the next ``bitN`` (a list run into one line); ``bit0~7:`` is a field."""
-_SCALE_LIKE = re.compile(rf"^\s*{_NUMBER}\s*[A-Za-z%°/]*\s*$")
 
 
 def _int_value(text: str) -> int | None:
@@ -187,20 +191,69 @@ def _int_value(text: str) -> int | None:
         return None
 
 
-def parse_enum(text: str) -> list[tuple[int, str]] | None:
-    """``0: STOP 2: RUN``, ``0001H: Forward running``, ``Resistive=1, inductive=2`` -> [(value, label)]."""
+@dataclass(frozen=True)
+class ValueList:
+    """A list of ``N = text`` items (``1 = 1200 baud, 2 = 2400 baud``): what the register's values mean."""
+
+    items: list[tuple[int, str]]
+    ambiguous: bool
+    """Every item is an amount and every amount is the value times one step (``1 = 0.1 A, 10 = 1 A``):
+    the list may be a set of values or a resolution restated; the document does not say which."""
+    printed: str = ""
+
+
+_AMOUNT = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z%°/]+)\s*$")
+_BARE_NUMBER = re.compile(rf"^\s*{_NUMBER}\s*$")
+
+
+def _one_step(items: list[tuple[int, str]]) -> bool:
+    """True when every label is an amount in one unit and each amount is its value times one step."""
+    amounts = [_AMOUNT.match(label) for _, label in items]
+    if not all(amounts) or len({m.group(2) for m in amounts if m}) != 1:
+        return False
+    steps = set()
+    for (value, _), m in zip(items, amounts, strict=True):
+        amount = float(m.group(1)) if m else 0.0
+        if value == 0:
+            if amount != 0:
+                return False
+            continue
+        steps.add(round(amount / value, 9))
+    return len(steps) == 1
+
+
+def value_list(text: str) -> ValueList | None:
+    """``N = text`` (or ``N: text``) items, two or more with distinct values, amounts (``9600 baud``,
+    ``60 Hz``) included; None when the text lists no values. A bare number (``12:00``) is no label,
+    and an amount in parentheses (``(1 = 0.01 VDC)``) states a resolution, not a value."""
     items: list[tuple[int, str]] = []
+    span: list[int] = []
     for m in _ENUM_VALUE_FIRST.finditer(text):
         value, label = _int_value(m.group("v")), m.group("l").strip()
-        if value is None or not label or _SCALE_LIKE.match(label) or label.lower().startswith(("bit", "byte")):
+        if value is None or not label or _BARE_NUMBER.match(label) or label.lower().startswith(("bit", "byte")):
+            continue
+        if _AMOUNT.match(label) and text[:m.start("v")].rstrip().endswith(("(", "（")):
             continue
         items.append((value, label))
-    if len(items) < 2:
-        items = []
-        for m in _ENUM_LABEL_FIRST.finditer(text):
-            label = m.group("l").strip()
-            if label.lower() not in ("1", "bit") and not label.lower().startswith("bit"):
-                items.append((int(m.group("v")), label))
+        span += [m.start("v"), m.end("l")]
+    values = [v for v, _ in items]
+    if len(items) < 2 or len(set(values)) != len(values):
+        return None
+    return ValueList(items, _one_step(items), re.sub(r"\s+", " ", text[span[0]:span[-1]]))
+
+
+def parse_enum(text: str) -> list[tuple[int, str]] | None:
+    """``0: STOP 2: RUN``, ``0001H: Forward running``, ``Resistive=1, inductive=2`` -> [(value, label)].
+    A list of amounts (``4 = 9600 baud, 5 = 19200 baud``) is a list of values too, unless every amount
+    is its value times one step (:attr:`ValueList.ambiguous`): then None, and no resolution either."""
+    listed = value_list(text)
+    if listed is not None:
+        return None if listed.ambiguous else listed.items
+    items = []
+    for m in _ENUM_LABEL_FIRST.finditer(text):
+        label = m.group("l").strip()
+        if label.lower() not in ("1", "bit") and not label.lower().startswith("bit"):
+            items.append((int(m.group("v")), label))
     values = [v for v, _ in items]
     if len(items) < 2 or len(set(values)) != len(values):
         return None

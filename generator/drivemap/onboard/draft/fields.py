@@ -17,6 +17,7 @@ from drivemap.onboard.draft.cells import (
     parse_range,
     parse_type,
     signed_hint,
+    value_list,
 )
 from drivemap.onboard.draft.tables import Drafted
 from drivemap.onboard.draft.units import Scale, parse_scale, unit_after_range
@@ -80,7 +81,8 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
 
 def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], missing: list[str],
                   notes: list[str], direction: str | None = None) -> tuple[float | None, bool]:
-    """Scale and unit; returns (scale, whether the range that follows is in raw counts)."""
+    """Scale and unit; returns (scale, whether the range that follows is in raw counts). A value list
+    in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
     factor = parse_number(raw.cells.get("scale", ""))
@@ -92,7 +94,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
         unit = found.unit if found is not None else None
         found = Scale(factor, unit, raw.cells["scale"])
     raw_range = False
-    if found is None or found.scale is None:
+    listed = value_list(raw.text) if found is None or found.scale is None else None
+    if listed is not None:
+        notes.append(f"value list '{listed.printed}': values or a resolution? neither drafted")
+    elif found is None or found.scale is None:
         in_text = parse_scale(raw.text + " " + raw.cells.get("range", ""), footnote=ctx.footnote)
         if in_text is not None and (found is None or in_text.scale is not None):
             raw_range = in_text.scale is not None and bool(re.search(r"=|means|對應|对应", in_text.printed))
@@ -213,6 +218,18 @@ def _default_field(raw: Raw, scale: float | None, entry: dict[str, object], note
     entry["default"] = value
 
 
+def _enum_default(raw: Raw, enum: list[tuple[int, str]], entry: dict[str, object], notes: list[str]) -> None:
+    """The default of a register that holds listed values: one of those values, else left out."""
+    printed = raw.cells.get("default", "")
+    value = parse_number(printed)
+    if value is None:
+        return
+    if isinstance(value, int) and value in {v for v, _ in enum}:
+        entry["default"] = value
+    else:
+        notes.append(f"default {printed!r} is none of the listed values: left out")
+
+
 def _access_field(raw: Raw, entry: dict[str, object], missing: list[str]) -> None:
     access = parse_access(raw.cells.get("access", "")) if raw.cells.get("access") else raw.access
     if access is None and raw.table in ("input", "discrete"):
@@ -249,6 +266,7 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         missing = [m for m in missing if m != "type"]
     elif enum:
         entry["enum"] = enum
+        _enum_default(raw, enum, entry, notes)
     if not bits and not enum:
         scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes, direction)
         _range_fields(raw, scale, raw_range, entry, missing, notes)
