@@ -235,11 +235,12 @@ def device_cost(wire: Any, mod: Any, n: int) -> dict[str, Any]:
 def _design(client: Any, spec: Any) -> dict[str, Any]:
     """What the request path is set to wait (seconds), from the tree's bus, receiver, guard and pymodbus."""
     bus, pm = client.bus, client.bus.client
+    timing = spec.protocol.timing if hasattr(spec, "protocol") else spec.timing  # the baseline's spec is flat
     out: dict[str, Any] = {
-        "quiet after a reply": bus._quiet_s(spec.timing, True),
-        "silent interval (t3.5)": bus.silent_interval_s(spec.timing),
-        "response timeout": bus.timeout_for(spec.timing),
-        "retries": bus.retries_for(spec.timing),
+        "quiet after a reply": bus._quiet_s(timing, True),
+        "silent interval (t3.5)": bus.silent_interval_s(timing),
+        "response timeout": bus.timeout_for(timing),
+        "retries": bus.retries_for(timing),
         "pymodbus poll interval (_recv_interval)": getattr(pm, "_recv_interval", None),
         "pymodbus inter_byte_timeout": getattr(pm, "inter_byte_timeout", None),
         "pymodbus timeout_connect": pm.comm_params.timeout_connect,
