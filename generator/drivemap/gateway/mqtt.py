@@ -121,10 +121,10 @@ class MqttBridge:
     async def run(self) -> None:
         """Connect, serve, and reconnect with backoff, until cancelled.
 
-        The owner sets :attr:`stopping` before it cancels: on Python 3.11 a cancellation can be lost
-        (``asyncio.TaskGroup`` reports a child's error instead when both arrive together, as when the
-        broker goes as the gateway stops; ``asyncio.wait_for`` returns an operation that finished as
-        it was cancelled), and the flag still ends the loops.
+        The owner sets :attr:`stopping` before it cancels, because a cancellation can be lost:
+        ``asyncio.TaskGroup`` raises a child's error instead of it when both arrive together (the
+        broker goes as the gateway stops), and on Python 3.11 ``asyncio.wait_for`` (in aiomqtt's
+        publish) returns an operation that finished as it was cancelled. The flag still ends the loops.
         """
         delay = self.cfg.reconnect_min
         while not self.stopping:

@@ -46,8 +46,8 @@ async def stop_tasks(tasks: list[asyncio.Task[Any]], grace: float = STOP_GRACE) 
 
     No task is left behind: an abandoned task is closed by the garbage collector, its ``finally``
     blocks cut short (``coroutine ignored GeneratorExit``) and its connections left open. A task
-    still running after ``grace`` seconds is named in the log and cancelled again (Python 3.11 can
-    lose a cancellation that arrives as an operation finishes); each task bounds its own clean-up.
+    still running after ``grace`` seconds is named in the log and cancelled again (a cancellation
+    that arrives as an operation finishes can be lost); each task bounds its own clean-up.
     """
     pending = {task for task in tasks if not task.done()}
     while pending:
