@@ -84,6 +84,7 @@ class MqttBridge:
         self.connections = 0
         self.failures = 0
         self.published = 0
+        self.stopping = False  # set by the owner before it cancels run() (see there)
         if cfg.discovery:
             for dev in devices.values():
                 for topic, payload in discovery_messages(gateway, dev, cfg.discovery_prefix, self.availability_topic,
@@ -118,13 +119,21 @@ class MqttBridge:
                               timeout=10.0, logger=_CLIENT_LOG)
 
     async def run(self) -> None:
-        """Connect, serve, and reconnect with backoff, until cancelled."""
+        """Connect, serve, and reconnect with backoff, until cancelled.
+
+        The owner sets :attr:`stopping` before it cancels, because a cancellation can be lost:
+        ``asyncio.TaskGroup`` raises a child's error instead of it when both arrive together (the
+        broker goes as the gateway stops), and on Python 3.11 ``asyncio.wait_for`` (in aiomqtt's
+        publish) returns an operation that finished as it was cancelled. The flag still ends the loops.
+        """
         delay = self.cfg.reconnect_min
-        while True:
+        while not self.stopping:
             try:
                 await self._connection()
                 delay = self.cfg.reconnect_min
             except aiomqtt.MqttError as exc:
+                if self.stopping:  # the stop came with the broker's loss (reported instead of the cancellation)
+                    return
                 self.failures += 1
                 log.warning("MQTT broker %s:%d: %s; reconnecting in %.1f s", self.cfg.host, self.cfg.port, exc, delay)
             self.connected.clear()
@@ -136,9 +145,18 @@ class MqttBridge:
         await client.__aenter__()
         try:
             await self._session(client)
-        finally:  # a broker that never acknowledges the disconnection does not hold the gateway up
-            with contextlib.suppress(Exception, TimeoutError):
-                await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
+        except GeneratorExit:  # closed, not cancelled (its task was dropped): nothing can be awaited any more
+            raise
+        except BaseException:
+            await self._disconnect(client)
+            raise
+        await self._disconnect(client)
+
+    @staticmethod
+    async def _disconnect(client: aiomqtt.Client) -> None:
+        """End the connection; a broker that never acknowledges the disconnection does not hold the gateway up."""
+        with contextlib.suppress(Exception, TimeoutError):
+            await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
 
     async def _session(self, client: aiomqtt.Client) -> None:
         try:
@@ -180,6 +198,8 @@ class MqttBridge:
 
     async def _send(self, client: aiomqtt.Client) -> None:
         while True:
+            if self.stopping:  # a publish that completed as it was cancelled returned (wait_for, 3.11)
+                return
             await self._wake.wait()
             self._wake.clear()
             while self._dirty or self._outbox:

@@ -37,6 +37,28 @@ def make_bus(cfg: BusConfig, package: Any) -> AsyncBus:
                            **overrides)
 
 
+#: Seconds a stopping task gets before it is cancelled again (more than the MQTT bridge's own bounded goodbye).
+STOP_GRACE = 5.0
+
+
+async def stop_tasks(tasks: list[asyncio.Task[Any]], grace: float = STOP_GRACE) -> None:
+    """Cancel ``tasks`` and wait until every one has ended.
+
+    No task is left behind: an abandoned task is closed by the garbage collector, its ``finally``
+    blocks cut short (``coroutine ignored GeneratorExit``) and its connections left open. A task
+    still running after ``grace`` seconds is named in the log and cancelled again (a cancellation
+    that arrives as an operation finishes can be lost); each task bounds its own clean-up.
+    """
+    pending = {task for task in tasks if not task.done()}
+    while pending:
+        for task in pending:
+            task.cancel()
+        _, pending = await asyncio.wait(pending, timeout=grace)
+        if pending:
+            log.warning("still stopping after %.1f s: %s; cancelling again", grace,
+                        ", ".join(sorted(task.get_name() for task in pending)))
+
+
 class Gateway:
     """Everything one configuration runs; ``await gateway.run(stop)`` until ``stop`` is set."""
 
@@ -99,8 +121,8 @@ class Gateway:
         finally:
             for line in self.lines:
                 line.stopping = True
-            for task in [*tasks, stopper]:
-                task.cancel()
-            await asyncio.wait([*tasks, stopper], timeout=10.0)
+            if self.mqtt is not None:
+                self.mqtt.stopping = True
+            await stop_tasks([*tasks, stopper])
             if self.opcua is not None:
                 await self.opcua.stop()
