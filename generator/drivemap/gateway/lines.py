@@ -85,12 +85,14 @@ class Line:
         self._wake = asyncio.Event()
         self.stopping = False
         self.polls_done = 0
+        self.commands_accepted = 0
         self.faults = 0
         self.started = time.monotonic()
 
     def submit(self, cmd: Command) -> None:
         """Queue a checked command (it goes out before the next poll)."""
         self._commands.append(cmd)
+        self.commands_accepted += 1
         self._wake.set()
 
     @property
