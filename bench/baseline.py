@@ -17,7 +17,9 @@ rounds:
   ``overhead._ops_sync`` / ``_ops_async`` and ``paired`` / ``apaired`` and returns each operation's
   median drivemap and raw pymodbus time per call: the round's ratio, as in section 2;
 * **wire efficiency**: each round runs each tree's own ``wire.run`` (quick form: its line relay, its
-  simulator, its clients) and keeps section 3's rows with a goal (``WIRE_ROWS``);
+  simulator, its clients) and keeps section 3's rows with a goal (``WIRE_ROWS``); the current tree runs
+  a second time in each round as an A/A control (``control``: the same code against itself), whose
+  per-round quotients show how far the paced line moves a figure with no change at all;
 * **wire calls** (detail only): section 3's rows counted, not timed, on each tree's code
   (``wirecalls.py``, this checkout's, run by the child on that tree's runtime, generated client and
   simulator and its own ``wire.pick``): Python calls and bytecode instructions per transaction and the
@@ -29,7 +31,9 @@ rounds:
 **current/baseline** is the median of the per-round quotients (the two trees' figures of one round
 were taken seconds apart). Verdict: **no worse** when the current median is at or below the
 baseline's (at or above it for an efficiency); **within spread** when it is past it but not past the
-baseline's worst round and not every round (of 5 or more) is worse; **WORSE** otherwise.
+baseline's worst round and not every round (of 5 or more) is worse; **within noise** (an efficiency
+only) when it is worse by those rules but its current/baseline quotient is no lower than the A/A
+control's lowest per-round quotient of the same run; **WORSE** otherwise.
 """
 
 from __future__ import annotations
@@ -73,7 +77,10 @@ this checkout's modules). Section 2's rounds share one generated simulator; sect
 baseline** is the median of the per-round quotients of the two trees (measured seconds apart). Verdict: **no
 worse** when the current median is at or below the baseline's (at or above it for an efficiency); **within
 spread** when it is past it but not past the baseline's worst round and not every round (of 5 or more) is
-worse; **WORSE** otherwise. Ratios of different runs differ with the loopback round trip (the same µs of
+worse; for an efficiency, **within noise** when it is worse by those rules but its current / baseline is no
+lower than the lowest per-round quotient of an A/A control: the current tree's section 3 run a second time in
+every round (the same code against itself, interleaved with the others), which shows how far the paced line
+moves a figure with nothing changed; **WORSE** otherwise. Ratios of different runs differ with the loopback round trip (the same µs of
 overhead is a larger ratio on a faster round trip), which is why only figures of one run are compared. The µs
 table (diagnostic, not in the summary) splits the time: on the network, and with pymodbus's `execute()`
 replaced by the replies it gave (the client's own layers' CPU, the least of 5 loops per round). The last table
@@ -222,12 +229,26 @@ def _import_rounds(trees: dict[str, Path], tmp: Path, size: int, rounds: int) ->
     return out
 
 
+def _noise_verdict(q: float, control: list[float], verdict: str, ok: bool) -> tuple[str, bool]:
+    """``verdict`` of a quotient ``q`` (more is better), or **within noise** when the A/A ``control``
+    quotients (the same code against itself, per round) fall as low as ``q`` does."""
+    if ok or not control:
+        return verdict, ok
+    floor = min(control)
+    if q >= floor:
+        return f"within noise (A/A down to {floor:.3f})", True
+    return f"{verdict} (A/A down to {floor:.3f})", False
+
+
 def _compare(sec: Section, measure: str, base: list[float], cur: list[float], unit: str, digits: int,
-             row: bool = True, higher: bool = False) -> None:
-    """One line of the comparison table (and of the summary when ``row``); ``higher``: more is better."""
+             row: bool = True, higher: bool = False, control: list[float] | None = None) -> None:
+    """One line of the comparison table (and of the summary when ``row``); ``higher``: more is better;
+    ``control``: the A/A control's per-round quotients (an efficiency's noise, same run)."""
     quotients = [c / b for b, c in zip(base, cur, strict=True)]
     verdict, ok = _verdict(base, cur, higher)
     q = median(cur) / median(base)
+    if higher:
+        verdict, ok = _noise_verdict(q, control or [], verdict, ok)
 
     def fig(v: list[float]) -> str:
         return f"{median(v):.{digits}f} ({min(v):.{digits}f}..{max(v):.{digits}f})"
@@ -262,8 +283,10 @@ def _report(sec: Section, over: dict[str, dict[str, list[float]]], wire: dict[st
             _compare(sec, f"{mode} {op} ratio", b[f"{mode} {op}"], c[f"{mode} {op}"], "", 3)
     for name in WIRE_ROWS:
         if name in wire["baseline"] and name in wire["current"]:
+            control = [c2 / c for c, c2 in zip(wire["current"][name], wire.get("control", {}).get(name, []),
+                                                 strict=False)]
             _compare(sec, f"wire {name} efficiency", wire["baseline"][name], wire["current"][name], "", 3,
-                     higher=True)
+                     higher=True, control=control)
         else:
             sec.rows.append(Row(SECTION, f"wire {name} efficiency", None, "—", None,
                                 "not measured: a tree's section 3 has no such row"))
@@ -303,7 +326,7 @@ def run(quick: bool) -> Section:
         took["overhead"] = time.perf_counter()
         over = _overhead_rounds(trees, rounds, count, seconds, stub_calls)
         took["wire"] = time.perf_counter()
-        wire = _wire_rounds(trees, wire_rounds)
+        wire = _wire_rounds({**trees, "control": ROOT}, wire_rounds)
         took["calls"] = time.perf_counter()
         calls = _wire_calls(trees, WIRE_CALLS)
         took["import"] = time.perf_counter()
@@ -311,7 +334,8 @@ def run(quick: bool) -> Section:
         took["end"] = time.perf_counter()
     sec.detail += [f"Baseline: commit `{BASELINE}`; current: {_head()}. Client overhead: model vfd1000, {rounds} "
                    f"rounds of up to {count} call pairs per operation ({took['wire'] - took['overhead']:.0f} s); "
-                   f"wire: {wire_rounds} rounds of each tree's section 3 in its quick form "
+                   f"wire: {wire_rounds} rounds of each tree's section 3 in its quick form, the current tree "
+                   "twice per round (the second run its A/A control) "
                    f"({took['calls'] - took['wire']:.0f} s); import: a synthetic map of {size} registers, "
                    f"{import_rounds} rounds ({took['end'] - took['import']:.0f} s).", ""]
     _report(sec, over, wire, imp, size)

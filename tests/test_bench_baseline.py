@@ -93,6 +93,21 @@ def test_verdicts_when_more_is_better() -> None:
     assert baseline._verdict(base, [0.85, 0.86, 0.88, 0.95, 0.95], higher=True) == ("WORSE", False)
 
 
+def test_an_efficiency_within_the_aa_controls_noise_is_within_noise_and_below_it_worse() -> None:
+    """The A/A control (the current tree against itself in the same rounds) bounds what counts as noise:
+    a shortfall no larger than its lowest per-round quotient is within noise, a larger one stays WORSE."""
+    base = [0.940, 0.941, 0.942, 0.943, 0.944, 0.945]
+    cur = [0.936, 0.937, 0.937, 0.938, 0.938, 0.939]  # every round worse: WORSE by the strict rules
+    assert baseline._verdict(base, cur, higher=True) == ("WORSE", False)
+    noisy = [1.004, 0.996, 0.993, 1.002, 0.999, 1.001]  # the same code against itself moved 0.7 %
+    calm = [1.001, 0.999, 0.998, 1.000, 1.000, 1.002]
+    q = sum(cur) / sum(base)
+    assert baseline._noise_verdict(q, noisy, "WORSE", False) == ("within noise (A/A down to 0.993)", True)
+    assert baseline._noise_verdict(q, calm, "WORSE", False) == ("WORSE (A/A down to 0.998)", False)
+    assert baseline._noise_verdict(q, [], "WORSE", False) == ("WORSE", False)  # no control: the strict rules
+    assert baseline._noise_verdict(1.01, calm, "no worse", True) == ("no worse", True)
+
+
 def test_tree_metadata_carries_the_trees_entry_points(tmp_path: Path) -> None:
     """The child sees the tree's own entry points ahead of the installed drivemap's."""
     tree = tmp_path / "tree"
