@@ -18,6 +18,7 @@ from typing import Any
 import openpyxl
 import pytest
 import yaml
+from test_draft_gaps import _table
 
 from drivemap.cli import main
 from drivemap.compiler import compile_map
@@ -164,16 +165,6 @@ def test_w_r_access_and_a_misspelt_description_column_in_a_csv(tmp_path: Path) -
 ])
 def test_a_table_number_is_no_range(text: str, found: tuple[float, float, str] | None) -> None:
     assert parse_range(text) == found
-
-
-def _table(pdf: Any, rows: list[list[Any]], widths: tuple[int, ...]) -> None:
-    """A ruled table; a cell given as (text, colspan, rowspan) spans columns or rows."""
-    with pdf.table(col_widths=widths, repeat_headings=0, first_row_as_headings=False) as table:
-        for row in rows:
-            cells = table.row()
-            for cell in row:
-                text, colspan, rowspan = cell if isinstance(cell, tuple) else (cell, 1, 1)
-                cells.cell(text, colspan=colspan, rowspan=rowspan)
 
 
 def _inverter_pdf(path: Path) -> Path:
