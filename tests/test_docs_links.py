@@ -121,8 +121,7 @@ def test_map_text_cannot_break_tables_or_inject_html(models: list[Model]) -> Non
     regs = (reg,) + m.registers[1:]
     device = dataclasses.replace(m.device, title=evil, coverage=evil, notes=evil)
     examples = tuple(dataclasses.replace(e, title=evil, notes=evil, source=evil) for e in m.examples)
-    hostile = dataclasses.replace(m, registers=regs, device=device, examples=examples,
-                                  _by_name={r.name: r for r in regs})
+    hostile = dataclasses.replace(m, registers=regs, device=device, examples=examples)
     text = environment().get_template("model.md.jinja").render(**docs.context(hostile, Options()))
     page = parse(text)
     html = [t for t in page.tokens if t.type in ("html_block", "html_inline")]

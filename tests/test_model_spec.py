@@ -191,3 +191,16 @@ def test_the_json_export_says_what_the_map_says_of_the_protocol_not_the_runtimes
         keys = list(export(compile_map(path))["protocol"])
         assert set(keys) == map_keys | {"unit_min", "unit_max", "unit_source"}, path.stem
         assert keys[:3] == ["modes", "unit_min", "unit_max"]
+
+
+def test_a_replaced_model_looks_up_its_own_registers() -> None:
+    """The model's register index is the runtime's, built on first use: ``dataclasses.replace`` gives a
+    model that finds its new registers and not the old ones."""
+    model = compile_map(ROOT / "maps" / "ev.yaml")
+    first = next(r for r in model.registers if not r.is_array)
+    assert model.register(first.name) is first
+    renamed = dataclasses.replace(first, name="renamed_register")
+    other = dataclasses.replace(model, registers=tuple(renamed if r is first else r for r in model.registers))
+    assert other.register("renamed_register") is renamed and other.cell("renamed_register").register is renamed
+    with pytest.raises(KeyError):
+        other.register(first.name)

@@ -18,6 +18,7 @@ enum checks are exactly the client's; any failure is a located error and nothing
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import enum
 import re
@@ -135,7 +136,10 @@ def _encode(codec: Any, value: Any, round_values: bool) -> tuple[int, Any]:
 def lookup(target: Target, name: str, token: str) -> tuple[Register, int | None]:
     """The register and element index of ``name`` / ``name[i]``."""
     match = _NAME.match(name)
-    reg = target.model._by_name.get(match.group(1)) if match else None
+    reg = None
+    if match is not None:
+        with contextlib.suppress(KeyError):
+            reg = target.model.register(match.group(1))
     if match is None or reg is None:
         hint = _similar(target, name)
         raise locate_error(token, f"{target.model.name} has no register {name!r}{hint}")

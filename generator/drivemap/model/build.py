@@ -82,14 +82,12 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         for k in data.get("known_issues", ())
     )
     by_name = {r.name: r for r in registers}
-    model = Model(
+    return Model(
         path=path, device=_device(data["device"]), protocol=_protocol(p), enums=enums, groups=groups,
         registers=tuple(registers), reserved=reserved, known_issues=issues,
         identity=tuple(_identity(x, by_name[x["register"]]) for x in data.get("identity", ())),
         examples=tuple(_example(e, statuses[e["name"]]) for e in data["examples"]),
     )
-    model._by_name.update({r.name: r for r in registers})
-    return model
 
 
 def number(value: float | None) -> int | float | None:

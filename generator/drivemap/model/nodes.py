@@ -11,7 +11,7 @@ from __future__ import annotations
 import keyword
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, cast
 
 from drivemap.model import modicon
 from drivemap.model.family import IdentityCheck, Variant
@@ -313,10 +313,10 @@ class Model(DeviceSpec):
     identity: tuple[IdentityCheck, ...] = ()
     #: set when the map extends another (model.family)
     variant: Variant | None = None
-    _by_name: dict[str, Register] = field(default_factory=dict, compare=False, repr=False)
 
     def register(self, name: str) -> Register:
-        return self._by_name[name]
+        """The register ``name`` (the runtime's index, built on first use, so a replaced model indexes its own)."""
+        return cast(Register, super().register(name))
 
     def enum(self, name: str) -> Enum:
         for item in self.enums:
@@ -331,7 +331,7 @@ class Model(DeviceSpec):
     def cell(self, name: str) -> Cell:
         """``digital_speed[3]`` or ``motor_state``."""
         base, _, rest = name.partition("[")
-        reg = self._by_name[base]
+        reg = self.register(base)
         index = int(rest.rstrip("]")) if rest else 0
         if not 0 <= index < reg.count or (rest == "") == reg.is_array:
             raise KeyError(name)

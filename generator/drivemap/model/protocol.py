@@ -6,6 +6,7 @@ checksums, running state and reply quirks (what :class:`~drivemap.model.nodes.Mo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 from drivemap.model.rules import Alignment
 from drivemap.runtime.spec import (
@@ -210,7 +211,5 @@ class Protocol(ProtocolSpec):
     """Rules on request start addresses and quantities (``protocol.alignment``)."""
 
     def function(self, code: int) -> FunctionCode | None:
-        for fc in self.function_codes:
-            if fc.code == code:
-                return fc
-        return None
+        """The runtime's lookup, typed with the map's function codes (name, lengths, source)."""
+        return cast("FunctionCode | None", super().function(code))
