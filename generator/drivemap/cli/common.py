@@ -94,11 +94,18 @@ def report(errors: Sequence[Diagnostic]) -> int:
 def summary(model: Model) -> str:
     counts = model.status_counts()
     cells = sum(r.count for r in model.registers)
-    return (
+    open_items = sum(len(r.review) for r in model.registers)
+    reviewed = sum(1 for r in model.registers if r.review)
+    text = (
         f"{model.name}: {len(model.registers)} registers ({cells} with array elements), "
         f"{len(model.enums)} enums, {len(model.examples)} examples "
         f"({counts['verified']} verified, {counts['erratum']} errata, {counts['illegible']} illegible)"
     )
+    if open_items:
+        text += f", {open_items} open for review on {reviewed} register{'s' if reviewed != 1 else ''}"
+    if model.device.evidence:
+        text += f", evidence: {model.device.evidence}"
+    return text
 
 
 def project_flags(p: argparse.ArgumentParser, *, out: bool = True) -> None:

@@ -48,6 +48,7 @@ from drivemap.model.nodes import (
     normalize_raw,
     type_words,
 )
+from drivemap.model.protocol import Origin
 from drivemap.runtime.spec import SerialSpec
 
 __all__ = ["build_model", "number", "whole"]
@@ -119,6 +120,9 @@ def _device(dev: dict[str, Any]) -> Device:
         coverage=dev.get("coverage"),
         source=dev["source"],
         notes=dev.get("notes"),
+        evidence=dev.get("evidence"),
+        origin=Origin(**dev["origin"]) if dev.get("origin") else None,
+        kind=dev.get("kind"),
     )
 
 
@@ -290,6 +294,7 @@ def _register(p: dict[str, Any], r: dict[str, Any], lines: dict[str, int],
         element_param_format=r.get("element_param_format"),
         value_set=tuple(AllowedValue(_value(rtype, v["value"]), v.get("label"), v.get("notes")) for v in r.get("values", ())),
         precision=r.get("precision"), first_index=r.get("first_index", 0),
+        review=tuple(r.get("review", ())),
     )
 
 

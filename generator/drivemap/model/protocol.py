@@ -54,6 +54,17 @@ class Manual:
 
 
 @dataclass(frozen=True)
+class Origin:
+    """Where an imported map's definitions come from (``device.origin``)."""
+
+    project: str
+    path: str
+    commit: str
+    licence: str
+    format: str | None = None
+
+
+@dataclass(frozen=True)
 class Device(ProductSpec):
     """The device: the runtime's :class:`ProductSpec` (model, title) and what the map says of its manual."""
 
@@ -62,6 +73,11 @@ class Device(ProductSpec):
     coverage: str | None
     source: str
     notes: str | None
+    #: manual / imported / probed / verified (``device.evidence``); None where the map does not say
+    evidence: str | None = None
+    origin: Origin | None = None
+    #: drive, inverter, meter, charger, ... (``device.kind``); None where the map does not say
+    kind: str | None = None
 
 
 @dataclass(frozen=True)
