@@ -33,6 +33,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     s.add_argument("--pages", default=None, metavar="A-B", help="PDF pages to read (e.g. 3-9)")
     s.add_argument("--max-pages", type=int, default=400, help="read at most this many PDF pages (default 400)")
     s.add_argument("--timeout", type=float, default=300.0, help="give up after this many seconds (default 300)")
+    s.add_argument("--review", default=None, metavar="FILE.html",
+                   help="also write a review page: each table beside the page it came from, open fields, skipped rows")
     s.add_argument("--force", action="store_true", help="replace an existing output file")
     s.set_defaults(func=cmd_draft)
 
@@ -79,6 +81,9 @@ def _write(target: Path, text: str, force: bool) -> None:
     """Atomically: a temporary file beside the target, then renamed (or linked: no overwrite)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # as a file the user wrote (mkstemp makes it 0600)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
             handle.write(text)
@@ -108,6 +113,12 @@ def run(args: argparse.Namespace) -> int:
     target = Path(args.output) if args.output else load_project().maps_folder() / f"{model}.yaml"
     if os.path.lexists(target) and not args.force:
         raise DraftError(f"{display(target)} exists; not overwritten (use --force)")
+    review = Path(args.review) if args.review else None
+    if review is not None:
+        if review.suffix.lower() not in (".html", ".htm"):
+            raise DraftError(f"--review {args.review}: the review page is an HTML file (name it *.html)")
+        if os.path.lexists(review) and not args.force:
+            raise DraftError(f"{display(review)} exists; not overwritten (use --force)")
     with _time_limit(args.timeout):
         source = read_document(path, _pages(args.pages), args.max_pages, args.timeout)
         result = draft(source, model)
@@ -122,6 +133,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(errors)} errors: the draft does not validate; nothing written", file=sys.stderr)
         return 1
     _write(target, text, args.force)
+    if review is not None:
+        from drivemap.onboard.draft.review_page import render
+
+        _write(review, render(path, source, result, display(target)), args.force)
     print_summary(Console(width=max(120, Console().width)), source, result, display(target), model)
     return 0
 
