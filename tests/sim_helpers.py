@@ -12,7 +12,8 @@ from typing import Any
 from drivemap.backends.exporters.base import Options
 from drivemap.backends.exporters.pymodbus_sim import PymodbusSimExporter
 from drivemap.model.nodes import Model
-from drivemap.model.spec import load_package
+from drivemap.model.spec import spec_from_model
+from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.simulator import Simulator
 from tests.waits import free_port, wait_port
 
@@ -65,7 +66,7 @@ def read_back(model: Model, port: int, unit: int) -> tuple[dict[str, Any], dict[
     read each (both at power-up: the export is the image drivemap's simulator starts with)."""
     from drivemap.runtime.sim.serve import ThreadedSimServer
 
-    package = load_package(model)
+    package = load_package(spec_from_model(model))
     names = [r.name for r in model.registers if r.readable and (r.page is None or _page_default(model, r) == r.page.value)]
 
     def read(at: int) -> dict[str, Any]:

@@ -18,11 +18,12 @@ import pytest
 
 from drivemap.backends.views.spec import print_spec
 from drivemap.compiler import compile_map
-from drivemap.model.spec import load_package, spec_from_model
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime import spec as spec_module
 from drivemap.runtime.client.accessors import AsyncReadOnly, ReadOnly, ReadWriteArray
 from drivemap.runtime.client.declare import ReadOnlyReg, Reg
 from drivemap.runtime.client.dynamic import client_package
+from drivemap.runtime.package import load_package
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ["ev", "edx", "v2", "vfd1000", "sdm630", "fronius_symo_hybrid"]
@@ -125,7 +126,8 @@ def test_load_package_runs_no_rendered_code() -> None:
     code = textwrap.dedent("""
         import sys
         from drivemap.compiler import compile_map
-        from drivemap.model.spec import load_package
+        from drivemap.model.spec import spec_from_model
+        from drivemap.runtime.package import load_package
         model = compile_map("maps/ev.yaml")
         import jinja2
         def refuse(*args, **kwargs):
@@ -133,7 +135,7 @@ def test_load_package_runs_no_rendered_code() -> None:
         jinja2.Template.render = refuse
         jinja2.Environment.get_template = refuse
         before = set(sys.modules)
-        package = load_package(model)
+        package = load_package(spec_from_model(model))
         assert package.Client.SPEC.name == "ev" and package.simulator.Simulator.SPEC is package.SPEC
         print(sorted(m for m in set(sys.modules) - before if m.startswith(("drivemap.backends", "jinja2"))))
     """)
@@ -164,7 +166,7 @@ def test_reg_descriptor_refuses_nothing_it_should_not() -> None:
 
 
 def test_in_memory_package_has_a_simulator() -> None:
-    package = load_package(compile_map(ROOT / "maps" / "v2.yaml"))
+    package = load_package(spec_from_model(compile_map(ROOT / "maps" / "v2.yaml")))
     sim = package.simulator.Simulator()
     assert sim.spec == package.SPEC
 

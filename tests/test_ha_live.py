@@ -17,7 +17,8 @@ import pytest
 import yaml
 
 from drivemap.compiler import load_model
-from drivemap.model.spec import load_package
+from drivemap.model.spec import spec_from_model
+from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from tests.ha_compare import compare_modbus, read_index
 from tests.ha_live import HomeAssistant, preset
@@ -30,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def simulator(model: str, units: list[int] | None = None) -> Any:
-    package = load_package(load_model(str(ROOT / "maps" / f"{model}.yaml")))
+    package = load_package(spec_from_model(load_model(str(ROOT / "maps" / f"{model}.yaml"))))
     return package.simulator.Simulator(units or [1])
 
 

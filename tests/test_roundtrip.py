@@ -19,7 +19,7 @@ answers the printed bytes.
 
 Besides the project's maps, the synthetic maps in ``tests/maps/`` (every construct of the map
 language, frames computed with pymodbus) run here too, through their generated package built in
-memory (:func:`drivemap.model.spec.load_package`: built from the spec, nothing rendered).
+memory (:func:`drivemap.runtime.package.load_package`: built from the spec, nothing rendered).
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ import pytest
 from drivemap.compiler import compile_map, map_paths
 from drivemap.frontend import frames
 from drivemap.model.nodes import Example, Model
-from drivemap.model.spec import load_package
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
+from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing import VirtualSerialLine
 
@@ -78,7 +79,7 @@ def package(name: str) -> ModuleType:
     """The generated package of a model: built (``drivemap_models``) or, for tests/maps, in memory."""
     if name in PROJECT:
         return importlib.import_module(f"drivemap_models.{name}")
-    return load_package(MODELS[name])
+    return load_package(spec_from_model(MODELS[name]))
 
 
 def serial_overrides(model: Model, mode: str) -> dict[str, Any]:

@@ -1,7 +1,7 @@
 """The running gateway: packages in memory, one bus and one task per line, the MQTT and OPC UA sides.
 
 ``drivemap gateway CONFIG.yaml`` loads the configuration (:func:`drivemap.gateway.config.load_config`),
-builds each model's client package from its spec (:func:`drivemap.model.spec.load_package`: no rendered code), one
+builds each model's client package from its spec (:func:`drivemap.runtime.package.load_package`: no rendered code), one
 :class:`~drivemap.runtime.client.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
 and runs every :class:`~drivemap.gateway.lines.Line` in parallel with the MQTT bridge and the OPC UA
 server until SIGINT/SIGTERM.
@@ -17,8 +17,9 @@ from drivemap.gateway.config import BusConfig, GatewayConfig
 from drivemap.gateway.device import Command, Device
 from drivemap.gateway.lines import Fanout, Line
 from drivemap.model.nodes import Model
-from drivemap.model.spec import load_package
+from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.bus import AsyncBus
+from drivemap.runtime.package import load_package
 
 log = logging.getLogger("drivemap.gateway")
 
@@ -96,7 +97,7 @@ class Gateway:
         """The generated package of ``model``, built once per map."""
         key = model.path
         if key not in self._packages:
-            self._packages[key] = load_package(model)
+            self._packages[key] = load_package(spec_from_model(model))
         return self._packages[key]
 
     def submit(self, cmd: Command) -> None:

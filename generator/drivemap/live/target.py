@@ -89,10 +89,11 @@ def project_of(maps: Sequence[str] | None) -> Project:
 
 def load_target(name: str, project: Project | None = None) -> Target:
     """Compile ``name`` (model id or map path) and load its generated package in memory."""
-    from drivemap.model.spec import load_package
+    from drivemap.model.spec import spec_from_model
+    from drivemap.runtime.package import load_package
 
     model = compile_map(resolve_map(name, project or load_project()))
-    return Target(model, load_package(model))
+    return Target(model, load_package(spec_from_model(model)))
 
 
 def command_line_error(argv: Sequence[str], index: int, message: str,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from drivemap.runtime.client.identity import expected_text
 from drivemap.runtime.spec import IdentitySpec
+from drivemap.runtime.types import expected_text
 
 #: The ways an identity check compares (``identity[].<kind>`` in a map).
 IDENTITY_KINDS = ("equals", "one_of", "prefix", "pattern")

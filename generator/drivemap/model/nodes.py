@@ -36,7 +36,6 @@ from drivemap.model.protocol import (
     Timing,
 )
 from drivemap.model.rules import Alignment, AllowedValue
-from drivemap.runtime.client.words import TYPE_BOUNDS as _INTEGER_BOUNDS
 from drivemap.runtime.names import camel
 from drivemap.runtime.spec import (
     BIT_TABLES,
@@ -53,6 +52,7 @@ from drivemap.runtime.spec import (
     ReservedSpec,
     type_words,
 )
+from drivemap.runtime.types import TYPE_BOUNDS as _INTEGER_BOUNDS
 
 Access = Literal["r", "w", "rw"]
 RegType = Literal["u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64", "string", "bool"]

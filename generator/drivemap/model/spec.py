@@ -1,7 +1,8 @@
 """The one typed path from a compiled :class:`~drivemap.model.nodes.Model` to the runtime's :class:`DeviceSpec`.
 
 :func:`spec_from_model` is what the simulator factory, the live verbs, the gateway, the exporters
-and ``drivemap build`` use; the generated ``spec.py`` is this object printed
+and ``drivemap build`` use (:func:`drivemap.runtime.package.load_package` builds a client package
+from it); the generated ``spec.py`` is this object printed
 (:mod:`drivemap.backends.views.spec`), so a built package and an unbuilt map give equal specs.
 Nothing here renders or executes generated text.
 
@@ -14,16 +15,12 @@ projected onto the runtime's classes (:func:`project`), not a copy field by fiel
 from __future__ import annotations
 
 import dataclasses
-import sys
-import types
 from typing import Any, TypeVar
 
 from drivemap.model.nodes import Model
-from drivemap.runtime.client.dynamic import client_package
-from drivemap.runtime.sim.model import ModelSimulator, simulator_main
 from drivemap.runtime.spec import DeviceSpec
 
-__all__ = ["load_package", "project", "spec_from_model"]
+__all__ = ["project", "spec_from_model"]
 
 _T = TypeVar("_T")
 
@@ -52,19 +49,3 @@ def project(node: object, cls: type[_T]) -> _T:
 def spec_from_model(model: Model) -> DeviceSpec:
     """The runtime's description of ``model``: registers, dialect, timing, enums (no YAML, no generated code)."""
     return project(model, DeviceSpec)
-
-
-def load_package(model: Model) -> types.ModuleType:
-    """The package of ``model`` as ``drivemap build`` would write it (``Client``, ``AsyncClient``,
-    ``SPEC``, enums ..., and a ``simulator`` submodule with its ``Simulator``), built from
-    :func:`spec_from_model` without generating or running code; each call builds afresh."""
-    spec = spec_from_model(model)
-    name = f"drivemap_inmemory_{model.name}"
-    package = client_package(spec, name)
-    package.__path__ = []  # a package, so that ``importlib.import_module(f"{name}.simulator")`` works
-    simulator = types.ModuleType(f"{name}.simulator", f"Simulator of {spec.device.title}")
-    simulator.Simulator = type("Simulator", (ModelSimulator,), {"SPEC": spec, "__module__": simulator.__name__})  # type: ignore[attr-defined]
-    simulator.MODEL = spec.name  # type: ignore[attr-defined]
-    simulator.main = simulator_main(simulator.Simulator)  # type: ignore[attr-defined]
-    sys.modules[simulator.__name__] = package.simulator = simulator  # type: ignore[attr-defined]
-    return package

@@ -5,12 +5,11 @@ See the "Faults" and "Frames" sections of :mod:`drivemap.testing.vserial`.
 
 from __future__ import annotations
 
+import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
-
-if TYPE_CHECKING:
-    from drivemap.testing.vserial import VirtualSerialLine
+from typing import Literal
 
 __all__ = ["DIRECTIONS", "Direction", "FaultPlan", "FrameFault", "check_direction", "split_frames"]
 
@@ -81,8 +80,10 @@ class FaultPlan:
     ``self`` so calls can be chained.  ``frames`` queued entries are consumed one per frame.
     """
 
-    def __init__(self, line: VirtualSerialLine) -> None:
-        self._line = line
+    def __init__(self, lock: threading.Condition, inject: Callable[[Direction, bytes], None]) -> None:
+        """``lock``: the line's lock (held while the relay takes a fault); ``inject``: puts bytes on the line."""
+        self._lock = lock
+        self._inject = inject
         self._queues: dict[Direction, deque[FrameFault]] = {d: deque() for d in DIRECTIONS}
 
     def add(self, direction: str, fault: FrameFault, frames: int = 1) -> FaultPlan:
@@ -90,7 +91,7 @@ class FaultPlan:
         d = check_direction(direction)
         if frames < 0:
             raise ValueError("frames must be >= 0")
-        with self._line._cond:
+        with self._lock:
             self._queues[d].extend([fault] * frames)
         return self
 
@@ -139,22 +140,23 @@ class FaultPlan:
     def inject(self, direction: str, data: bytes) -> FaultPlan:
         """Put ``data`` on the line now (noise), behind anything already queued for delivery."""
         d = check_direction(direction)
-        self._line._inject(d, bytes(data))
+        self._inject(d, bytes(data))
         return self
 
     def pending(self, direction: str) -> int:
         """How many queued frame faults have not been consumed yet."""
         d = check_direction(direction)
-        with self._line._cond:
+        with self._lock:
             return len(self._queues[d])
 
     def clear(self, direction: str | None = None) -> None:
         """Forget queued faults (for one direction or both).  A frame in flight keeps its fault."""
-        with self._line._cond:
+        with self._lock:
             for d in DIRECTIONS if direction is None else (check_direction(direction),):
                 self._queues[d].clear()
 
-    def _next(self, direction: Direction) -> FrameFault | None:
+    def take(self, direction: Direction) -> FrameFault | None:
+        """The next queued fault of ``direction`` (None: pass the frame), consumed (the relay calls it)."""
         # Caller holds the line lock.
         queue = self._queues[direction]
         return queue.popleft() if queue else None

@@ -36,7 +36,7 @@ class _Item:
         self.idle_before = idle_before
 
 
-class _Path:
+class RelayPath:
     """State of one direction of the relay."""
 
     def __init__(self, name: Direction, src: int, dst: int) -> None:
@@ -65,7 +65,7 @@ class Relay:
     (which sets these attributes up in its ``__init__``)."""
 
     _cond: threading.Condition
-    _paths: dict[Direction, _Path]
+    _paths: dict[Direction, RelayPath]
     _slave_fds: dict[Direction, tuple[int, int]]
     _wake_r: int
     _wake_w: int
@@ -91,13 +91,13 @@ class Relay:
                 self._enqueue(self._paths[direction], data, time.monotonic())
         self._wake()
 
-    def _enqueue(self, path: _Path, data: bytes, ready: float, idle_before: float = 0.0) -> None:
+    def _enqueue(self, path: RelayPath, data: bytes, ready: float, idle_before: float = 0.0) -> None:
         # Caller holds the lock.  FIFO: an item never starts before the one ahead of it.
         start = max(ready, path.free_at + idle_before)
         path.queue.append(_Item(start, data, idle_before))
         path.free_at = start + len(data) * self.byte_time
 
-    def _on_input(self, path: _Path, data: bytes, now: float) -> None:
+    def _on_input(self, path: RelayPath, data: bytes, now: float) -> None:
         # Caller holds the lock.
         if self.capture:
             path.captured.append((now, data))
@@ -110,7 +110,7 @@ class Relay:
             path.frame_open = True
             path.frame_pos = 0
             path.frame_out = bytearray()
-            fault = path.frame_fault = self.faults._next(path.name)
+            fault = path.frame_fault = self.faults.take(path.name)
             if fault is not None and fault.prefix:
                 self._enqueue(path, fault.prefix, now + fault.delay)
         path.last_arrival = now
@@ -133,7 +133,7 @@ class Relay:
             path.frame_out += out
             self._enqueue(path, out, now + (fault.delay if fault is not None else 0.0))
 
-    def _close_frame(self, path: _Path, now: float) -> None:
+    def _close_frame(self, path: RelayPath, now: float) -> None:
         # Caller holds the lock.
         fault = path.frame_fault
         if fault is not None:
@@ -170,7 +170,7 @@ class Relay:
             out.append(b if ok else 0)
         return bytes(out)
 
-    def _collect_due(self, path: _Path, now: float) -> tuple[float, float]:
+    def _collect_due(self, path: RelayPath, now: float) -> tuple[float, float]:
         """Move due bytes to the output buffer.
 
         Returns ``(wake, precise)``: when the relay should look again, and the due time of the
@@ -211,7 +211,7 @@ class Relay:
             return min(last_due, max(next_due, now + self.burst_interval)), last_due
         return math.inf, math.inf
 
-    def _write_out(self, path: _Path) -> None:
+    def _write_out(self, path: RelayPath) -> None:
         if not path.outbuf:
             return
         try:

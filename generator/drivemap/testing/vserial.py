@@ -79,7 +79,7 @@ from types import TracebackType
 from typing import Any, Literal
 
 from drivemap.testing.vfaults import DIRECTIONS, Direction, FaultPlan, FrameFault, check_direction, split_frames
-from drivemap.testing.vrelay import Relay, _Path
+from drivemap.testing.vrelay import Relay, RelayPath
 
 _DEFAULT_GAP = 0.002
 
@@ -164,7 +164,7 @@ class VirtualSerialLine(Relay):
         self.burst_interval = burst_interval
         self.spin = spin if pace else 0.0
         self._cond = threading.Condition(threading.Lock())
-        self.faults = FaultPlan(self)
+        self.faults = FaultPlan(self._cond, self._inject)
         self._closed = False
         self._error: BaseException | None = None
         self._fds: list[int] = []
@@ -180,9 +180,9 @@ class VirtualSerialLine(Relay):
         except BaseException:
             self._close_fds()
             raise
-        self._paths: dict[Direction, _Path] = {
-            "to_device": _Path("to_device", m_master, d_master),
-            "to_master": _Path("to_master", d_master, m_master),
+        self._paths: dict[Direction, RelayPath] = {
+            "to_device": RelayPath("to_device", m_master, d_master),
+            "to_master": RelayPath("to_master", d_master, m_master),
         }
         self.line_settings = line_settings or device_parity is not None
         if device_parity not in (None, "N", "E", "O"):

@@ -25,6 +25,7 @@ from typing import Any
 from drivemap.runtime.client.codec import StringCodec, unwrap
 from drivemap.runtime.errors import IdentityMismatch
 from drivemap.runtime.spec import DeviceSpec, IdentitySpec
+from drivemap.runtime.types import expected_text, show_value
 
 Key = tuple[str, int]
 
@@ -52,30 +53,6 @@ def has_identity(spec: DeviceSpec) -> bool:
 def identity_keys(spec: DeviceSpec) -> tuple[Key, ...]:
     """The register cells the checks read (element 0 of each register, in map order, once each)."""
     return tuple(dict.fromkeys((check.register, 0) for check in spec.identity))
-
-
-def show_value(value: int | str) -> str:
-    """A value as messages show it: text quoted, small integers in decimal, wide ones in hex (with the
-    ASCII they spell, as SunSpec's 0x53756E53 'SunS')."""
-    if isinstance(value, str):
-        return repr(value)
-    if 0 <= value <= 0xFFFF or value < 0:
-        return str(value)
-    raw = value.to_bytes((value.bit_length() + 7) // 8, "big")
-    text = raw.decode("ascii") if all(32 <= b < 127 for b in raw) else None
-    return f"0x{value:X}" + (f" ({text!r})" if text else "")
-
-
-def expected_text(kind: str, values: tuple[int | str, ...]) -> str:
-    """What an identity check expects, in words."""
-    shown = [show_value(v) for v in values]
-    if kind == "one_of":
-        return "one of " + ", ".join(shown)
-    if kind == "prefix":
-        return f"text starting with {shown[0]}"
-    if kind == "pattern":
-        return f"text matching {shown[0]}"
-    return shown[0]
 
 
 def _actual(codecs: Mapping[str, Any] | None, name: str, raw: int) -> int | str:

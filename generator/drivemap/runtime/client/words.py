@@ -12,15 +12,7 @@ from collections.abc import Sequence
 
 from drivemap.runtime.errors import InvalidValue, ValueOutOfRange
 from drivemap.runtime.spec import RegisterSpec
-
-TYPE_BOUNDS: dict[str, tuple[int, int]] = {
-    "u16": (0, 0xFFFF),
-    "s16": (-0x8000, 0x7FFF),
-    "u32": (0, 0xFFFFFFFF),
-    "s32": (-0x80000000, 0x7FFFFFFF),
-    "u64": (0, 0xFFFFFFFFFFFFFFFF),
-    "s64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF),
-}
+from drivemap.runtime.types import TYPE_BOUNDS
 
 
 def raw_bounds(spec: RegisterSpec) -> tuple[int, int]:

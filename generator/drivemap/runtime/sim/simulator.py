@@ -158,7 +158,7 @@ class Simulator(WriteRequests, Persistence):
     def _apply_presets(self, presets: Sequence[tuple[str, SimValue]]) -> None:
         """The power-up values asked for, on every unit (checked against the map like a write)."""
         for name, value in presets:
-            self._check_cell(name)
+            self.check_cell(name)
             for unit in self.units.values():
                 unit.set(name, value)
                 unit.unset.discard(name)
@@ -466,19 +466,26 @@ class Simulator(WriteRequests, Persistence):
             return True
         return any(t == table and s <= address < e for t, s, e in self._blocks)
 
+    def mark_dirty(self) -> None:
+        """An EEPROM-class value changed: the state file is saved after the request."""
+        self._dirty = True
+
     # ==== names ===============================================================================
-    def _check_cell(self, name: str) -> str:
+    def check_cell(self, name: str) -> str:
+        """``name`` if it is a cell of the device (an array's element, not the array), else SimulatorError."""
         if name not in self._cells:
             if name in self._regs:
                 raise SimulatorError(f"{name} is an array; name an element, e.g. {name}[0]")
             raise SimulatorError(f"{self.spec.name} has no register {name!r}")
         return name
 
-    def _reg_of(self, name: str) -> RegisterSpec:
-        return self._cells[self._check_cell(name)][0]
+    def register_of(self, name: str) -> RegisterSpec:
+        """The register (or array) that cell ``name`` belongs to."""
+        return self._cells[self.check_cell(name)][0]
 
-    def _bit(self, name: str, bit: str) -> BitSpec:
-        for spec in self._reg_of(name).bits:
+    def bit_of(self, name: str, bit: str) -> BitSpec:
+        """The bit field ``bit`` of cell ``name``."""
+        for spec in self.register_of(name).bits:
             if spec.name == bit:
                 return spec
         raise SimulatorError(f"{name} has no bit {bit!r}")

@@ -13,13 +13,11 @@ import struct
 from typing import TYPE_CHECKING, Any
 
 from drivemap.runtime.client.codec import join_words, raw_bounds, split_words
-from drivemap.runtime.spec import BitSpec, RegisterSpec
+from drivemap.runtime.sim.view import SimValue
+from drivemap.runtime.spec import BitSpec, DeviceSpec, RegisterSpec
 
 if TYPE_CHECKING:
-    from drivemap.runtime.sim.simulator import Simulator
-
-#: What a register holds as an engineering value.
-SimValue = int | float | str | bool | None
+    from drivemap.runtime.sim.view import SimHost
 
 __all__ = ["SimValue", "SimulatorError", "Unit", "from_value", "to_value"]
 
@@ -141,7 +139,7 @@ class Unit:
     (``motor_speed``, ``digital_speed[3]``).
     """
 
-    def __init__(self, sim: Simulator, unit_id: int) -> None:
+    def __init__(self, sim: SimHost, unit_id: int) -> None:
         self.sim = sim
         self.id = unit_id
         self.values: dict[str, int] = {}
@@ -186,17 +184,22 @@ class Unit:
         factor = self.sim.spec.register(reg.scale_register)
         return None if raw is None or raw in factor.not_available else raw
 
+    @property
+    def spec(self) -> DeviceSpec:
+        """The device's spec (what a behaviour looks registers up in)."""
+        return self.sim.spec
+
     # ---- reading -------------------------------------------------------------------------
     def has(self, name: str) -> bool:
         return name in self.values
 
     def raw(self, name: str) -> int:
         """Raw value as a read would see it (signed for s16/s32/s64)."""
-        return self.values[self.sim._check_cell(name)]
+        return self.values[self.sim.check_cell(name)]
 
     def get(self, name: str) -> SimValue:
         """Engineering value (raw * scale + offset; text, true/false, None where the map says so)."""
-        reg = self.sim._reg_of(name)
+        reg = self.sim.register_of(name)
         return to_value(reg, self.raw(name), self._factor(reg))
 
     def number(self, name: str) -> float:
@@ -208,30 +211,30 @@ class Unit:
 
     def effective_raw(self, name: str) -> int:
         """The value in effect: for configuration-class registers the one applied at Configuration."""
-        self.sim._check_cell(name)
+        self.sim.check_cell(name)
         return self.applied.get(name, self.values[name])
 
     def bit(self, name: str, bit: str) -> int:
-        spec = self.sim._bit(name, bit)
+        spec = self.sim.bit_of(name, bit)
         return (self.raw(name) & spec.mask) >> spec.offset
 
     # ---- changing (no dialect checks: this is the device itself changing its state) --------
     def set_raw(self, name: str, raw: int) -> None:
-        reg = self.sim._reg_of(name)
+        reg = self.sim.register_of(name)
         low, high = raw_bounds(reg)
         raw = int(raw)
         if not low <= raw <= high:
             raise SimulatorError(f"{name}: raw value {raw} does not fit {reg.type}")
         self.values[name] = raw
         if reg.storage == "eeprom":
-            self.sim._dirty = True
+            self.sim.mark_dirty()
 
     def set(self, name: str, value: SimValue) -> None:
-        reg = self.sim._reg_of(name)
+        reg = self.sim.register_of(name)
         self.set_raw(name, from_value(reg, value, self._factor(reg)))
 
     def set_bit(self, name: str, bit: str, value: int) -> None:
-        spec: BitSpec = self.sim._bit(name, bit)
+        spec: BitSpec = self.sim.bit_of(name, bit)
         raw = self.raw(name) & 0xFFFF
         raw = (raw & ~spec.mask) | ((int(value) << spec.offset) & spec.mask)
         self.set_raw(name, raw)

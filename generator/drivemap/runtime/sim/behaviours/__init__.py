@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
 if TYPE_CHECKING:
-    from drivemap.runtime.sim.simulator import Unit
+    from drivemap.runtime.sim.view import UnitView as Unit
 
 __all__ = ["Behaviour", "behaviour_class", "behaviour_for", "load_modules", "register", "registered"]
 

@@ -13,14 +13,14 @@ from typing import TYPE_CHECKING
 from drivemap.runtime.sim.behaviours import Behaviour
 
 if TYPE_CHECKING:
-    from drivemap.runtime.sim.simulator import Unit
+    from drivemap.runtime.sim.view import UnitView as Unit
 
 
 def has_bit(unit: Unit, name: str, bit: str) -> bool:
     """True when the unit's map has register ``name`` with bit ``bit``."""
     if not unit.has(name):
         return False
-    return any(b.name == bit for b in unit.sim.spec.register(name).bits)
+    return any(b.name == bit for b in unit.spec.register(name).bits)
 
 
 def start_ramp(unit: Unit, name: str) -> None:

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 from drivemap.runtime.sim.behaviours import Behaviour, register
 
 if TYPE_CHECKING:
-    from drivemap.runtime.sim.simulator import Unit
+    from drivemap.runtime.sim.view import UnitView as Unit
 
 # MotorState
 STOP, RUN, EBRAKE, FREE, FAULT = 0, 2, 3, 4, 5
@@ -50,7 +50,7 @@ RS232_UNIT = 17
 
 
 def _count(unit: Unit, name: str) -> int:
-    return unit.sim.spec.register(name).count if _is_array(unit, name) else 0
+    return unit.spec.register(name).count if _is_array(unit, name) else 0
 
 
 def _is_array(unit: Unit, name: str) -> bool:
@@ -132,7 +132,7 @@ class Ev(Behaviour):
         if not limit_ms or since * 1000.0 <= limit_ms or unit.scratch.get("timed_out"):
             return
         unit.scratch["timed_out"] = True
-        code = unit.sim.spec.protocol.comm_policy("timeout")
+        code = unit.spec.protocol.comm_policy("timeout")
         if code is not None:
             unit.record_comm_error(code)
         action = unit.raw("comm_error_action") if unit.has("comm_error_action") else ACTION_ALARM

@@ -14,7 +14,7 @@ from drivemap.runtime.sim.behaviours import Behaviour, register
 from drivemap.runtime.sim.behaviours._inverter import ramp, start_ramp
 
 if TYPE_CHECKING:
-    from drivemap.runtime.sim.simulator import Unit
+    from drivemap.runtime.sim.view import UnitView as Unit
 
 FORWARD_RUNNING, REVERSE_RUNNING, STANDBY, FAULT = 1, 2, 3, 4
 _RUN_FORWARD = {0x0001, 0x0003, 0x0004}
