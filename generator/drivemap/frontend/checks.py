@@ -164,18 +164,8 @@ class Checker(RegisterChecks):
         p = self.data["protocol"]
         if p["unit_ids"]["min"] > p["unit_ids"]["max"]:
             self.error(("protocol", "unit_ids", "min"), "unit id min is greater than max")
-        codes: dict[int, int] = {}
-        for i, fc in enumerate(p["function_codes"]):
-            if fc["code"] in codes:
-                self.error(("protocol", "function_codes", i, "code"), f"function code {fc['code']:#04x} listed twice",
-                           related=("protocol", "function_codes", codes[fc["code"]], "code"))
-            codes.setdefault(fc["code"], i)
-        excs: dict[int, int] = {}
-        for i, ex in enumerate(p["exceptions"]):
-            if ex["code"] in excs:
-                self.error(("protocol", "exceptions", i, "code"), f"exception code {ex['code']:#04x} listed twice",
-                           related=("protocol", "exceptions", excs[ex["code"]], "code"))
-            excs.setdefault(ex["code"], i)
+        self._unique_codes(p["function_codes"], "function_codes", "function code")
+        excs = self._unique_codes(p["exceptions"], "exceptions", "exception code")
         comm = {c["code"] for c in p.get("comm_errors", [])}
         for i, ex in enumerate(p["exceptions"]):
             for c in ex.get("comm_errors", []):
@@ -187,6 +177,24 @@ class Checker(RegisterChecks):
         for case, item in p.get("comm_error_policy", {}).items():
             if item.get("code") is not None and item["code"] not in comm:
                 self.error(("protocol", "comm_error_policy", case, "code"), f"communication error code {item['code']:#04x} is not in protocol.comm_errors")
+        self._protocol_registers(p)
+        self._ports(p)
+        proc = p["timing"].get("processing_ms")
+        if proc and proc["min"] > proc["max"]:
+            self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
+
+    def _unique_codes(self, items: list[dict[str, Any]], key: str, what: str) -> dict[int, int]:
+        """Each item's ``code`` once in ``protocol.<key>``; the index of each code's first item."""
+        first: dict[int, int] = {}
+        for i, item in enumerate(items):
+            if item["code"] in first:
+                self.error(("protocol", key, i, "code"), f"{what} {item['code']:#04x} listed twice",
+                           related=("protocol", key, first[item["code"]], "code"))
+            first.setdefault(item["code"], i)
+        return first
+
+    def _protocol_registers(self, p: dict[str, Any]) -> None:
+        """The registers the protocol names (communication error history, the configuration command)."""
         hist = p.get("comm_error_history")
         if hist is not None and hist not in self.register_names:
             self.error(("protocol", "comm_error_history"), f"unknown register {hist!r}")
@@ -197,6 +205,8 @@ class Checker(RegisterChecks):
                 self.error(("protocol", "configuration", "register"), f"unknown register {name!r}")
             elif "w" not in self.data["registers"][self.register_names[name]].get("access", "r"):
                 self.error(("protocol", "configuration", "register"), f"configuration register {name!r} is not writable")
+
+    def _ports(self, p: dict[str, Any]) -> None:
         for i, port in enumerate(p["ports"]):
             for key, options in (("default_baudrate", "baudrates"), ("default_parity", "parity"), ("default_stop_bits", "stop_bits"), ("default_mode", "modes")):
                 value = port.get(key)
@@ -205,10 +215,6 @@ class Checker(RegisterChecks):
             for mode in port["modes"]:
                 if mode not in p["modes"]:
                     self.error(("protocol", "ports", i, "modes"), f"port mode {mode!r} is not in protocol.modes")
-        timing = p["timing"]
-        proc = timing.get("processing_ms")
-        if proc and proc["min"] > proc["max"]:
-            self.error(("protocol", "timing", "processing_ms", "min"), "processing_ms min is greater than max")
 
     def check_known_issues(self) -> None:
         names = set(self.register_names) | {e["name"] for e in self.data["examples"]}
@@ -275,58 +281,13 @@ class Checker(RegisterChecks):
             self.error(where, f"{ref} is a {rtype} register: its value is a number")
 
     def check_frames(self, ex: dict[str, Any], where: PathT) -> str:
-        mode = ex["mode"]
         erratum = ex.get("erratum") or {}
         illegible = False
         printed_wrong = False
         for part in ("request", "response"):
-            text = ex.get(part)
-            if text is None:
-                if part == "request" and ex.get("response") is None:
-                    self.error(where + (part,), "an example needs a request or a response frame")
-                if part in erratum:
-                    self.error(where + ("erratum", part), f"erratum corrects a {part} that is not printed")
-                continue
-            try:
-                frame = frames.parse(text, mode)
-            except frames.FrameSyntaxError as exc:
-                self.error(where + (part,), f"{part}: {exc}")
-                continue
-            illegible = illegible or frame.illegible
-            corrected = erratum.get(part)
-            if frame.illegible:
-                if not ex.get("illegible"):
-                    self.error(where + (part,), f"{part} has illegible bytes ('?') but the example has no 'illegible' note")
-            elif not frame.check_ok:
-                if corrected is None:
-                    want = frame.expected_check().hex(" ").upper()
-                    self.error(where + (part,),
-                               f"{part} checksum {frame.check.hex(' ').upper()} is wrong (computed {want}) and no erratum declares it")
-                printed_wrong = True
-            elif (problem := frames.structure_problem(frame, part)) is not None:
-                if corrected is None:
-                    self.error(where + (part,), f"{part} is not a well-formed Modbus frame: {problem}; declare an erratum")
-                printed_wrong = True
-            if corrected is not None:
-                try:
-                    fixed = frames.parse(corrected, mode)
-                except frames.FrameSyntaxError as exc:
-                    self.error(where + ("erratum", part), f"corrected {part}: {exc}")
-                    continue
-                if fixed.illegible:
-                    self.error(where + ("erratum", part), f"corrected {part} may not contain '?'")
-                elif not fixed.check_ok:
-                    want = fixed.expected_check().hex(" ").upper()
-                    self.error(where + ("erratum", part), f"corrected {part} checksum is wrong too (computed {want})")
-                elif fixed.wire() == frame.wire() and not frame.illegible:
-                    self.error(where + ("erratum", part), f"corrected {part} is the same as the printed one")
-                elif (problem := frames.structure_problem(fixed, part)) is not None:
-                    self.error(where + ("erratum", part), f"corrected {part} is not a well-formed Modbus frame: {problem}")
-                else:
-                    printed_wrong = True
-                self.check_meaning(ex, where, fixed, part)
-            elif not frame.illegible and frame.check_ok:
-                self.check_meaning(ex, where, frame, part)
+            unreadable, wrong = self._check_part(ex, where, part, erratum)
+            illegible = illegible or unreadable
+            printed_wrong = printed_wrong or wrong
         if erratum and not printed_wrong and not illegible:
             self.error(where + ("erratum",), "declared erratum, but the printed frames are correct")
         if erratum and not (set(erratum) - {"reason"}):
@@ -334,6 +295,64 @@ class Checker(RegisterChecks):
         if illegible:
             return "illegible"
         return "erratum" if erratum else "verified"
+
+    def _check_part(self, ex: dict[str, Any], where: PathT, part: str, erratum: dict[str, Any]) -> tuple[bool, bool]:
+        """One printed frame (request or response) and its correction: (illegible, printed wrong)."""
+        text = ex.get(part)
+        if text is None:
+            if part == "request" and ex.get("response") is None:
+                self.error(where + (part,), "an example needs a request or a response frame")
+            if part in erratum:
+                self.error(where + ("erratum", part), f"erratum corrects a {part} that is not printed")
+            return False, False
+        try:
+            frame = frames.parse(text, ex["mode"])
+        except frames.FrameSyntaxError as exc:
+            self.error(where + (part,), f"{part}: {exc}")
+            return False, False
+        corrected = erratum.get(part)
+        printed_wrong = False
+        if frame.illegible:
+            if not ex.get("illegible"):
+                self.error(where + (part,), f"{part} has illegible bytes ('?') but the example has no 'illegible' note")
+        elif not frame.check_ok:
+            if corrected is None:
+                want = frame.expected_check().hex(" ").upper()
+                self.error(where + (part,),
+                           f"{part} checksum {frame.check.hex(' ').upper()} is wrong (computed {want}) and no erratum declares it")
+            printed_wrong = True
+        elif (problem := frames.structure_problem(frame, part)) is not None:
+            if corrected is None:
+                self.error(where + (part,), f"{part} is not a well-formed Modbus frame: {problem}; declare an erratum")
+            printed_wrong = True
+        if corrected is not None:
+            printed_wrong = self._check_correction(ex, where, part, frame, corrected) or printed_wrong
+        elif not frame.illegible and frame.check_ok:
+            self.check_meaning(ex, where, frame, part)
+        return frame.illegible, printed_wrong
+
+    def _check_correction(self, ex: dict[str, Any], where: PathT, part: str, frame: frames.Frame,
+                          corrected: str) -> bool:
+        """An erratum's corrected frame; True when it is a real correction of a printed frame."""
+        try:
+            fixed = frames.parse(corrected, ex["mode"])
+        except frames.FrameSyntaxError as exc:
+            self.error(where + ("erratum", part), f"corrected {part}: {exc}")
+            return False
+        real = False
+        if fixed.illegible:
+            self.error(where + ("erratum", part), f"corrected {part} may not contain '?'")
+        elif not fixed.check_ok:
+            want = fixed.expected_check().hex(" ").upper()
+            self.error(where + ("erratum", part), f"corrected {part} checksum is wrong too (computed {want})")
+        elif fixed.wire() == frame.wire() and not frame.illegible:
+            self.error(where + ("erratum", part), f"corrected {part} is the same as the printed one")
+        elif (problem := frames.structure_problem(fixed, part)) is not None:
+            self.error(where + ("erratum", part), f"corrected {part} is not a well-formed Modbus frame: {problem}")
+        else:
+            real = True
+        self.check_meaning(ex, where, fixed, part)
+        return real
 
     def check_meaning(self, ex: dict[str, Any], where: PathT, frame: frames.Frame, part: str) -> None:
         meaning = ex["meaning"]

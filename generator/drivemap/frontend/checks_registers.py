@@ -112,6 +112,27 @@ class RegisterChecks(CheckerBase):
         if table in ("input", "discrete") and "w" in reg.get("access", "r"):
             self.error(where + ("access",), f"{table} registers are read-only (no Modbus function writes them); "
                        "access must be r")
+        self._keys_of_type(reg, where, rtype)
+        words = type_words(rtype, reg.get("length", 1))
+        if words > 1 and rtype != "string" and "word_order" not in reg:
+            self.error(where + ("type",), f"{rtype} register needs word_order (high_first or low_first)")
+        if words == 1 and "word_order" in reg and rtype != "bool":
+            self.error(where + ("word_order",), "word_order only applies to multi-word types")
+        if rtype in FLOAT_TYPES:
+            for key in ("enum", "bits"):
+                if reg.get(key):
+                    self.error(where + (key,), f"an {rtype} register cannot have {key}"
+                               + (" (list its allowed values with 'values:' instead)" if key == "enum" else ""),
+                               key=True)
+        if reg.get("scale_register"):
+            self._scale_register_keys(reg, where, rtype)
+        for j, value in enumerate(reg.get("not_available", ()) if rtype not in ("bool", "string") else ()):
+            if normalize_raw(rtype, table, 1, value) is None:
+                self.error(where + ("not_available", j), f"not_available value {value} does not fit {rtype}")
+        return rtype
+
+    def _keys_of_type(self, reg: dict[str, Any], where: PathT, rtype: str) -> None:
+        """Keys only some types take: none of bool's and string's refused keys, length and encoding only for text."""
         if rtype == "bool":
             for key in _NOT_FOR_BOOL:
                 if key in reg:
@@ -126,28 +147,15 @@ class RegisterChecks(CheckerBase):
             for key in ("length", "encoding"):
                 if key in reg:
                     self.error(where + (key,), f"{key} is only for type string", key=True)
-        words = type_words(rtype, reg.get("length", 1))
-        if words > 1 and rtype != "string" and "word_order" not in reg:
-            self.error(where + ("type",), f"{rtype} register needs word_order (high_first or low_first)")
-        if words == 1 and "word_order" in reg and rtype != "bool":
-            self.error(where + ("word_order",), "word_order only applies to multi-word types")
-        if rtype in FLOAT_TYPES:
-            for key in ("enum", "bits"):
-                if reg.get(key):
-                    self.error(where + (key,), f"an {rtype} register cannot have {key}"
-                               + (" (list its allowed values with 'values:' instead)" if key == "enum" else ""),
-                               key=True)
-        if reg.get("scale_register") and rtype not in INTEGER_TYPES | {"bool", "string"}:
+
+    def _scale_register_keys(self, reg: dict[str, Any], where: PathT, rtype: str) -> None:
+        if rtype not in INTEGER_TYPES | {"bool", "string"}:
             self.error(where + ("scale_register",), f"scale_register needs an integer type, not {rtype}")
-        elif reg.get("scale_register") and (reg.get("enum") or reg.get("bits")):
+        elif reg.get("enum") or reg.get("bits"):
             self.error(where + ("scale_register",), "a register with a scale register cannot have an enum or bits")
-        elif reg.get("scale_register") and reg.get("broadcast"):
+        elif reg.get("broadcast"):
             self.error(where + ("broadcast",), "a register with a scale register cannot be written by broadcast "
                        "(its factor is read before every write)")
-        for j, value in enumerate(reg.get("not_available", ()) if rtype not in ("bool", "string") else ()):
-            if normalize_raw(rtype, table, 1, value) is None:
-                self.error(where + ("not_available", j), f"not_available value {value} does not fit {rtype}")
-        return rtype
 
     def check_default_types(self, reg: dict[str, Any], where: PathT, rtype: str) -> None:
         default = reg.get("default")
@@ -222,16 +230,7 @@ class RegisterChecks(CheckerBase):
             raw = raw_of(value)
             return bounds is None or bounds[0] - 1e-9 <= raw <= bounds[1] + 1e-9
 
-        enum_values: list[int] | None = None
-        if reg.get("enum"):
-            enum_values = self._enum_values(reg["enum"])
-            if enum_values is None:
-                self.error(where + ("enum",), f"unknown enum {reg['enum']!r}")
-            elif rtype in TYPE_BOUNDS:
-                lo_raw, hi_raw = TYPE_BOUNDS[rtype]
-                for v in enum_values:
-                    if not lo_raw <= v <= hi_raw:
-                        self.error(where + ("enum",), f"enum {reg['enum']} value {v} does not fit type {rtype}")
+        enum_values = self._register_enum(reg, where, rtype) if reg.get("enum") else None
         lo, hi = reg.get("min"), reg.get("max")
         for key, value in (("min", lo), ("max", hi)):
             if value is not None and not fits(value):
@@ -255,6 +254,18 @@ class RegisterChecks(CheckerBase):
                 self.error(dwhere, f"default {value} is not a multiple of the scale {scale}")
             elif enum_values is not None and round(raw_of(value)) not in enum_values:
                 self.error(dwhere, f"default {value} is not a value of enum {reg['enum']}")
+
+    def _register_enum(self, reg: dict[str, Any], where: PathT, rtype: str) -> list[int] | None:
+        """The values of the register's enum (None: no such enum), each checked against the type."""
+        enum_values = self._enum_values(reg["enum"])
+        if enum_values is None:
+            self.error(where + ("enum",), f"unknown enum {reg['enum']!r}")
+        elif rtype in TYPE_BOUNDS:
+            lo_raw, hi_raw = TYPE_BOUNDS[rtype]
+            for v in enum_values:
+                if not lo_raw <= v <= hi_raw:
+                    self.error(where + ("enum",), f"enum {reg['enum']} value {v} does not fit type {rtype}")
+        return enum_values
 
     def _enum_values(self, name: str) -> list[int] | None:
         enum = self.data.get("enums", {}).get(name)

@@ -237,19 +237,7 @@ class Relay:
                 with self._cond:
                     if self._stop:
                         return
-                    now = time.monotonic()
-                    wake = precise = math.inf
-                    for path in paths:
-                        if path.frame_open:
-                            deadline = path.last_arrival + self.frame_gap
-                            if now > deadline:
-                                self._close_frame(path, now)
-                            else:
-                                wake = min(wake, deadline + 1e-4)
-                        path_wake, path_precise = self._collect_due(path, now)
-                        wake = min(wake, path_wake)
-                        precise = min(precise, path_precise)
-                        self._write_out(path)
+                    wake, precise = self._advance(paths, time.monotonic())
                     self._cond.notify_all()
                     masks: dict[int, int] = {self._wake_r: select.POLLIN}
                     for path in paths:
@@ -260,27 +248,46 @@ class Relay:
                     if registered.get(fd) != mask:
                         poller.register(fd, mask)  # register() on a known fd modifies it
                         registered[fd] = mask
-                now = time.monotonic()
-                if precise <= wake:  # next event: the last byte of a chunk, due at `precise`
-                    if precise - now <= self.spin:
-                        events = self._spin(poller, precise)
-                    else:
-                        events = self._wait(poller, precise - self.spin - now)
-                else:
-                    events = self._wait(poller, wake - now)
-                for fd, event in events:
-                    if fd == self._wake_r:
-                        with contextlib.suppress(BlockingIOError):
-                            os.read(self._wake_r, 4096)
-                        continue
-                    if event & (select.POLLIN | select.POLLHUP | select.POLLERR):
-                        self._read(fd)
+                self._serve(self._next_events(poller, wake, precise))
         except BaseException as exc:  # surfaced by close()
             self._error = exc
         finally:
             with self._cond:
                 self._closed = True
                 self._cond.notify_all()
+
+    def _advance(self, paths: list[RelayPath], now: float) -> tuple[float, float]:
+        """Close frames whose gap passed, move due bytes out (lock held); (wake, precise) times of the next event."""
+        wake = precise = math.inf
+        for path in paths:
+            if path.frame_open:
+                deadline = path.last_arrival + self.frame_gap
+                if now > deadline:
+                    self._close_frame(path, now)
+                else:
+                    wake = min(wake, deadline + 1e-4)
+            path_wake, path_precise = self._collect_due(path, now)
+            wake = min(wake, path_wake)
+            precise = min(precise, path_precise)
+            self._write_out(path)
+        return wake, precise
+
+    def _next_events(self, poller: select.poll, wake: float, precise: float) -> list[tuple[int, int]]:
+        now = time.monotonic()
+        if precise <= wake:  # next event: the last byte of a chunk, due at `precise`
+            if precise - now <= self.spin:
+                return self._spin(poller, precise)
+            return self._wait(poller, precise - self.spin - now)
+        return self._wait(poller, wake - now)
+
+    def _serve(self, events: list[tuple[int, int]]) -> None:
+        for fd, event in events:
+            if fd == self._wake_r:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(self._wake_r, 4096)
+                continue
+            if event & (select.POLLIN | select.POLLHUP | select.POLLERR):
+                self._read(fd)
 
     def _wait(self, poller: select.poll, timeout: float) -> list[tuple[int, int]]:
         """poll() with sub-millisecond precision: poll whole ms, sleep the fraction."""
