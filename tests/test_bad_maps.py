@@ -1,6 +1,7 @@
 """Golden corpus of broken maps: each file's exact diagnostics, never a traceback.
 
-Each ``tests/bad_maps/<case>.yaml`` has ``<case>.expected`` next to it holding what
+Each case (``tests/bad_maps/<case>.patch`` against a base map, or a whole ``<case>.yaml``: see
+:mod:`tests.badmaps`) has ``<case>.expected`` next to it holding what
 ``drivemap validate --exporter python --exporter docs`` prints on stderr: the front end's errors and
 those of the checks of the exporters ``drivemap build`` runs. Plain ``drivemap validate`` (the front
 end alone) prints the same for every case but :data:`EXPORTER_CASES`. Regenerate after a deliberate message change with
@@ -21,11 +22,9 @@ import pytest
 
 from drivemap.cli import main
 from drivemap.frontend.load import MAX_MAP_BYTES
+from tests.badmaps import CORPUS, ROOT, case_names, case_text, materialize
 
-HERE = Path(__file__).resolve().parent
-CORPUS = HERE / "bad_maps"
-CASES = sorted(CORPUS.glob("*.yaml"))
-ROOT = HERE.parent
+CASES = case_names()
 
 
 #: The cases only an exporter's check refuses (generated Python names, docs anchors and file names).
@@ -39,26 +38,34 @@ EXPORTER_CASES = frozenset({
 BUILD_CHECKS = ("--exporter", "python", "--exporter", "docs")
 
 
-def run_validate(path: Path, *flags: str) -> tuple[int, str, str]:
+def run_validate(path: Path | str, *flags: str) -> tuple[int, str, str]:
+    """``drivemap validate`` of ``path`` (shown relative to the cases' tree, where the tests stand)."""
+    shown = os.path.relpath(path) if isinstance(path, Path) else path
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["validate", *flags, os.path.relpath(path, ROOT)])
+        code = main(["validate", *flags, shown])
     return code, out.getvalue(), err.getvalue()
 
 
+@pytest.fixture(scope="module")
+def tree(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The cases written out as the files ``drivemap validate`` reads (``tests/bad_maps/<case>.yaml``)."""
+    return materialize(tmp_path_factory.mktemp("bad_maps_tree"))
+
+
 @pytest.fixture(autouse=True)
-def _at_root(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.chdir(ROOT)
+def _at_root(monkeypatch: pytest.MonkeyPatch, tree: Path) -> None:
+    monkeypatch.chdir(tree)
 
 
 def test_corpus_is_large_enough() -> None:
     assert len(CASES) >= 40
 
 
-@pytest.mark.parametrize("path", CASES, ids=[p.stem for p in CASES])
-def test_bad_map_diagnostic(path: Path) -> None:
-    code, out, err = run_validate(path, *BUILD_CHECKS)
-    golden = path.with_suffix(".expected")
+@pytest.mark.parametrize("case", CASES)
+def test_bad_map_diagnostic(case: str) -> None:
+    code, out, err = run_validate(f"tests/bad_maps/{case}.yaml", *BUILD_CHECKS)
+    golden = CORPUS / f"{case}.expected"
     if os.environ.get("DRIVEMAP_UPDATE_GOLDENS"):
         golden.write_text(err, encoding="utf-8")
     assert code == 1
@@ -66,16 +73,16 @@ def test_bad_map_diagnostic(path: Path) -> None:
     assert "Traceback" not in err
     assert err == golden.read_text(encoding="utf-8")
     first = err.splitlines()[0]
-    assert first.startswith(f"tests/bad_maps/{path.name}:"), first
+    assert first.startswith(f"tests/bad_maps/{case}.yaml:"), first
     assert ": error: " in first
 
 
-@pytest.mark.parametrize("path", CASES, ids=[p.stem for p in CASES])
-def test_plain_validate_is_the_front_end(path: Path) -> None:
+@pytest.mark.parametrize("case", CASES)
+def test_plain_validate_is_the_front_end(case: str) -> None:
     """Without ``--exporter`` the exporters' checks do not run: the golden output but for their errors."""
-    code, out, err = run_validate(path)
-    golden = path.with_suffix(".expected").read_text(encoding="utf-8")
-    if path.stem not in EXPORTER_CASES:
+    code, out, err = run_validate(f"tests/bad_maps/{case}.yaml")
+    golden = (CORPUS / f"{case}.expected").read_text(encoding="utf-8")
+    if case not in EXPORTER_CASES:
         assert (code, out, err) == (1, "", golden)
         return
     errors = [line for line in err.splitlines() if ": error: " in line]
@@ -89,11 +96,11 @@ def _limited() -> None:
 
 
 @pytest.mark.parametrize("case", ["alias_bomb", "deep_nesting", "python_object_tag", "huge_integer"])
-def test_hostile_input_in_a_subprocess(case: str) -> None:
+def test_hostile_input_in_a_subprocess(case: str, tree: Path) -> None:
     """The real command, bounded to 1 GiB of memory and 60 s: exit 1, one located message."""
     proc = subprocess.run(
         [sys.executable, "-m", "drivemap.cli", "validate", f"tests/bad_maps/{case}.yaml"],
-        cwd=ROOT, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
+        cwd=tree, capture_output=True, text=True, timeout=60, preexec_fn=_limited,
     )
     assert proc.returncode == 1
     assert "Traceback" not in proc.stderr
@@ -116,7 +123,7 @@ def test_fifty_megabyte_map_is_refused(tmp_path: Path) -> None:
 
 
 def test_all_errors_of_a_file_in_one_run(tmp_path: Path) -> None:
-    text = (CORPUS / "overlapping_registers.yaml").read_text(encoding="utf-8")
+    text = case_text("overlapping_registers")
     text = text.replace("    access: ro\n", "    access: ro\n").replace("  - name: run_state\n", "  - name: class\n")
     bad = tmp_path / "overlapping_registers.yaml"
     bad.write_text(text, encoding="utf-8")
@@ -126,7 +133,7 @@ def test_all_errors_of_a_file_in_one_run(tmp_path: Path) -> None:
 
 
 def test_missing_file() -> None:
-    code, _, err = run_validate(ROOT / "maps" / "no_such_map.yaml")
+    code, _, err = run_validate("maps/no_such_map.yaml")
     assert code == 1
     assert err.startswith("maps/no_such_map.yaml:1:1: error: cannot read file")
 
@@ -164,7 +171,7 @@ def test_a_large_realistic_map_is_not_refused_for_its_size(tmp_path: Path) -> No
     """The one size limit admits an 11 MB map (the size of 60,000 registers)."""
     from drivemap.frontend.load import load_file
 
-    text = (CORPUS / "huge_integer.yaml").read_text(encoding="utf-8").replace("123456789012345678901234567890", "0x0101")
+    text = case_text("huge_integer").replace("123456789012345678901234567890", "0x0101")
     big = tmp_path / "big.yaml"
     big.write_text(text + ("#" + "x" * 99 + "\n") * 110_000, encoding="utf-8")
     assert 11_000_000 < big.stat().st_size < MAX_MAP_BYTES
@@ -192,3 +199,25 @@ def test_depth_message_is_ours_whatever_libyaml_says(monkeypatch: pytest.MonkeyP
         load.load_text("a: " + "[" * 5000 + "]" * 5000, "deep.yaml")
     assert caught.value.diagnostics[0].format().startswith("deep.yaml:")
     assert "nesting deeper than 40 levels" in caught.value.diagnostics[0].message
+
+
+def test_every_patch_applies_to_its_base_and_changes_it() -> None:
+    """A patch applies line for line (a changed base fails here, naming the case), and each case differs
+    from the base it is made from: a case is its change, nothing else."""
+    from tests.badmaps import apply
+
+    patches = sorted(CORPUS.glob("*.patch"))
+    assert len(patches) > 100
+    for patch in patches:
+        text = patch.read_text(encoding="utf-8")
+        base = (CORPUS / text.splitlines()[0][4:].strip()).read_text(encoding="utf-8")
+        assert apply(base, text, patch.stem) != base.replace("{case}", patch.stem), patch.name
+
+
+def test_a_patch_that_no_longer_applies_is_an_error() -> None:
+    from tests.badmaps import PatchError, apply
+
+    base = (CORPUS / "_bases" / "scaffold.yaml").read_text(encoding="utf-8")
+    patch = "--- _bases/scaffold.yaml\n+++ x.yaml\n@@ -5,1 +5,1 @@\n-not this line\n+x\n"
+    with pytest.raises(PatchError, match="line 5 of the base"):
+        apply(base, patch, "x")
