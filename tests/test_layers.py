@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from drivemap._compat import MOVED_MODULES
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -78,20 +80,44 @@ def test_a_name_clash_is_refused_where_the_python_exporter_runs(tmp_path: Path) 
     assert proc.returncode == 1 and "unknown exporter 'nosuch'" in proc.stderr and "Traceback" not in proc.stderr
 
 
-@pytest.mark.parametrize(("old", "new", "name"), [
+@pytest.mark.parametrize(("path", "inner", "name"), [
     ("drivemap.runtime.client", "drivemap.runtime.client.sync_client", "ClientBase"),
-    ("drivemap.runtime.bus", "drivemap.runtime.client.bus", "Bus"),
-    ("drivemap.runtime.codec", "drivemap.runtime.client.codec", "IntCodec"),
-    ("drivemap.runtime.records", "drivemap.runtime.client.records", "record"),
-    ("drivemap.runtime.simulator", "drivemap.runtime.sim.simulator", "Simulator"),
-    ("drivemap.runtime.simcli", "drivemap.runtime.sim.cli", "main"),
     ("drivemap.behaviours", "drivemap.runtime.sim.behaviours", "register"),
     ("drivemap.model", "drivemap.model.nodes", "Model"),
 ])
-def test_old_public_import_paths_re_export_the_same_objects(old: str, new: str, name: str) -> None:
+def test_public_import_paths_re_export_the_same_objects(path: str, inner: str, name: str) -> None:
     import importlib
 
-    assert getattr(importlib.import_module(old), name) is getattr(importlib.import_module(new), name)
+    assert getattr(importlib.import_module(path), name) is getattr(importlib.import_module(inner), name)
+
+
+@pytest.mark.parametrize("old", sorted(MOVED_MODULES))
+def test_old_import_paths_answer_from_compat_with_a_warning(old: str) -> None:
+    """Each moved module's old path gives the new module's very objects, warns once naming the new path
+    and the release that removes the old one, and has no module file of its own any more."""
+    import importlib
+
+    from drivemap._compat import REMOVAL
+
+    new = importlib.import_module(MOVED_MODULES[old])
+    sys.modules.pop(old, None)
+    with pytest.warns(DeprecationWarning, match=rf"{re.escape(old)} is now {re.escape(new.__name__)}; "
+                                                rf"the old path goes in drivemap {REMOVAL}"):
+        module = importlib.import_module(old)
+    names = list(getattr(new, "__all__", ()))
+    assert names and all(getattr(module, n) is getattr(new, n) for n in names)
+    assert not (ROOT / "generator" / (old.replace(".", "/") + ".py")).exists()
+
+
+def test_an_unknown_old_name_is_an_attribute_error() -> None:
+    import importlib
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        module = importlib.import_module("drivemap.runtime.codec")
+    with pytest.raises(AttributeError):
+        module.NoSuchCodec  # noqa: B018
 
 
 def test_runtime_errors_and_seed_clients_keep_their_paths() -> None:

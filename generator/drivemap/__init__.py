@@ -25,4 +25,8 @@ printed (``spec.py``), a typed client that declares each register once
 See ``docs/architecture.md``.
 """
 
+from drivemap import _compat
+
 __version__ = "0.2.0"
+
+_compat.install()  # the import paths of earlier releases (drivemap._compat.MOVED_MODULES)

@@ -9,9 +9,10 @@ plus compile-time facts), so each fact the runtime reads is declared here once.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
+
+from drivemap._compat import flat as _flat
 
 #: Words (registers) of each fixed-size type; strings have ``length`` words; a coil or discrete input is one bit.
 TYPE_WORDS: dict[str, int] = {"u16": 1, "s16": 1, "bool": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4,
@@ -375,9 +376,7 @@ class ProtocolSpec:
 
 
 #: The attributes a DeviceSpec had before it was split into ``device`` and ``protocol``: the part that holds each.
-_MOVED = {"model": "device", "title": "device",
-          **{f: "protocol" for f in ProtocolSpec.__dataclass_fields__},
-          **{m: "protocol" for m in ("valid_unit", "function", "policy", "comm_policy", "exception")}}
+_MOVED = _flat.moved_attributes(ProtocolSpec.__dataclass_fields__)
 
 
 @dataclass(frozen=True)
@@ -408,13 +407,13 @@ class DeviceSpec:
         def __init__(self, device: ProductSpec | None = None, protocol: ProtocolSpec | None = None,
                      registers: tuple[RegisterSpec, ...] = (), reserved: tuple[ReservedSpec, ...] = (),
                      identity: tuple[IdentitySpec, ...] = (), enums: tuple[EnumSpec, ...] = (),
-                     **flat: object) -> None:
+                     **flat_form: object) -> None:
             """The dataclass's fields, or the flat form a ``spec.py`` of an earlier release prints
             (``DeviceSpec(model=..., title=..., modes=..., ...)``), with a DeprecationWarning."""
-            if flat:
-                warnings.warn("DeviceSpec(model=..., modes=..., ...) is the form of an earlier release; "
-                              "run `drivemap build` to write the current one", DeprecationWarning, stacklevel=2)
-                device, protocol = _split_flat(flat)
+            if flat_form:
+                _flat.warn_flat_form()
+                device, protocol = _flat.split_flat(flat_form, ProductSpec, ProtocolSpec, CommandSpec,
+                                                    RunningStateSpec, ReplyQuirkSpec)
             if device is None or protocol is None:
                 raise TypeError("DeviceSpec needs device and protocol")
             for name, value in (("device", device), ("protocol", protocol), ("registers", registers),
@@ -426,19 +425,5 @@ class DeviceSpec:
             part = _MOVED.get(name)
             if part is None:
                 raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-            warnings.warn(f"DeviceSpec.{name} is now DeviceSpec.{part}.{name}", DeprecationWarning, stacklevel=2)
+            _flat.warn_flat_attribute(name, part)
             return getattr(object.__getattribute__(self, part), name)
-
-
-def _split_flat(flat: dict[str, object]) -> tuple[ProductSpec, ProtocolSpec]:
-    """The device and protocol of a flat DeviceSpec of an earlier release (tuples where now classes are)."""
-    given = dict(flat)
-    device = ProductSpec(str(given.pop("model")), str(given.pop("title")))
-    configuration, running = given.get("configuration"), given.get("running_state")
-    if isinstance(configuration, tuple):
-        given["configuration"] = CommandSpec(*configuration)
-    if isinstance(running, tuple):
-        given["running_state"] = RunningStateSpec(*running)
-    given["reply_quirks"] = tuple(q if isinstance(q, ReplyQuirkSpec) else ReplyQuirkSpec(str(q))
-                                  for q in given.get("reply_quirks", ()))  # type: ignore[attr-defined]
-    return device, ProtocolSpec(**given)  # type: ignore[arg-type]
