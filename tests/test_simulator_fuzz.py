@@ -112,10 +112,8 @@ def _server_framer(sim: Simulator, mode: str) -> Any:
     """The framer ``SimServer`` installs, with the decoder its pymodbus server builds."""
     decoder = simserve.request_decoder(sim)
     if mode == "rtu":
-        watch = type("SimFramerRTU", (simserve._WatchRTU,), {"simulator": sim, "silence": 0.05})
-    else:
-        watch = type("SimFramerAscii", (simserve._WatchAscii,), {"simulator": sim})
-    return watch(decoder)
+        return simserve._WatchRTU(decoder, simulator=sim, silence=0.05)
+    return simserve._WatchAscii(decoder, simulator=sim)
 
 
 def _break(frame: bytes, where: int, bit: int) -> bytes:

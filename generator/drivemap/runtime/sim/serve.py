@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import threading
 import time
 from types import TracebackType
@@ -189,12 +190,14 @@ class _WatchRTU(FramerRTU):
     address) and takes it when its CRC is right, or keeps its bytes while it is still incomplete.
     """
 
-    simulator: ClassVar[Simulator]
-    silence: ClassVar[float]
-    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
-
-    def __init__(self, decoder: Any) -> None:
+    def __init__(self, decoder: Any, *, simulator: Simulator, silence: float, arrival: _Arrival | None = None) -> None:
+        """pymodbus makes one framer per connection by calling ``server.framer(decoder)``: the server
+        sets a :func:`functools.partial` of this class with its simulator, silent interval and the
+        arrival record it shares with its request classes."""
         super().__init__(decoder)
+        self.simulator = simulator
+        self.silence = silence
+        self.arrival = arrival or _Arrival()
         self._waiting = 0
         self._since = 0.0
 
@@ -254,8 +257,11 @@ class _WatchAscii(FramerAscii):
     then decoded by pymodbus alone, so a broken frame never takes the next one with it.
     """
 
-    simulator: ClassVar[Simulator]
-    arrival: ClassVar[_Arrival] = _Arrival()  # replaced per server by one shared with its request classes
+    def __init__(self, decoder: Any, *, simulator: Simulator, arrival: _Arrival | None = None) -> None:
+        """Made per connection by pymodbus through the server's :func:`functools.partial` (see :class:`_WatchRTU`)."""
+        super().__init__(decoder)
+        self.simulator = simulator
+        self.arrival = arrival or _Arrival()
 
     def decode(self, data: bytes) -> tuple[int, int, int, bytes]:
         now = time.monotonic()
@@ -385,13 +391,12 @@ class SimServer:
                 custom_pdu=custom,
             )
             server.decoder = _SimDecoder(custom)
-            watch: type[FramerRTU] | type[FramerAscii]
+            # pymodbus types the attribute as a framer class; it only calls it: ``framer(decoder)``
             if self.mode == "rtu":
-                watch = type("SimFramerRTU", (_WatchRTU,), {
-                    "simulator": self.sim, "silence": _silence_seconds(self.sim, self.baudrate), "arrival": arrival})
+                server.framer = functools.partial(_WatchRTU, simulator=self.sim, arrival=arrival,  # type: ignore[assignment]
+                                                  silence=_silence_seconds(self.sim, self.baudrate))
             else:
-                watch = type("SimFramerAscii", (_WatchAscii,), {"simulator": self.sim, "arrival": arrival})
-            server.framer = watch
+                server.framer = functools.partial(_WatchAscii, simulator=self.sim, arrival=arrival)  # type: ignore[assignment]
         try:
             await server.serve_forever(background=True)
         except RuntimeError as exc:  # pymodbus: "Could not start listen, please check address."
