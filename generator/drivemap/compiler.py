@@ -79,7 +79,7 @@ def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None)
     if problems:
         raise CompileError(family.note_overrides(doc, problems))
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
-    model = build_model(shown, doc.data, statuses, lines)  # type: ignore[arg-type]
+    model = build_model(shown, doc.data, statuses, lines, doc.positions.at)  # type: ignore[arg-type]
     return replace(model, format_version=version or formats.CURRENT, variant=variant)
 
 

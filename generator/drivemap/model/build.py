@@ -6,8 +6,10 @@ filled in here, so the model never has a missing value.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
+from drivemap.diagnostics import Location
 from drivemap.model import modicon
 from drivemap.model.family import IDENTITY_KINDS, IdentityCheck
 from drivemap.model.nodes import (
@@ -49,13 +51,16 @@ from drivemap.model.nodes import (
     type_words,
 )
 from drivemap.model.protocol import Origin
+from drivemap.model.source import SourceRef, YamlPath
 from drivemap.runtime.spec import SerialSpec
 
 __all__ = ["build_model", "number", "whole"]
 
 
-def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int]) -> Model:
-    """Turn a checked document into the model (``statuses``: example name -> status)."""
+def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], lines: dict[str, int],
+                at: Callable[[YamlPath], Location] | None = None) -> Model:
+    """Turn a checked document into the model (``statuses``: example name -> status); with ``at`` (the
+    loaded document's positions) every node carries where the map states it (``src``)."""
     p = data["protocol"]
     enums = tuple(
         Enum(
@@ -83,12 +88,49 @@ def build_model(path: str, data: dict[str, Any], statuses: dict[str, Status], li
         for k in data.get("known_issues", ())
     )
     by_name = {r.name: r for r in registers}
-    return Model(
+    model = Model(
         path=path, device=_device(data["device"]), protocol=_protocol(p), enums=enums, groups=groups,
         registers=tuple(registers), reserved=reserved, known_issues=issues,
         identity=tuple(_identity(x, by_name[x["register"]]) for x in data.get("identity", ())),
         examples=tuple(_example(e, statuses[e["name"]]) for e in data["examples"]),
     )
+    if at is not None:
+        locate(model, at)
+    return model
+
+
+def locate(model: Model, at: Callable[[YamlPath], Location]) -> None:
+    """Give every node of a model just built its :class:`SourceRef` (``at``: YAML path -> location).
+
+    The nodes are frozen; this fills their one ``src`` field once, before anyone else holds them."""
+
+    def put(node: object, where: YamlPath) -> None:
+        loc = at(where)
+        object.__setattr__(node, "src", SourceRef(loc.path, loc.line, loc.col, where))
+
+    put(model, ())
+    put(model.device, ("device",))
+    p = model.protocol
+    put(p, ("protocol",))
+    put(p.timing, ("protocol", "timing"))
+    for key, items in (("ports", p.ports), ("function_codes", p.function_codes), ("exceptions", p.exceptions),
+                       ("comm_errors", p.comm_errors), ("alignment", p.alignment)):
+        for i, item in enumerate(items):
+            put(item, ("protocol", key, i))
+    for enum in model.enums:
+        put(enum, ("enums", enum.name))
+        for j, member in enumerate(enum.members):
+            put(member, ("enums", enum.name, "values", j))
+    for key, nodes in (("groups", model.groups), ("reserved", model.reserved), ("known_issues", model.known_issues),
+                       ("examples", model.examples), ("identity", model.identity)):
+        for i, node in enumerate(nodes):
+            put(node, (key, i))
+    for i, reg in enumerate(model.registers):
+        put(reg, ("registers", i))
+        for j, bit in enumerate(reg.bits):
+            put(bit, ("registers", i, "bits", j))
+        for j, allowed in enumerate(reg.value_set):
+            put(allowed, ("registers", i, "values", j))
 
 
 def number(value: float | None) -> int | float | None:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from drivemap.model.source import SourceRef
 from drivemap.runtime.spec import IdentitySpec
 from drivemap.runtime.types import expected_text
 
@@ -17,6 +18,8 @@ class IdentityCheck(IdentitySpec):
     the runtime's :class:`IdentitySpec` and the map's notes."""
 
     notes: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def expected(self) -> str:
         """The expected value(s) as docs and messages show them."""

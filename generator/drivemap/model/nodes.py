@@ -36,6 +36,7 @@ from drivemap.model.protocol import (
     Timing,
 )
 from drivemap.model.rules import Alignment, AllowedValue
+from drivemap.model.source import SourceRef
 from drivemap.runtime.names import camel
 from drivemap.runtime.spec import (
     BIT_TABLES,
@@ -104,6 +105,8 @@ class EnumValue(EnumMemberSpec):
     """A member of an enum: the runtime's :class:`EnumMemberSpec` and the map's notes."""
 
     notes: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,8 @@ class Enum(EnumSpec):
     """A named set of values: the runtime's :class:`EnumSpec` whose members keep their notes."""
 
     members: tuple[EnumValue, ...]
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -118,6 +123,8 @@ class Bit(BitSpec):
     """A bit field of a register: the runtime's :class:`BitSpec` and the map's notes."""
 
     notes: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 #: A register's page (selector register and value): the runtime's class as it is.
@@ -130,6 +137,8 @@ class Group:
     title: str
     source: str
     notes: str | None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -163,6 +172,8 @@ class Register(RegisterSpec):
     values: tuple[tuple[float | str, str | None], ...] = field(init=False, default=())
     running_advice: str | None = field(init=False, default=None)
     bits_class: str | None = field(init=False, default=None)
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -240,6 +251,8 @@ class Reserved(ReservedSpec):
     #: reserved (marked by the manual) / unlabeled (listed without a name) / not_listed
     kind: str = "reserved"
     table: Table = "holding"
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -251,6 +264,8 @@ class KnownIssue:
     chosen: str
     reason: str
     affects: tuple[str, ...]
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -283,6 +298,8 @@ class Example:
     illegible: str | None
     notes: str | None
     status: Status
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     @property
     def wire_request(self) -> str | None:
@@ -313,6 +330,8 @@ class Model(DeviceSpec):
     identity: tuple[IdentityCheck, ...] = ()
     #: set when the map extends another (model.family)
     variant: Variant | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def register(self, name: str) -> Register:
         """The register ``name`` (the runtime's index, built on first use, so a replaced model indexes its own)."""

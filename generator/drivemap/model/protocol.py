@@ -5,10 +5,11 @@ checksums, running state and reply quirks (what :class:`~drivemap.model.nodes.Mo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import cast
 
 from drivemap.model.rules import Alignment
+from drivemap.model.source import SourceRef
 from drivemap.runtime.spec import (
     CommandSpec,
     CommErrorSpec,
@@ -78,6 +79,8 @@ class Device(ProductSpec):
     origin: Origin | None = None
     #: drive, inverter, meter, charger, ... (``device.kind``); None where the map does not say
     kind: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -106,6 +109,8 @@ class Port:
     settings: tuple[PortSetting, ...]
     source: str
     notes: str | None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -123,6 +128,8 @@ class FunctionCode(FunctionSpec):
     response_bytes: LengthRange | None
     source: str
     notes: str | None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -134,6 +141,8 @@ class ExceptionCode(ExceptionSpec):
     notes: str | None
     #: False: assumed by the map (source "map choice"), not printed in the manual
     documented: bool = True
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -142,6 +151,8 @@ class CommError(CommErrorSpec):
 
     source: str
     notes: str | None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -158,6 +169,8 @@ class Timing(TimingSpec):
 
     source: str
     notes: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -225,6 +238,8 @@ class Protocol(ProtocolSpec):
     reply_quirks: tuple[ReplyQuirk, ...] = ()
     alignment: tuple[Alignment, ...] = ()
     """Rules on request start addresses and quantities (``protocol.alignment``)."""
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def function(self, code: int) -> FunctionCode | None:
         """The runtime's lookup, typed with the map's function codes (name, lengths, source)."""

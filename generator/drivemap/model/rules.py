@@ -5,9 +5,10 @@ Kept apart from :mod:`drivemap.model.nodes` (which re-exports them) so each modu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from drivemap.model.modicon import Table
+from drivemap.model.source import SourceRef
 from drivemap.runtime.spec import AlignmentSpec
 
 
@@ -18,6 +19,8 @@ class AllowedValue:
     value: float | str
     label: str | None
     notes: str | None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def text(self) -> str:
         """``5`` or ``5 (5 min)``: the value (as the map writes it) and its label."""
@@ -34,6 +37,8 @@ class Alignment(AlignmentSpec):
 
     table: Table
     notes: str | None = None
+    #: where the map states it (file, line, column, YAML path)
+    src: SourceRef | None = field(default=None, compare=False, repr=False)
 
     def text(self) -> str:
         """The rule in words, for docs and messages."""
