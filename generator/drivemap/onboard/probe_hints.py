@@ -1,0 +1,53 @@
+"""Where known maps put readable words: the runs ``probe`` reads once inside refused blocks.
+
+The shipped maps' generated specs (and the ``--map`` given) name the register blocks devices of
+those families answer; a run of consecutive readable words of any of them is one hint. A hint is a
+read like any other: it proves only what the device answers.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from drivemap.runtime.spec import DeviceSpec
+
+__all__ = ["hint_runs", "known_specs"]
+
+
+def known_specs() -> list[DeviceSpec]:
+    """The generated specs of the maps drivemap ships (those whose package is installed)."""
+    from drivemap.compiler import bundled_maps
+
+    specs = []
+    for path in bundled_maps():
+        try:
+            module = importlib.import_module(f"drivemap_models.{path.stem}.spec")
+        except ImportError:
+            continue
+        spec = getattr(module, "SPEC", None)
+        if isinstance(spec, DeviceSpec):
+            specs.append(spec)
+    return specs
+
+
+def hint_runs(specs: list[DeviceSpec], tables: list[str]) -> dict[str, list[tuple[int, int]]]:
+    """Per table: the inclusive runs of consecutive readable words of each spec (every page), merged
+    per spec, deduplicated across specs."""
+    out: dict[str, set[tuple[int, int]]] = {t: set() for t in tables}
+    for spec in specs:
+        words: dict[str, set[int]] = {t: set() for t in tables}
+        for reg in spec.registers:
+            if reg.table in words and reg.readable:
+                for i in range(reg.count):
+                    start = reg.element_address(i)
+                    words[reg.table].update(a for a in range(start, start + reg.words) if a <= 0xFFFF)
+        for table, cells in words.items():
+            run: list[int] = []
+            for a in sorted(cells):
+                if run and a != run[-1] + 1:
+                    out[table].add((run[0], run[-1]))
+                    run = []
+                run.append(a)
+            if run:
+                out[table].add((run[0], run[-1]))
+    return {t: sorted(r) for t, r in out.items()}
