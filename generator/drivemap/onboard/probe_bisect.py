@@ -68,6 +68,7 @@ class _Table:
     pairs: bool = False
     pairs_tested: bool = False
     tries: int = 0
+    form_tried: bool = False
 
 
 class Bisector:
@@ -146,6 +147,8 @@ class Bisector:
                     if t.name in self.prober.unsupported:
                         self.rules.append(f"{t.name}: the device refuses the function (exception 01h)")
                         continue
+                    if self._form_refused(t, address, count):
+                        continue  # read the block again in the aligned form just learned
                     if t.tries < RULE_TRIES and count > 2:
                         t.tries += 1
                         if self._rules(t, address, count):
@@ -153,6 +156,49 @@ class Bisector:
                     refused.append((address, address + count - 1))
                 address += count
         return refused
+
+    def _form_refused(self, t: _Table, address: int, count: int) -> bool:
+        """Exception 03h (illegal data value) names the request's form, not its addresses. Once per
+        table, at an even address: the largest even quantity not refused with 03h (binary search) is
+        the device's largest read; an odd quantity refused with 03h where the even ones around it are
+        not means reads in even pairs only. True when a rule was learned (the block is read again)."""
+        if t.form_tried or self.prober.last_refusal != 0x03 or count < 4 or address % 2:
+            return False
+        t.form_tried = True
+        words = t.name in ("holding", "input")
+        step = 2 if words else 1
+
+        def accepted(quantity: int) -> bool:
+            return self._read(t, address, quantity) is not None or self.prober.last_refusal not in (0x03, None)
+
+        good, bad = 0, count - count % step + step if count % step else count
+        while bad - good > step:
+            mid = (good + bad) // 2
+            mid -= mid % step
+            if mid <= good:
+                mid = good + step
+            if self.spent():
+                return False
+            if accepted(mid):
+                good = mid
+            else:
+                bad = mid
+        if good == 0:
+            return False
+        learned = False
+        if words and good >= 4 and not accepted(3):
+            t.pairs = True
+            learned = True
+            self.rules.append(f"{t.name}: reads at even addresses in even quantities only (exception 03h to 3 words "
+                              f"at {address}, not to {good}); protocol.alignment")
+        elif words and good + 1 < count and accepted(good + 1):
+            good += 1
+        if good < self.prober.max_quantity[t.name]:
+            self.prober.max_quantity[t.name] = good
+            learned = True
+            self.rules.append(f"{t.name}: at most {good} per read (exception 03h to {bad} at {address}); "
+                              "protocol.function_codes max_quantity")
+        return learned
 
     def _aligned_count(self, t: _Table, address: int, count: int) -> int:
         if t.pairs:
