@@ -29,6 +29,7 @@ def test_full_address_space_in_three_reads_per_block(model: str, tmp_path: Path)
     doc = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
     assert doc["unresolved"]["holding"]  # the budget ran out: what was not proven is listed, not empty
     assert "stopped by the read budget" in proc.stdout and "unresolved (" in proc.stdout
+    assert f"every register of the shipped map {model} in these ranges answered" in proc.stdout
     seconds = int(proc.stdout.split("reads take ~")[1].split(" s")[0])
     assert seconds <= 300  # the frames at 19200 Bd
     text = (tmp_path / "m.yaml").read_text(encoding="utf-8")

@@ -34,7 +34,7 @@ from drivemap.live.values import locate_error
 from drivemap.onboard.importers.mapdoc import MapDoc, model_id, target_path, write_map
 from drivemap.onboard.probe import STANDARD_MAX, Block, ProbeGarbled, Prober, ProbeSilence, blocks_of, line_seconds
 from drivemap.onboard.probe_bisect import Bisector, Outcome
-from drivemap.onboard.probe_hints import hint_runs, known_specs
+from drivemap.onboard.probe_hints import candidates, hint_runs, known_specs
 from drivemap.onboard.probe_snapshot import diff, load_snapshot, snapshot_text
 from drivemap.onboard.probe_sunspec import Chain, walk
 from drivemap.runtime.spec import READ_CODES, DeviceSpec
@@ -306,7 +306,16 @@ def _finish(args: argparse.Namespace, plan: _Plan, link: Link, prober: Prober, v
     _summary(doc, plan, prober, values, chain)
     if outcome is not None:
         _proof(outcome, prober, link)
+        _candidates(plan, values)
     return EXIT_OK
+
+
+def _candidates(plan: _Plan, values: dict[str, dict[int, int]]) -> None:
+    """The shipped maps whose every register in the ranges answered: a map to verify, not a proof."""
+    found = candidates(known_specs(), values, plan.tables, plan.ranges)
+    for model, words, _ in found[:3]:
+        print(f"  every register of the shipped map {model} in these ranges answered ({words} words): check it with "
+              f"drivemap verify {model}", file=sys.stdout)
 
 
 def _spans(spans: list[tuple[int, int]], most: int = 12) -> str:

@@ -11,7 +11,7 @@ import importlib
 
 from drivemap.runtime.spec import DeviceSpec
 
-__all__ = ["hint_runs", "known_specs"]
+__all__ = ["candidates", "hint_runs", "known_specs"]
 
 
 def known_specs() -> list[DeviceSpec]:
@@ -28,6 +28,31 @@ def known_specs() -> list[DeviceSpec]:
         if isinstance(spec, DeviceSpec):
             specs.append(spec)
     return specs
+
+
+def _words(spec: DeviceSpec, tables: list[str]) -> set[tuple[str, int]]:
+    """Every word of a readable register of ``tables`` that is on no page (what reads at power-up)."""
+    out: set[tuple[str, int]] = set()
+    for reg in spec.registers:
+        if reg.table in tables and reg.readable and reg.page is None:
+            for i in range(reg.count):
+                start = reg.element_address(i)
+                out.update((reg.table, a) for a in range(start, start + reg.words) if a <= 0xFFFF)
+    return out
+
+
+def candidates(specs: list[DeviceSpec], values: dict[str, dict[int, int]], tables: list[str],
+               ranges: list[tuple[int, int]]) -> list[tuple[str, int, int]]:
+    """The maps whose every readable word in the probed ranges answered: (model, its words there, the
+    words read that it names), the map naming most of what was read first. A candidate to verify, not
+    an identification: other devices may answer the same addresses."""
+    read = {(t, a) for t, cells in values.items() for a in cells}
+    out = []
+    for spec in specs:
+        words = {(t, a) for t, a in _words(spec, tables) if any(lo <= a <= hi for lo, hi in ranges)}
+        if words and words <= read:
+            out.append((spec.name, len(words), len(words & read)))
+    return sorted(out, key=lambda c: (-c[2], c[0]))
 
 
 def hint_runs(specs: list[DeviceSpec], tables: list[str]) -> dict[str, list[tuple[int, int]]]:
