@@ -35,7 +35,9 @@ import gateway as gateway_bench  # noqa: E402
 import imports  # noqa: E402
 import overhead  # noqa: E402
 import planning  # noqa: E402
+import probe as probe_bench  # noqa: E402
 import publicdocs  # noqa: E402
+import scan as scan_bench  # noqa: E402
 import simthroughput  # noqa: E402
 import sunspecprobe  # noqa: E402
 import wire  # noqa: E402
@@ -167,6 +169,8 @@ element address by element address. **Cells recovered**: same holding address, t
 scale-factor register. The other fields are compared on the cells both maps have and every difference
 is listed with both values: the probe's map takes them from the SunSpec models (pysunspec2), the proven
 map from Fronius' documents.""",
+    probe_bench.TITLE: (probe_bench.__doc__ or "").split("\n\n    python")[0],
+    scan_bench.TITLE: (scan_bench.__doc__ or "").split("\n\n    python")[0],
     baseline.TITLE: baseline.DEFINITION,
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
@@ -302,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
                     choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
-                             "draft", "publicdocs", "sunspec", "baseline"],
+                             "draft", "publicdocs", "sunspec", "probe", "scan", "baseline"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -321,6 +325,8 @@ def main(argv: list[str] | None = None) -> int:
         ("draft", "Draft recovery (seed manuals vs proven maps)", lambda: draft_bench.run(args.quick)),
         ("publicdocs", publicdocs.TITLE, lambda: publicdocs.run(args.quick)),
         ("sunspec", sunspecprobe.TITLE, lambda: sunspecprobe.run(args.quick)),
+        ("probe", probe_bench.TITLE, lambda: probe_bench.run(args.quick)),
+        ("scan", scan_bench.TITLE, lambda: scan_bench.run(args.quick)),
         ("baseline", baseline.TITLE, lambda: baseline.run(args.quick)),
     ]
     sections: list[Section] = []

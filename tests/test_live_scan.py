@@ -7,6 +7,8 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
+from typing import Any
 
 from helpers_client import simulator, tcp_server
 from helpers_live import ENV, ROOT, cli
@@ -62,3 +64,34 @@ def test_scan_is_interruptible_and_prints_what_it_found() -> None:
     assert proc.returncode == 130, err
     assert "interrupted after" in out and "found so far" in out
     assert any(line.startswith("│ 1 ") for line in out.splitlines()), out
+
+
+def test_scan_names_the_option_as_typed() -> None:
+    for option in ("--unit", "--units"):
+        proc = cli("scan", "--tcp", "127.0.0.1:1", option, "999")
+        assert proc.returncode == 1, proc.stderr
+        assert proc.stderr.strip() == f"drivemap scan: error: {option}: unit ids are 0..255, not '999'", proc.stderr
+
+
+def test_scan_in_a_folder_without_maps_compares_the_shipped_maps_reading_each_request_once(tmp_path: Path) -> None:
+    with tcp_server("sdm630") as (sim, host, port):
+        pdus: list[bytes] = []
+        handle = sim.handle
+
+        def recording(unit: int, pdu: bytes, **kw: Any) -> Any:
+            pdus.append(pdu)
+            return handle(unit, pdu, **kw)
+
+        sim.handle = recording
+        proc = cli("scan", "--tcp", f"{host}:{port}", "--unit", "1", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "the project has no maps: comparing with the 10 maps shipped with drivemap" in proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["maps"] == "shipped"
+    (unit,) = doc["units"]
+    assert unit["fits"][0]["model"] == "sdm630" and unit["fits"][0]["fits"] is True
+    assert [f["model"] for f in unit["fits"] if f["fits"]] == ["sdm630"]
+    assert len(unit["fits"]) == 10
+    assert {p[0] for p in pdus} <= {1, 2, 3, 4}  # reads only
+    judged = pdus[1:]  # after the probe read: the maps' reads, each distinct one sent once for all of them
+    assert len(judged) == unit["reads"] and len(set(judged)) == len(judged), judged

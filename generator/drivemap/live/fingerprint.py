@@ -1,19 +1,80 @@
-"""Does a map fit the device that answers? A read fingerprint, and the value checks verify shares."""
+"""Does a map fit the device that answers? A read fingerprint, and the value checks verify shares.
+
+Many candidate maps are judged against one unit through :class:`SharedReads`: every read is sent at
+most once per unit for all candidates (a read inside the words of one that answered is answered from
+it; the same read refused is refused again without asking), so the device sees each distinguishing
+address once, not once per map. A map stops being read at its first refused or unanswered request:
+it does not fit.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from pymodbus.pdu import ModbusPDU
+from pymodbus.pdu.register_message import ReadHoldingRegistersResponse, ReadInputRegistersResponse
+
 from drivemap.live.target import Target
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.exchange import Exchange
 from drivemap.runtime.client.identity import identity_keys, identity_mismatches
 from drivemap.runtime.client.sync_client import _run
-from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
+from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout, TransportError
 
 #: Requests a fingerprint sends at most per map (the planner's first batches).
 MAX_REQUESTS = 8
+
+
+_RESPONSES = {0x03: ReadHoldingRegistersResponse, 0x04: ReadInputRegistersResponse}
+
+
+class SharedReads:
+    """A bus for many candidates' reads of one device: each distinct read sent once (see the module doc).
+
+    Only read function codes pass (anything else is refused before it reaches the device)."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.bus = bus
+        self.sent = 0
+        self.shared = 0
+        self._answers: dict[tuple[int, int, int, int], ModbusPDU | DriveError | None] = {}
+        #: (unit, code) -> answered register reads: (address, words)
+        self._words: dict[tuple[int, int], list[tuple[int, list[int]]]] = {}
+
+    def exchange(self, ex: Exchange) -> ModbusPDU | None:
+        pdu = ex.pdu
+        code = pdu.function_code
+        if code not in (0x01, 0x02, 0x03, 0x04):
+            raise AssertionError("identification sends reads only")
+        key = (ex.unit, code, pdu.address, pdu.count)
+        if key not in self._answers:
+            covered = self._covered(ex.unit, code, pdu.address, pdu.count)
+            if covered is not None:
+                self.shared += 1
+                return covered
+            self.sent += 1
+            try:
+                reply = self.bus.exchange(ex)
+            except DriveError as exc:
+                self._answers[key] = exc
+                raise
+            self._answers[key] = reply
+            if reply is not None and code in _RESPONSES and not reply.isError():
+                self._words.setdefault((ex.unit, code), []).append((pdu.address, list(reply.registers)))
+            return reply
+        self.shared += 1
+        answer = self._answers[key]
+        if isinstance(answer, DriveError):
+            raise answer
+        return answer
+
+    def _covered(self, unit: int, code: int, address: int, count: int) -> ModbusPDU | None:
+        for start, words in self._words.get((unit, code), ()):
+            if start <= address and address + count <= start + len(words):
+                return _RESPONSES[code](registers=words[address - start:address - start + count], dev_id=unit)
+        return None
 
 
 def value_problem(target: Target, reg: Register, raw: int, raws: dict[tuple[str, int], int] | None = None) -> str | None:
@@ -119,7 +180,7 @@ class Fit:
                 "answered": self.answered, "values": self.values, "problems": self.problems, "notes": self.notes}
 
 
-def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
+def identify(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | None = None) -> Fit | None:
     """Read the map's identity registers from ``unit`` and judge them (None: the map names none)."""
     spec = target.spec
     if not spec.identity:
@@ -133,7 +194,7 @@ def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
     for req in client.plan(keys):
         fit.requests += 1
         try:
-            raws = _run(bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))
+            raws = _run(reads or bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"identity: exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
             continue
@@ -148,7 +209,7 @@ def identify(bus: Bus, target: Target, unit: int) -> Fit | None:
     return fit
 
 
-def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
+def fingerprint(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | None = None) -> Fit:
     """Read the map's first planned batches (pages left alone) from ``unit`` and judge the values."""
     fit = Fit(target.model.name)
     if not target.spec.protocol.valid_unit(unit):
@@ -160,12 +221,16 @@ def fingerprint(bus: Bus, target: Target, unit: int) -> Fit:
         fit.requests += 1
         keys = [key for key, _ in req.cells]
         try:
-            raws = _run(bus, client._core.read_raw(keys, (req,), checked=True))
+            raws = _run(reads or bus, client._core.read_raw(keys, (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
+            if reads is not None:
+                break  # among many candidates: this one does not fit; its other reads are not sent
             continue
         except (DriveTimeout, TransportError):
             fit.problems.append(f"no answer to a read of 0x{req.address:04X}+{req.count}")
+            if reads is not None:
+                break
             continue
         fit.answered += 1
         for (name, index), raw in raws.items():

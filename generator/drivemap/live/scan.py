@@ -19,6 +19,7 @@ import json
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
@@ -34,7 +35,7 @@ from drivemap.live.connection import (
     resolve_link,
 )
 from drivemap.live.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
-from drivemap.live.fingerprint import Fit, fingerprint, identify
+from drivemap.live.fingerprint import Fit, SharedReads, fingerprint, identify
 from drivemap.live.fmt import console
 from drivemap.live.session import read_words
 from drivemap.live.target import Target, load_target, project_of
@@ -51,7 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p = sub.add_parser("scan", help="find the unit ids (and serial settings) that answer; which maps fit",
                        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
                        epilog=epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--units", default=None, metavar="A-B[,C]",
+    p.add_argument("--units", "--unit", default=None, metavar="A-B[,C]", action=_Named,
                    help="unit ids to try (default: the project maps' unit range, at most 1-247)")
     p.add_argument("--baudrates", default=None, metavar="N,N", help="serial: baud rates to try (default: the maps')")
     p.add_argument("--parities", default=None, metavar="P,P", help="serial: parities to try (default: the maps')")
@@ -62,12 +63,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p.set_defaults(func=cmd_scan, timeout=None)
 
 
+class _Named(argparse.Action):
+    """Stores the value and the option as typed (``--unit`` or ``--units``), for the error message."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_option", option_string or "--units")
+
+
 @dataclass
 class Found:
     unit: int
     link: Link
     answer: str
     fits: list[Fit] = field(default_factory=list)
+    #: reads sent to judge the maps (each distinct read once for all of them)
+    reads: int = 0
 
 
 @dataclass
@@ -77,19 +89,23 @@ class Scan:
     refused: list[str] = field(default_factory=list)
     probes: int = 0
     interrupted: bool = False
+    #: whose maps were compared: "the project's", or "shipped" (a folder without maps)
+    maps: str = "the project's"
 
 
 @verb("scan")
 def cmd_scan(args: argparse.Namespace) -> int:
-    targets = project_targets(args.maps)
+    targets, whose = scan_targets(args.maps)
     if not targets:
         raise LiveError(EXIT_INPUT, "the project has no maps to compare with (pass --maps PATH)")
     link = resolve_link(with_defaults(args, targets), None, unit=0)
     link = replace(link, timeout=args.timeout or 0.1, retries=args.retries or 0)
-    units = parse_units(args.units, targets)
+    units = parse_units(args.units, targets, getattr(args, "units_option", "--units"))
     settings = list(line_settings(args, link, targets))
-    result = Scan()
+    result = Scan(maps=whose)
     err = Console(stderr=True)
+    if whose == "shipped":
+        err.print(f"the project has no maps: comparing with the {len(targets)} maps shipped with drivemap")
     total = len(settings) * len(units)
     err.print(f"scanning {len(units)} unit ids x {len(settings)} line setting{'s' if len(settings) != 1 else ''}: "
               f"at most {total} probes of {link.timeout:g} s (~{eta(total, link)})")
@@ -113,10 +129,27 @@ def with_defaults(args: argparse.Namespace, targets: list[Target]) -> argparse.N
     return ns
 
 
-def project_targets(maps: list[str] | None) -> list[Target]:
+def scan_targets(maps: list[str] | None) -> tuple[list[Target], str]:
+    """The project's maps; in a folder without maps (and no ``--maps``), the maps drivemap ships (and its
+    catalogue, when installed under the package's ``data/maps/catalogue``)."""
+    targets = project_targets(maps)
+    if targets or maps:
+        return targets, "the project's"
+    return project_targets(None, shipped_maps()), "shipped"
+
+
+def shipped_maps() -> list[Path]:
+    from drivemap.compiler import BUNDLED_MAPS, bundled_maps
+
+    catalogue = BUNDLED_MAPS / "catalogue"
+    listed = sorted(p for p in catalogue.rglob("*.yaml") if not p.name.startswith(".")) if catalogue.is_dir() else []
+    return [*bundled_maps(), *listed]
+
+
+def project_targets(maps: list[str] | None, files: list[Path] | None = None) -> list[Target]:
     project = project_of(maps)
     targets = []
-    for path in project.map_files():
+    for path in project.map_files() if files is None else files:
         try:
             targets.append(load_target(str(path), project))
         except CompileError as exc:
@@ -124,7 +157,7 @@ def project_targets(maps: list[str] | None) -> list[Target]:
     return targets
 
 
-def parse_units(text: str | None, targets: list[Target]) -> list[int]:
+def parse_units(text: str | None, targets: list[Target], option: str = "--units") -> list[int]:
     if text is None:
         low = min((t.spec.protocol.unit_min for t in targets), default=1)
         high = min(max((t.spec.protocol.unit_max for t in targets), default=247), 247)
@@ -135,9 +168,9 @@ def parse_units(text: str | None, targets: list[Target]) -> list[int]:
             first, _, last = part.partition("-")
             units.extend(range(int(first), int(last or first) + 1))
     except ValueError:
-        raise LiveError(EXIT_INPUT, f"--units wants ranges like 1-16,20, not {text!r}") from None
+        raise LiveError(EXIT_INPUT, f"{option} wants unit ids or ranges like 1-16,20, not {text!r}") from None
     if not units or any(not 0 <= u <= 255 for u in units):
-        raise LiveError(EXIT_INPUT, f"--units: unit ids are 0..255, not {text!r}")
+        raise LiveError(EXIT_INPUT, f"{option}: unit ids are 0..255, not {text!r}")
     return sorted(set(units))
 
 
@@ -252,13 +285,15 @@ def probes(targets: list[Target]) -> list[tuple[int, int, DeviceSpec]]:
 def fits_of(found: Found, targets: list[Target]) -> list[Fit]:
     fits = []
     bus = open_bus(replace(found.link, timeout=max(found.link.timeout or 0.1, 0.3)))
+    reads = SharedReads(bus)  # each distinct read once for all the candidates
     try:
         for target in targets:
             if found.link.serial and found.link.mode not in target.spec.protocol.modes:
                 continue
-            fits.append(identify(bus, target, found.unit) or fingerprint(bus, target, found.unit))
+            fits.append(identify(bus, target, found.unit, reads) or fingerprint(bus, target, found.unit, reads))
     finally:
         bus.close()
+    found.reads = reads.sent
     return sorted(fits, key=lambda f: (-f.score, f.model))
 
 
@@ -266,7 +301,8 @@ def show(result: Scan, as_json: bool) -> None:
     if as_json:
         doc = {"interrupted": result.interrupted, "probes": result.probes, "garbled": result.garbled,
                "refused": result.refused,
-               "units": [{"unit": f.unit, "link": f.link.line(), "answer": f.answer,
+               "maps": result.maps,
+               "units": [{"unit": f.unit, "link": f.link.line(), "answer": f.answer, "reads": f.reads,
                           "fits": [fit.json() for fit in f.fits]} for f in result.found]}
         print(json.dumps(doc, indent=2))
         return

@@ -20,7 +20,7 @@ from drivemap.runtime.client.sansio import READ_REQUESTS
 from drivemap.runtime.errors import DriveTimeout
 from drivemap.runtime.spec import READ_CODES, TimingSpec
 
-__all__ = ["READ_ONLY_CODES", "Block", "ProbeSilence", "Prober", "blocks_of"]
+__all__ = ["READ_ONLY_CODES", "Block", "ProbeGarbled", "ProbeSilence", "Prober", "blocks_of", "line_seconds"]
 
 READ_ONLY_CODES = frozenset(READ_CODES.values())
 #: Largest request the Modbus standard allows per table (words; bits for coils and discrete inputs).
@@ -30,10 +30,41 @@ _SINGLES_BELOW = 8
 #: exceptions, after which the probe stops (a unit that answers them with silence is read on: slowly)
 SILENT_START = 3
 SILENT_RUN = 20
+#: reads in a row answered with bytes that form no valid reply (or a reply to another request), after
+#: which the probe stops as ``read`` does at the first
+GARBLED_RUN = 3
+#: RTU characters around every frame: the 3.5-character silence before and after
+_GAP_CHARS = 7
 
 
 class ProbeSilence(Exception):
     """The unit does not answer: the probe stops (message: what was seen)."""
+
+
+class ProbeGarbled(Exception):
+    """Replies come, but garbled or not answering the request: the probe stops."""
+
+    def __init__(self, timeout: DriveTimeout, rejected: str | None) -> None:
+        super().__init__(str(timeout))
+        self.timeout = timeout
+        self.rejected = rejected
+
+
+def line_seconds(chars: int, requests: int, silent: int, baudrate: int, timeout: float) -> float:
+    """The time the frames of ``requests`` reads (``chars`` RTU characters, requests and replies) take
+    on a serial line at ``baudrate`` (11 bits a character, the 3.5-character gaps), plus ``timeout``
+    for each of the ``silent`` reads that got no answer."""
+    return (chars + _GAP_CHARS * requests) * 11 / baudrate + silent * timeout
+
+
+def frame_chars(code: int, count: int, reply: str) -> int:
+    """RTU characters of one read and its reply (``reply``: "data", "exception" or "none")."""
+    if reply == "none":
+        return 8
+    if reply == "exception":
+        return 8 + 5
+    body = (count + 7) // 8 if code <= 0x02 else 2 * count
+    return 8 + 5 + body
 
 
 @dataclass(frozen=True)
@@ -79,6 +110,12 @@ class Prober:
     refusals: dict[int, int] = field(default_factory=dict)
     unsupported: set[str] = field(default_factory=set)
     silent_run: int = 0
+    garbled_run: int = 0
+    #: reads that got no answer at all; RTU characters of every request and reply (see line_seconds)
+    silent: int = 0
+    chars: int = 0
+    #: the exception code of the last refused read (None: silence)
+    last_refusal: int | None = None
     #: tables whose single-word reads are refused where even-aligned pairs answer -> words read in pairs
     pairs_first: dict[str, int] = field(default_factory=dict)
     #: tables the map's alignment rules say to read in pairs only (``probe --map``): no one-word reads
@@ -93,16 +130,26 @@ class Prober:
         self._pace()
         self.requests += 1
         pdu = READ_REQUESTS[code](address=address, count=count)
+        stats = self.bus.stats
+        before = (stats.bytes_garbled, stats.rejected)
+        self.last_refusal = None
         try:
             reply = self.bus.exchange(Exchange(self.unit, pdu, TimingSpec()))
-        except DriveTimeout:
+        except DriveTimeout as exc:
+            self.chars += frame_chars(code, count, "none")
+            self.silent += 1
+            self._garbled(exc, stats.bytes_garbled > before[0], stats.rejected > before[1])
             self._silence()
             return None
         if reply is None:
+            self.chars += frame_chars(code, count, "none")
             return None
         self.answered += 1
         self.silent_run = 0
+        self.garbled_run = 0
+        self.chars += frame_chars(code, count, "exception" if reply.isError() else "data")
         if reply.isError():
+            self.last_refusal = reply.exception_code
             self.refusals[reply.exception_code] = self.refusals.get(reply.exception_code, 0) + 1
             if reply.exception_code == 0x01:
                 self.unsupported.add(table)
@@ -110,6 +157,12 @@ class Prober:
         if code <= 0x02:
             return [1 if b else 0 for b in reply.bits[:count]]
         return list(reply.registers)
+
+    def _garbled(self, exc: DriveTimeout, garbled: bool, rejected: bool) -> None:
+        """Stop when replies keep coming that are garbage or answer another request (as ``read`` does)."""
+        self.garbled_run = self.garbled_run + 1 if garbled or rejected else 0
+        if self.garbled_run >= GARBLED_RUN:
+            raise ProbeGarbled(exc, getattr(self.bus, "last_rejected", None) if rejected else None)
 
     def _silence(self) -> None:
         """Stop rather than wait out every address: a unit that never answered after a few reads, or one
