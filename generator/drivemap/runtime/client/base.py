@@ -351,6 +351,8 @@ class _Common(Generic[S, B]):
     def _read_all_program(self) -> Program:
         core = self._core
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
+        if core.tables.under_review:
+            core.warn_review(core.tables.all_keys)
         program = self._all_program = self._snapshot_program(core.tables.all_keys, self.plan(), True)
         return program
 
@@ -371,6 +373,8 @@ class _Common(Generic[S, B]):
         if writer is not None:
             return writer
         codec, key = acc.codec, acc.key
+        if acc.spec.name in self._core.tables.under_review:  # refused before the value is looked at
+            return self._refusing_writer(key)
         if self._ASYNC:
             async def general_async(client: Any, value: Any) -> None:
                 await client._write_raw_items([(key, encode_for_write(codec, value))])
@@ -380,6 +384,18 @@ class _Common(Generic[S, B]):
             client._write_raw_items([(key, codec.encode(value) if codec.scale_key is None
                                      else encode_for_write(codec, value))])
         return general
+
+    def _refusing_writer(self, key: Key) -> Callable[[Any, Any], Any]:
+        """The writer of a register open for review (``review:``): :class:`OpenForReview`, nothing sent."""
+        core = self._core
+        if self._ASYNC:
+            async def refuse_async(client: Any, value: Any) -> None:
+                core.check_write(key)
+            return refuse_async
+
+        def refuse(client: Any, value: Any) -> None:
+            core.check_write(key)
+        return refuse
 
     def _general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
                  finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:

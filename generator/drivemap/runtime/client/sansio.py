@@ -18,6 +18,7 @@ requests are counted in ``Stats.split_reads`` and ``Stats.extra_requests``.
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Literal, TypeVar
 
@@ -55,8 +56,10 @@ from drivemap.runtime.errors import (
     InvalidArgument,
     InvalidValue,
     NotBroadcastable,
+    OpenForReview,
     PartialWrite,
     ReadOnlyRegister,
+    ReviewWarning,
     TransportError,
     UnsupportedFunction,
     ValueOutOfRange,
@@ -93,6 +96,8 @@ class Core:
         #: words (bits) the device refused on their own: (table, address)
         self.holes: set[Hole] = set()
         self._hole_plans: dict[frozenset[Key], tuple[ReadRequest, ...]] = {}
+        #: registers open for review (``review:``) whose read this client has warned about
+        self._review_warned: set[str] = set()
 
     # -- checks and replies
     def raise_for(self, reply: ModbusPDU | None, function: int) -> ModbusPDU:
@@ -196,6 +201,19 @@ class Core:
             if name not in readable:
                 self.spec.register(name)  # KeyError for a name the map does not have
                 raise WriteOnlyRegister(f"{name} is write-only")
+        if self.tables.under_review:
+            self.warn_review(keys)
+
+    def warn_review(self, keys: Iterable[Key]) -> None:
+        """A :class:`ReviewWarning` for each register of ``keys`` whose map leaves a field that decides
+        its value open (once per register and client): the read works, its value may be wrong."""
+        review = self.tables.under_review
+        for name, _ in keys:
+            fields = review.get(name)
+            if fields and name not in self._review_warned:
+                self._review_warned.add(name)
+                warnings.warn(ReviewWarning(f"{name}: its map leaves {', '.join(fields)} open for review; the value "
+                                            "read may be wrong"), stacklevel=4)
 
     def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...], *,
                  checked: bool = False) -> Op[dict[Key, int]]:
@@ -320,10 +338,20 @@ class Core:
         reg = self.spec.register(key[0])
         if not reg.writable:
             raise ReadOnlyRegister(f"{reg.element_name(key[1])} is read-only")
+        if reg.review and reg.open_for_writes:
+            raise OpenForReview(reg.name, reg.open_for_writes)
         if self.broadcast and not reg.broadcast:
             raise NotBroadcastable(f"{reg.element_name(key[1])} may not be written by broadcast")
         refuse_misaligned(self.spec, reg.table, reg.element_address(key[1]), reg.words, "write")
         return reg
+
+    def refuse_open(self, keys: Iterable[Key]) -> None:
+        """:class:`OpenForReview` for the first of ``keys`` whose register is open for review (``review:``)."""
+        review = self.tables.under_review
+        if review:
+            for name, index in keys:
+                if name in review:
+                    self.check_write((name, index))
 
     def _resolve(self, items: Sequence[RawItem]) -> Op[list[tuple[Key, int]]]:
         """Raw values of deferred (scaled) items: their scale factors are read first, never remembered."""

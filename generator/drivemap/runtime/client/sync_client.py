@@ -136,6 +136,8 @@ class ClientBase(_Common[S, Bus]):
         same 10h request where the map allows it.
 
         If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
+        items = list(items)
+        self._core.refuse_open(acc.key for acc, _ in items)
         self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     def read_by_name(self, name: str) -> Any:
@@ -150,6 +152,7 @@ class ClientBase(_Common[S, Bus]):
         if isinstance(acc, _Array):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
+            self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
             self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
             return
         self._core.check_write(acc.key)

@@ -79,8 +79,8 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
         reg = core.spec.register(acc.spec.name)  # the client's map (what the general path checks against)
     except KeyError:
         return None
-    if codec.scale_key is not None or acc.index != 0 or reg.count != 1:
-        return None
+    if codec.scale_key is not None or acc.index != 0 or reg.count != 1 or reg.review:
+        return None  # (a register open for review: the general path refuses it)
     prepared = _request(core, reg)
     if prepared is None:
         return None
