@@ -25,6 +25,7 @@ from drivemap.runtime.client.accessors import (
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal
 from drivemap.runtime.client.bus import AsyncBus
 from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.review import refuse_open
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
 from drivemap.runtime.errors import ReadOnlyRegister
 
@@ -104,7 +105,7 @@ class AsyncClientBase(_Common[S, AsyncBus]):
 
     async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
         items = list(items)
-        self._core.refuse_open(acc.key for acc, _ in items)
+        refuse_open(self._core, (acc.key for acc, _ in items))
         await self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     async def read_by_name(self, name: str) -> Any:

@@ -18,8 +18,9 @@ from drivemap.runtime.client.declare import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
 from drivemap.runtime.client.quirks import accept as accept_reply_quirks
+from drivemap.runtime.client.review import warn_review
 from drivemap.runtime.client.sansio import Core, Deferred, PagePolicy, spec_tables
-from drivemap.runtime.client.writes import element_writer
+from drivemap.runtime.client.writes import element_writer, refusing_writer
 from drivemap.runtime.errors import (
     DeviceException,
     DriveError,
@@ -352,7 +353,7 @@ class _Common(Generic[S, B]):
         core = self._core
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
         if core.tables.under_review:
-            core.warn_review(core.tables.all_keys)
+            warn_review(core, core.tables.all_keys)
         program = self._all_program = self._snapshot_program(core.tables.all_keys, self.plan(), True)
         return program
 
@@ -374,7 +375,7 @@ class _Common(Generic[S, B]):
             return writer
         codec, key = acc.codec, acc.key
         if acc.spec.name in self._core.tables.under_review:  # refused before the value is looked at
-            return self._refusing_writer(key)
+            return refusing_writer(self._core, key, self._ASYNC)
         if self._ASYNC:
             async def general_async(client: Any, value: Any) -> None:
                 await client._write_raw_items([(key, encode_for_write(codec, value))])
@@ -384,18 +385,6 @@ class _Common(Generic[S, B]):
             client._write_raw_items([(key, codec.encode(value) if codec.scale_key is None
                                      else encode_for_write(codec, value))])
         return general
-
-    def _refusing_writer(self, key: Key) -> Callable[[Any, Any], Any]:
-        """The writer of a register open for review (``review:``): :class:`OpenForReview`, nothing sent."""
-        core = self._core
-        if self._ASYNC:
-            async def refuse_async(client: Any, value: Any) -> None:
-                core.check_write(key)
-            return refuse_async
-
-        def refuse(client: Any, value: Any) -> None:
-            core.check_write(key)
-        return refuse
 
     def _general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
                  finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:

@@ -18,7 +18,6 @@ requests are counted in ``Stats.split_reads`` and ``Stats.extra_requests``.
 from __future__ import annotations
 
 import logging
-import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Literal, TypeVar
 
@@ -46,6 +45,7 @@ from drivemap.runtime.client.planner import (
     request_for,
     split_units,
 )
+from drivemap.runtime.client.review import warn_review
 from drivemap.runtime.client.runner import Op, arun, arun_replay, run, run_replay
 from drivemap.runtime.client.tables import SpecTables, spec_tables
 from drivemap.runtime.client.wire import ILLEGAL_ADDRESS, READ_REQUESTS, Deferred, RawItem, reply_words
@@ -59,7 +59,6 @@ from drivemap.runtime.errors import (
     OpenForReview,
     PartialWrite,
     ReadOnlyRegister,
-    ReviewWarning,
     TransportError,
     UnsupportedFunction,
     ValueOutOfRange,
@@ -96,8 +95,7 @@ class Core:
         #: words (bits) the device refused on their own: (table, address)
         self.holes: set[Hole] = set()
         self._hole_plans: dict[frozenset[Key], tuple[ReadRequest, ...]] = {}
-        #: registers open for review (``review:``) whose read this client has warned about
-        self._review_warned: set[str] = set()
+        self.review_warned: set[str] = set()  # registers open for review whose read warned (.review)
 
     # -- checks and replies
     def raise_for(self, reply: ModbusPDU | None, function: int) -> ModbusPDU:
@@ -202,18 +200,7 @@ class Core:
                 self.spec.register(name)  # KeyError for a name the map does not have
                 raise WriteOnlyRegister(f"{name} is write-only")
         if self.tables.under_review:
-            self.warn_review(keys)
-
-    def warn_review(self, keys: Iterable[Key]) -> None:
-        """A :class:`ReviewWarning` for each register of ``keys`` whose map leaves a field that decides
-        its value open (once per register and client): the read works, its value may be wrong."""
-        review = self.tables.under_review
-        for name, _ in keys:
-            fields = review.get(name)
-            if fields and name not in self._review_warned:
-                self._review_warned.add(name)
-                warnings.warn(ReviewWarning(f"{name}: its map leaves {', '.join(fields)} open for review; the value "
-                                            "read may be wrong"), stacklevel=4)
+            warn_review(self, keys)
 
     def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...], *,
                  checked: bool = False) -> Op[dict[Key, int]]:
@@ -344,14 +331,6 @@ class Core:
             raise NotBroadcastable(f"{reg.element_name(key[1])} may not be written by broadcast")
         refuse_misaligned(self.spec, reg.table, reg.element_address(key[1]), reg.words, "write")
         return reg
-
-    def refuse_open(self, keys: Iterable[Key]) -> None:
-        """:class:`OpenForReview` for the first of ``keys`` whose register is open for review (``review:``)."""
-        review = self.tables.under_review
-        if review:
-            for name, index in keys:
-                if name in review:
-                    self.check_write((name, index))
 
     def _resolve(self, items: Sequence[RawItem]) -> Op[list[tuple[Key, int]]]:
         """Raw values of deferred (scaled) items: their scale factors are read first, never remembered."""

@@ -48,6 +48,7 @@ from drivemap.runtime.client.async_client import AsyncClientBase
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal, broadcast_unit
 from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
 from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.review import refuse_open
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
 from drivemap.runtime.errors import DriveError, PartialWrite, ReadOnlyRegister
 
@@ -137,7 +138,7 @@ class ClientBase(_Common[S, Bus]):
 
         If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
         items = list(items)
-        self._core.refuse_open(acc.key for acc, _ in items)
+        refuse_open(self._core, (acc.key for acc, _ in items))
         self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     def read_by_name(self, name: str) -> Any:

@@ -130,4 +130,17 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
     return awrite if asynchronous else write
 
 
-__all__ = ["Writer", "element_writer"]
+def refusing_writer(core: Core, key: Any, asynchronous: bool) -> Writer:
+    """The writer of a register open for review (``review:``): :class:`OpenForReview` before the value
+    is looked at, nothing sent."""
+    if asynchronous:
+        async def refuse_async(client: Any, value: Any) -> None:
+            core.check_write(key)
+        return refuse_async
+
+    def refuse(client: Any, value: Any) -> None:
+        core.check_write(key)
+    return refuse
+
+
+__all__ = ["Writer", "element_writer", "refusing_writer"]
