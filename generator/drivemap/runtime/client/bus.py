@@ -142,9 +142,7 @@ class Bus(_BusBase):
 
         def send(request: bytes, addr: Any = None) -> int:
             due = self._ready_at
-            if due:
-                self._ready_at = 0.0
-                left = due - _monotonic()
+            if due and (left := self._wait_s()) > 0:
                 if left > SPIN_S:
                     time.sleep(left - SPIN_S)  # wakes up late by tens of microseconds or more ...
                 while _monotonic() < due:  # ... so the last of the quiet time is waited for by the clock
