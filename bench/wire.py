@@ -49,8 +49,8 @@ MODEL = "ev"
 BAUD = 115200
 BITS = 10
 GOAL = 0.90
-#: A sync read of 16 registers is held to more (the general 0.90 stays for the rest).
-GOALS = {("sync", "read 16"): 0.92}
+#: The sync client is held to more (issue 37: 0.95 on read 16 and write one; the general 0.90 stays for the rest).
+GOALS = {("sync", "read 16"): 0.95, ("sync", "write one"): 0.95}
 BYTE = BITS / BAUD
 DEVICES = ("simulator", "lean")
 MODES = ("sync", "raw-sync", "async", "raw-async")
