@@ -12,6 +12,15 @@ so that peak memory (``ru_maxrss``) belongs to that build alone. In the worker:
   build caused), plus the absolute peak.
 
 The real maps are also built together with ``drivemap build --out TMP`` (the command itself).
+These measure the compiler: they run with the compile cache off (``DRIVEMAP_NO_CACHE=1``).
+
+The compile cache (``drivemap.cache``) is measured apart, each command a fresh ``python -m drivemap``
+process with a cache folder of its own (bytecode caching on, as users run it), wall-clock time:
+
+* ``drivemap validate`` of 100 synthetic maps of 100 registers in a project folder: the first run
+  (empty cache), then the second and later runs (nothing changed);
+* a no-change ``drivemap build`` of this repository's project (its ``pyproject.toml`` and ``maps/``
+  copied to a temporary folder and built once first), and the files' mtimes before and after.
 """
 
 from __future__ import annotations
@@ -135,7 +144,7 @@ def _quiet_cli(cli: Any, out: Path) -> int:
 
 def _run_worker(mode: str, target: str, timeout: float, profile: bool = False) -> dict[str, Any]:
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", mode, target] + (["--profile"] if profile else [])
-    env = dict(os.environ, PYTHONHASHSEED="0")
+    env = dict(os.environ, PYTHONHASHSEED="0", DRIVEMAP_NO_CACHE="1")  # the compiler's cost, not the cache's
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=str(ROOT), env=env)
     except subprocess.TimeoutExpired:
@@ -254,6 +263,94 @@ def _bound_lines(sec: Section, per_build_timeout: float) -> None:
             sec.detail.append(f"| bound: {case} | — | — | 1 | {got} | | | | | |")
 
 
+CACHE_MAPS = 100
+CACHE_MAP_REGISTERS = 100
+VALIDATE_GOAL_S = 1.0
+BUILD_GOAL_S = 0.5
+
+
+#: What every verb pays before it starts: the interpreter, ``drivemap.cli`` and its argument parser.
+STARTUP = "import drivemap.cli as c; c.parser()"
+
+
+def _drivemap(args: list[str], cwd: Path, cache: Path, timeout: float = 300.0) -> float:
+    """Wall-clock seconds of ``python -m drivemap ARGS`` (``["-c", CODE]``: that code) in ``cwd``
+    with the cache folder ``cache``."""
+    env = dict(os.environ, PYTHONHASHSEED="0", DRIVEMAP_CACHE_DIR=str(cache))
+    env.pop("DRIVEMAP_NO_CACHE", None)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # as users run it: drivemap's own bytecode is cached
+    cmd = [sys.executable, *args] if args[0] == "-c" else [sys.executable, "-m", "drivemap", *args]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=str(cwd), env=env)
+    elapsed = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(f"drivemap {' '.join(args)}: {(proc.stderr or proc.stdout).strip()[-300:]}")
+    return elapsed
+
+
+def _mtimes(root: Path) -> dict[str, int]:
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if "cache" not in p.parts}
+
+
+def _cache_rows(sec: Section, quick: bool) -> None:
+    """The compile cache: validate of 100 maps, first and later runs; a no-change build of this repository."""
+    import shutil
+
+    import yaml
+    from synthetic import synthetic_map
+
+    rounds = 2 if quick else 5
+    with tempfile.TemporaryDirectory(prefix="drivemap-cache-bench-") as tmp:
+        project = Path(tmp) / "catalogue"
+        (project / "maps").mkdir(parents=True)
+        for i in range(CACHE_MAPS):
+            data = synthetic_map(f"cat{i:03d}", CACHE_MAP_REGISTERS)
+            (project / "maps" / f"cat{i:03d}.yaml").write_text(yaml.safe_dump(data, sort_keys=False, width=120),
+                                                                encoding="utf-8")
+        cache = Path(tmp) / "cache"
+        _drivemap(["--version"], project, cache)  # drivemap's own bytecode written
+        nocache = [_drivemap(["validate", "--no-cache"], project, cache) for _ in range(max(1, rounds // 2))]
+        first = _drivemap(["validate"], project, cache)
+        again = [_drivemap(["validate"], project, cache) for _ in range(rounds)]
+        repo = Path(tmp) / "repo"
+        repo.mkdir()
+        shutil.copy(ROOT / "pyproject.toml", repo / "pyproject.toml")
+        shutil.copytree(ROOT / "maps", repo / "maps")
+        build_cold = _drivemap(["build"], repo, cache)
+        _drivemap(["build"], repo, cache)
+        before = _mtimes(repo)
+        builds = [_drivemap(["build"], repo, cache) for _ in range(rounds)]
+        touched = sorted(k for k, v in _mtimes(repo).items() if before.get(k) != v)
+        checks = [_drivemap(["check"], repo, cache) for _ in range(rounds)]
+        build_nocache = [_drivemap(["build", "--no-cache"], repo, cache) for _ in range(max(1, rounds // 2))]
+        startup = [_drivemap(["-c", STARTUP], repo, cache) for _ in range(rounds)]
+    sec.detail.append("")
+    sec.detail.append(f"Compile cache (fresh `python -m drivemap` processes, wall-clock seconds, median (min–max) of "
+                      f"{rounds}; cache folder of its own):")
+    sec.detail.append("")
+    sec.detail.append("| command | cache off (`--no-cache`) | first run (empty cache) | later runs (nothing changed) |")
+    sec.detail.append("|---|---:|---:|---:|")
+    sec.detail.append(f"| `drivemap validate`, {CACHE_MAPS} maps of {CACHE_MAP_REGISTERS} registers | "
+                      f"{median(nocache):.2f} | {first:.2f} | {median(again):.3f} ({spread(again)}) |")
+    sec.detail.append(f"| `drivemap build`, this repository's maps, no change | {median(build_nocache):.2f} | "
+                      f"{build_cold:.2f} | {median(builds):.3f} ({spread(builds)}) |")
+    sec.detail.append(f"| `drivemap check`, the same | — | — | {median(checks):.3f} ({spread(checks)}) |")
+    sec.detail.append(f"| startup of every verb (interpreter, `drivemap.cli` imported, its parser built) | — | — | "
+                      f"{median(startup):.3f} ({spread(startup)}) |")
+    sec.detail.append("")
+    sec.detail.append(f"Files or folders whose mtime the no-change builds changed: {len(touched)}"
+                      + (f" ({', '.join(touched[:5])})" if touched else "") + ".")
+    v = median(again)
+    sec.rows.append(Row("5 compiler", f"validate {CACHE_MAPS} maps of {CACHE_MAP_REGISTERS} regs, second run",
+                        v / VALIDATE_GOAL_S, f"≤ {VALIDATE_GOAL_S:g} s", v <= VALIDATE_GOAL_S,
+                        f"{v:.3f} s; first {first:.2f} s, no cache {median(nocache):.2f} s"))
+    b = median(builds)
+    sec.rows.append(Row("5 compiler", "no-change `drivemap build` of the repository", b / BUILD_GOAL_S,
+                        f"≤ {BUILD_GOAL_S:g} s, 0 files touched", b <= BUILD_GOAL_S and not touched,
+                        f"{b:.3f} s, {len(touched)} touched (startup alone {median(startup):.3f} s); "
+                        f"no cache {median(build_nocache):.2f} s"))
+
+
 def run(quick: bool, budget_s: float) -> Section:
     sec = Section("Compiler scaling")
     rounds = 1 if quick else 3
@@ -269,6 +366,7 @@ def run(quick: bool, budget_s: float) -> Section:
     per_size = _synthetic_lines(sec, synthetic)
     _goal_rows(sec, quick, sizes, synthetic, per_size, per_build_timeout)
     _bound_lines(sec, per_build_timeout)
+    _cache_rows(sec, quick)
     return sec
 
 

@@ -26,7 +26,7 @@ from common import ROOT, Row, Section, median, spread
 
 SIZES_FULL = (100, 1000, 10000, 50000)
 SIZES_QUICK = (100, 1000)
-GOAL_S = 1.0  # 10k registers, cached
+GOAL_S = 0.25  # 10k registers, cached (issue 37)
 CHILD = """
 import importlib, json, sys, time
 sys.path.insert(0, sys.argv[1])
@@ -95,7 +95,7 @@ def run(quick: bool, sizes: tuple[int, ...] | None = None, rounds: int | None = 
                           f"| {per_reg[size]:.0f} | {len(warm)} |")
     if 10000 in sizes:
         warm = median(results[(10000, True)])
-        sec.rows.append(Row("8 import", "import of a 10k-register client (cached)", warm / GOAL_S, f"≤ {GOAL_S:.0f} s",
+        sec.rows.append(Row("8 import", "import of a 10k-register client (cached)", warm / GOAL_S, f"≤ {GOAL_S:g} s",
                             warm <= GOAL_S, f"{warm:.3f} s; cold {median(results[(10000, False)]):.3f} s"))
     small, large = sizes[0], sizes[-1]
     ratio = per_reg[large] / per_reg[small]

@@ -49,8 +49,8 @@ MODEL = "ev"
 BAUD = 115200
 BITS = 10
 GOAL = 0.90
-#: A sync read of 16 registers is held to more (the general 0.90 stays for the rest).
-GOALS = {("sync", "read 16"): 0.92}
+#: The sync client is held to more (issue 37: 0.95 on read 16 and write one; the general 0.90 stays for the rest).
+GOALS = {("sync", "read 16"): 0.95, ("sync", "write one"): 0.95}
 BYTE = BITS / BAUD
 DEVICES = ("simulator", "lean")
 MODES = ("sync", "raw-sync", "async", "raw-async")
@@ -355,7 +355,12 @@ def _phase_table(sec: Section, results: Results, frames: dict[str, tuple[int, in
                       "for the generated sync client this includes the stale-reply guard's settle time, "
                       "max(4 characters, 1 ms) of silence after the last byte, which the t3.5 then overlaps), "
                       "client work + quiet (-> pymodbus hands over the next request), request to the line "
-                      "(-> the line reads it).")
+                      "(-> the line reads it). The generated sync client keeps its quiet time in the request's "
+                      "send (`Bus._quiet_at_send`): pymodbus builds the frame while the line is still quiet, "
+                      "so its `client work + quiet` is the client's work alone and its `request to the line` "
+                      "is the rest of the t3.5 (slept, its last 0.2 ms waited by the clock) plus the write; "
+                      "what its turnaround keeps above t3.5 is the wake-up after the reply's last byte and "
+                      "the write's way to the line (the `raw-sync` rows' `request to the line`).")
     sec.detail.append("")
     sec.detail.append("| device | client | operation | request on the wire | device turnaround | reply on the wire "
                       "| client turnaround | = reply end seen | + client work + quiet | + request to the line "

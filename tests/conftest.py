@@ -18,12 +18,21 @@ Tiers (``pyproject.toml`` markers):
 
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from tests.waits import free_port, wait_port, wait_until
+
+#: The compile cache of this test session (inherited by the processes tests start): never the user's.
+if not os.environ.get("DRIVEMAP_CACHE_DIR"):
+    os.environ["DRIVEMAP_CACHE_DIR"] = tempfile.mkdtemp(prefix="drivemap-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["DRIVEMAP_CACHE_DIR"], True)
 
 #: Test modules whose tests start real servers, ptys, subprocesses, brokers, type checkers or
 #: virtualenvs, or run long property-based searches (``pytest --durations=0`` picked them).

@@ -107,6 +107,9 @@ def test_a_second_build_waits_for_the_first(project: Path, monkeypatch: pytest.M
     gen = project / "generated"
     monkeypatch.setattr(staging, "LOCK_WAIT", 0.3)
     with staging.locked([gen]):
+        assert run("build")[0] == 0  # nothing to write: no lock needed, nothing touched
+        acme = project / "maps" / "acme.yaml"
+        acme.write_text(acme.read_text(encoding="utf-8").replace("title: ", "title: New ", 1), encoding="utf-8")
         code, _, err = run("build")
     assert code == 1
     assert "another drivemap build is writing this folder (held by pid" in err and "waited 0.3 s" in err

@@ -8,6 +8,7 @@ exporter into its ``docs`` folder and every committed export of ``[[tool.drivema
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,12 +18,14 @@ from drivemap.backends.exporters import available
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.exporters.docs import DocsExporter
 from drivemap.backends.exporters.python import PythonExporter
+from drivemap.backends.output import Change
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import Project, display
 from drivemap.model.nodes import Model
 from drivemap.model.spec import spec_from_model
 
-__all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "simulator_factory"]
+__all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "outputs_cached", "simulator_factory",
+           "settled"]
 
 
 def options_for(project: Project, values: Mapping[str, Any] | None = None) -> Options:
@@ -71,6 +74,42 @@ def outputs_by_root(project: Project, models: Sequence[Model]) -> dict[Path, tup
         prune = root in roots
         grouped.setdefault(root, ({}, prune))[0][path.relative_to(root).as_posix()] = text
     return grouped
+
+
+def outputs_cached(project: Project, models: Sequence[Model]) -> dict[Path, tuple[dict[str, str], bool]]:
+    """:func:`outputs_by_root`, from the cache (:mod:`drivemap.cache`) when the same drivemap rendered
+    the same models (each from :func:`~drivemap.compiler.compile_cached`) with the same project
+    settings, from the same working directory, before; stored after rendering otherwise."""
+    from drivemap import cache
+    from drivemap.compiler import content_key
+
+    keys = [content_key(m) for m in models]
+    exporters = available()
+    ours = all(e.__module__.startswith("drivemap.") for e in (exporters.get(x.format) for x in project.exports)
+               if e is not None)
+    if not cache.enabled() or None in keys or not ours:
+        return outputs_by_root(project, models)
+    settings = repr((os.getcwd(), str(project.root), str(project.config), [str(m) for m in project.maps],
+                     str(project.out), project.package, str(project.docs), project.behaviours,
+                     [(e.format, e.model, str(e.output), sorted((str(k), repr(v)) for k, v in e.options.items()),
+                       e.line) for e in project.exports]))
+    entry = cache.key("build", settings, *(k for k in keys if k is not None))
+    hit = cache.load("build", entry)
+    if isinstance(hit, dict) and all(isinstance(k, Path) and isinstance(v, tuple) and len(v) == 2
+                                     and isinstance(v[0], dict) and isinstance(v[1], bool) for k, v in hit.items()):
+        return hit
+    grouped = outputs_by_root(project, models)
+    cache.store("build", entry, grouped)
+    return grouped
+
+
+def settled(changes: Sequence[Change]) -> bool:
+    """Whether carrying out ``changes`` would touch nothing: no file to write or delete, every
+    manifest already what it would be, no staging left by an interrupted build (a no-change
+    ``drivemap build`` then neither locks nor writes, so no file's or folder's mtime changes)."""
+    from drivemap.backends import output
+
+    return all(not c.errors and output.settled(c) for c in changes)
 
 
 class _OptionParser(argparse.ArgumentParser):

@@ -9,18 +9,22 @@ this module imports no back end until a hook is wanted.
 
 from __future__ import annotations
 
+import hashlib
 import os
+import stat
 import sys
+import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from drivemap import cache
 from drivemap.diagnostics import CompileError, Diagnostic, Location
-from drivemap.frontend import checks, family, formats, schema
-from drivemap.frontend.load import MAX_REGISTERS, Document, load_file, load_text
+from drivemap.frontend import family, formats
+from drivemap.frontend.load import MAX_MAP_BYTES, MAX_REGISTERS, Document, load_file, load_text
 from drivemap.frontend.project import Project, display, load_project
-from drivemap.model.build import build_model
 from drivemap.model.nodes import Model
 
 if TYPE_CHECKING:
@@ -51,6 +55,99 @@ def compile_map(path: str | os.PathLike[str], exporters: Sequence[Exporter] | No
     return compile_document(load_file(shown), exporters)
 
 
+def compile_cached(path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
+    """:func:`compile_map`, reusing the model compiled before from the same bytes (of the map and
+    of every map it extends), shown under the same path, with the same checks, by the same
+    drivemap (:mod:`drivemap.cache`). A map that does not compile is never cached (its errors are
+    raised anew); warnings a compile gave are given again when its model comes from the cache.
+    """
+    chosen = default_exporters() if exporters is None else exporters
+    shown = display_path(path)
+    names = sorted(f"{type(e).__module__}.{type(e).__qualname__}" for e in chosen)
+    if not cache.enabled() or any(not n.startswith("drivemap.") for n in names):
+        return compile_map(shown, chosen)  # a plugin's checks may change without drivemap's version
+    try:
+        st = os.stat(shown)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_MAP_BYTES:
+            raise OSError
+        with open(shown, "rb") as handle:
+            raw = handle.read(MAX_MAP_BYTES + 1)
+    except OSError:
+        return compile_map(shown, chosen)  # it raises the located error
+    entry = cache.key("model", shown, os.path.realpath(shown), "\0".join(names), raw)
+    hit = cache.load("model", entry)
+    if hit is not None and _fresh(hit):
+        deps, cached, given = hit
+        _warn_again(given)
+        _remember(cached, entry, deps)
+        return cached  # type: ignore[no-any-return]
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return compile_map(shown, chosen)  # it raises the located error
+    started = time.time()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        failed: CompileError | None = None
+        try:
+            model = compile_document(load_text(text, shown), chosen)  # the bytes of the key, not a second read
+        except CompileError as exc:
+            failed = exc
+    given = [(str(w.message), w.category, w.filename, w.lineno) for w in caught]
+    if failed is not None:
+        _warn_again(given)
+        raise failed
+    deps = tuple((os.path.realpath(p), _digest(p)) for p in (model.variant.extends if model.variant else ()))
+    if all(d and _settled(p, started) for p, d in deps):  # an extended map changed while it was read: not stored
+        cache.store("model", entry, (deps, model, given))
+        _remember(model, entry, deps)
+    _warn_again(given)
+    return model
+
+
+#: id(model) -> (model, its content key) of the models compile_cached gave in this process.
+_KEYS: dict[int, tuple[Model, str]] = {}
+
+
+def _remember(model: Model, entry: str, deps: tuple[tuple[str, str], ...]) -> None:
+    _KEYS[id(model)] = (model, cache.key(entry, *(d for _, d in deps)))
+
+
+def content_key(model: Model) -> str | None:
+    """A key of everything ``model`` was compiled from (the map's bytes and path, the maps it
+    extends, the checks, drivemap's code), when :func:`compile_cached` gave it; else None."""
+    hit = _KEYS.get(id(model))
+    return hit[1] if hit is not None and hit[0] is model else None
+
+
+def _digest(path: str) -> str:
+    try:
+        with open(path, "rb") as handle:
+            return hashlib.sha256(handle.read()).hexdigest()
+    except OSError:
+        return ""
+
+
+def _settled(path: str, started: float) -> bool:
+    try:
+        return os.stat(path).st_mtime < started - 1.0
+    except OSError:
+        return False
+
+
+def _fresh(hit: object) -> bool:
+    """A cached (extended maps, model, warnings) whose extended maps still hold the bytes it was built from."""
+    if not (isinstance(hit, tuple) and len(hit) == 3 and isinstance(hit[1], Model) and isinstance(hit[0], tuple)
+            and isinstance(hit[2], list)):
+        return False
+    return all(isinstance(d, tuple) and len(d) == 2 and _digest(d[0]) == d[1] for d in hit[0])
+
+
+def _warn_again(given: list[tuple[str, type[Warning], str, int]]) -> None:
+    for message, category, filename, lineno in given:
+        warnings.warn_explicit(message, category, filename, lineno)
+
+
 def compile_text(text: str, path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
     """:func:`compile_map` of ``text`` as if it were the content of ``path`` (nothing is read but
     the maps it extends)."""
@@ -60,6 +157,9 @@ def compile_text(text: str, path: str | os.PathLike[str], exporters: Sequence[Ex
 def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None) -> Model:
     """Validate and check a loaded map (and the maps it extends), with the ``validate`` hooks of
     ``exporters`` (default :func:`default_exporters`); the model."""
+    from drivemap.frontend import checks, schema  # here: a model from the cache needs neither (nor jsonschema)
+    from drivemap.model.build import build_model
+
     shown = doc.path
     if not isinstance(doc.data, dict):
         raise CompileError([Diagnostic(doc.positions.at(()), "a map is a YAML mapping at the top level")])

@@ -7,7 +7,6 @@ documentation (``help(Client)`` lists them; ``Client.<register>.__doc__`` is one
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -17,6 +16,7 @@ from drivemap.runtime.client.declare import (
     ReadOnlyReg,
     codecs_for,
 )
+from drivemap.runtime.client.records import snapshot
 from drivemap.runtime.errors import DeviceException
 
 from .spec import SPEC
@@ -50,7 +50,7 @@ CODECS: Mapping[str, Codec[Any]] = codecs_for(
 """Register name -> codec (raw value <-> Python value), each made on first use."""
 
 
-@dataclasses.dataclass(frozen=True, repr=False, init=False)
+@snapshot(init=False, repr=False)
 class Snapshot(SnapshotBase):
     """Values read together by ``read()`` / ``read_all()``; None where a register was not read."""
 

@@ -41,7 +41,7 @@ from drivemap.backends.staging import TMP_PREFIX, link_in, locked
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 
-__all__ = ["MANIFEST", "TMP_PREFIX", "Change", "check", "locked", "plan", "write", "write_single"]
+__all__ = ["MANIFEST", "TMP_PREFIX", "Change", "check", "locked", "plan", "settled", "write", "write_single"]
 
 MANIFEST = ".drivemap-manifest.json"
 VERSION = 1
@@ -232,16 +232,29 @@ def _atomic_write(path: Path, text: str) -> None:
         raise
 
 
+def settled(change: Change) -> bool:
+    """Whether :func:`write` would change nothing in ``change.root``: nothing to write or delete, the
+    manifest already the one it would write, and no staging file of an interrupted build left."""
+    root = change.root
+    if change.write or change.delete or not (root / MANIFEST).is_file():
+        return False
+    if any(os.path.lexists(root / name) for name in (staging.JOURNAL, f"{TMP_PREFIX}journal", f"{TMP_PREFIX}manifest")):
+        return False
+    try:
+        return read_manifest(root) == {k: {v} for k, v in change.files.items()}
+    except CompileError:
+        return False
+
+
 def write(change: Change) -> None:
-    """Carry out a planned change: stage every file, then rename them all, then prune."""
+    """Carry out a planned change: stage every file, then rename them all, then prune (nothing at all
+    when the change is :func:`settled`: no file or folder is touched)."""
     if change.errors:
         raise CompileError(change.errors)
     root = change.root
     if root.is_dir():
         staging.sweep(root)
-    if not change.write and not change.delete and (root / MANIFEST).exists() and read_manifest(root) == {
-        k: {v} for k, v in change.files.items()
-    }:
+    if settled(change):
         return
     token = secrets.token_hex(6)
     names = {rel: (Path(rel).parent / f"{TMP_PREFIX}{token}-{i}").as_posix() for i, rel in enumerate(sorted(change.write))}

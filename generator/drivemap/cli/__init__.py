@@ -51,7 +51,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if rest and args.command != "export" and not getattr(args, "takes_rest", False):
             raise UsageError(f"drivemap {args.command}", f"unrecognized arguments: {' '.join(rest)}")
         args.rest = rest
-        result: int = args.func(args)
+        from drivemap import cache
+
+        with cache.disabled(bool(getattr(args, "no_cache", False))):
+            result: int = args.func(args)
         return result
     except UsageError as exc:
         print(f"{exc}\n(see `drivemap --help`)", file=sys.stderr)

@@ -42,13 +42,13 @@ def project_of(args: argparse.Namespace, maps: Sequence[str] | None = None) -> P
 
 def compile_files(files: Sequence[Path], exporters: Sequence[Exporter] | None = None) -> tuple[list[Model], list[Diagnostic]]:
     """Compile every map with the checks of ``exporters`` (None: the ones ``build`` writes)."""
-    from drivemap.compiler import compile_map
+    from drivemap.compiler import compile_cached
 
     models: list[Model] = []
     errors: list[Diagnostic] = []
     for path in files:
         try:
-            models.append(compile_map(path, exporters))
+            models.append(compile_cached(path, exporters))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
     first: dict[str, Model] = {}
@@ -117,6 +117,8 @@ def project_flags(p: argparse.ArgumentParser, *, out: bool = True) -> None:
     g.add_argument("--maps", action="append", default=None, metavar="PATH", help="map file or folder (repeatable)")
     g.add_argument("--behaviours", action="append", default=None, metavar="MODULE",
                    help="module that registers simulator behaviours (repeatable)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="compile every map anew: neither read nor write the compile cache (DRIVEMAP_NO_CACHE=1)")
 
 
 def write_change(change: Change) -> None:

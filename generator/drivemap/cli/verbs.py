@@ -54,18 +54,22 @@ def _checking_exporters(names: Sequence[str]) -> list[Exporter]:
 
 def cmd_build(args: argparse.Namespace) -> int:
     from drivemap.backends import output
-    from drivemap.build import outputs_by_root
+    from drivemap.build import outputs_cached, settled
 
     project = project_of(args, args.paths)
     models = project_models(project)
-    grouped = outputs_by_root(project, models)
-    with output.locked(grouped):  # one build per output folder at a time; planned and written under it
-        changes = [output.plan(root, files, prune=prune, force=args.force) for root, (files, prune) in grouped.items()]
-        errors = [e for c in changes for e in c.errors]
-        if errors:
-            return report(errors)
-        for change in changes:
-            write_change(change)
+    grouped = outputs_cached(project, models)
+    changes = [output.plan(root, files, prune=prune, force=args.force) for root, (files, prune) in grouped.items()
+               if root.is_dir()]
+    if len(changes) < len(grouped) or not settled(changes):  # else nothing to do: no lock, no file touched
+        with output.locked(grouped):  # one build per output folder at a time; planned and written under it
+            changes = [output.plan(root, files, prune=prune, force=args.force)
+                       for root, (files, prune) in grouped.items()]
+            errors = [e for c in changes for e in c.errors]
+            if errors:
+                return report(errors)
+            for change in changes:
+                write_change(change)
     for m in models:
         print(summary(m))
     for change in changes:
@@ -82,11 +86,11 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from drivemap.backends import output
-    from drivemap.build import outputs_by_root
+    from drivemap.build import outputs_cached
 
     project = project_of(args, args.paths)
     models = project_models(project)
-    stale = [(root / rel, why) for root, (files, _) in outputs_by_root(project, models).items()
+    stale = [(root / rel, why) for root, (files, _) in outputs_cached(project, models).items()
              for rel, why in output.check(root, files)]
     if stale:
         print("generated output is stale; run `drivemap build`. Differing files:", file=sys.stderr)

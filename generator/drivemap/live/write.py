@@ -16,17 +16,18 @@ from pymodbus.framer import FramerAscii, FramerRTU, FramerSocket
 from pymodbus.pdu import DecodePDU, ModbusPDU
 from rich.table import Table
 
+from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.live.connection import Link, add_connection_arguments, resolve_link
 from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
 from drivemap.live.fmt import console, rows_of
 from drivemap.live.selection import positionals
 from drivemap.live.session import Session, check_unit, session_for
 from drivemap.live.target import Target, load_target, project_of
-from drivemap.live.values import Assignment, parse_assignments, to_text
+from drivemap.live.values import Assignment, locate_error, lookup, parse_assignments, to_text
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Exchange
 from drivemap.runtime.client.sansio import Core, Deferred, Op
-from drivemap.runtime.errors import DriveError
+from drivemap.runtime.errors import DriveError, OpenForReview
 
 REFLECT = {
     "immediate": "now",
@@ -69,6 +70,7 @@ def cmd_write(args: argparse.Namespace) -> int:
     texts = positionals(args, "assignments")
     if not texts:
         raise LiveError(EXIT_INPUT, "give at least one NAME=VALUE")
+    refuse_open(target, texts)
     assignments = parse_assignments(target, texts, args.round)
     for a in assignments:
         for note in a.rounded:
@@ -88,6 +90,22 @@ def cmd_write(args: argparse.Namespace) -> int:
         back = {} if args.no_read_back else read_back(session, assignments)
         show(session, assignments, back, applied=args.apply)
     return EXIT_OK
+
+
+def refuse_open(target: Target, texts: Sequence[str]) -> None:
+    """A located error for every ``NAME=VALUE`` whose register's map leaves a field that decides the
+    written words open (``review:``), before any value is looked at; nothing is sent."""
+    errors: list[Diagnostic] = []
+    for text in texts:
+        name, sep, _ = text.partition("=")
+        try:
+            reg, _ = lookup(target, name.strip(), text)
+        except CompileError:
+            continue  # parse_assignments says what is wrong with it
+        if sep and reg.writable and reg.open_for_writes:
+            errors += locate_error(text, str(OpenForReview(reg.name, reg.open_for_writes)), target, reg).diagnostics
+    if errors:
+        raise CompileError(errors)
 
 
 def read_back(session: Session, assignments: Sequence[Assignment]) -> dict[tuple[str, int], int]:

@@ -71,6 +71,23 @@ class WriteOnlyRegister(AccessError):
     """A read of a register the map marks write-only."""
 
 
+class OpenForReview(AccessError):
+    """A write to a register whose map leaves a field that decides the written words open (its
+    ``review:`` list names it): nothing is sent. ``register`` is its name, ``fields`` the open fields."""
+
+    def __init__(self, register: str, fields: tuple[str, ...]) -> None:
+        self.register = register
+        self.fields = fields
+        super().__init__(f"{register} is not written: its map leaves {', '.join(fields)} open for review "
+                         f"(review: [{', '.join(fields)}]); state {'them' if len(fields) > 1 else 'it'} in the map "
+                         "and remove the review item first")
+
+
+class ReviewWarning(UserWarning):
+    """A register whose map leaves a field that decides its value open (``review:``) was read: the
+    value may be wrong. Given once per register and client."""
+
+
 class NotBroadcastable(AccessError):
     """A broadcast write to a register whose function code the map does not allow for broadcast."""
 
@@ -186,8 +203,10 @@ __all__ = [
     "MisalignedRequest",
     "NotAllowedValue",
     "NotBroadcastable",
+    "OpenForReview",
     "PartialWrite",
     "ReadOnlyRegister",
+    "ReviewWarning",
     "RunningWriteWarning",
     "ScaleUnavailable",
     "TransportError",

@@ -250,11 +250,19 @@ class _ReadArrayMixin(_Array[T, E_co]):
         return program(self._owner)  # type: ignore[no-any-return]
 
 
+def _refuse_open(owner: Any, name: str, keys: Sequence[Key]) -> None:
+    """:class:`OpenForReview` for a register open for review (``review:``), before its values are looked at."""
+    core = owner._core
+    if name in core.tables.under_review:
+        core.check_write(keys[0])
+
+
 class _WriteArrayMixin(_Array[T, E_co]):
     def write(self, values: Sequence[T]) -> None:
         """Write every element (one 10h request where the map allows it)."""
         if len(values) != len(self):
             raise InvalidValue(f"{self.name}: expected {len(self)} values, got {len(values)}")
+        _refuse_open(self._owner, self.spec.name, self.keys)
         self._owner._write_raw_items([(k, encode_for_write(self.codec, v)) for k, v in zip(self.keys, values, strict=True)])
 
 
@@ -327,6 +335,7 @@ class _AsyncWriteArrayMixin(_Array[T, E_co]):
     async def write(self, values: Sequence[T]) -> None:
         if len(values) != len(self):
             raise InvalidValue(f"{self.name}: expected {len(self)} values, got {len(values)}")
+        _refuse_open(self._owner, self.spec.name, self.keys)
         await self._owner._write_raw_items([(k, encode_for_write(self.codec, v))
                                             for k, v in zip(self.keys, values, strict=True)])
 

@@ -25,6 +25,7 @@ from drivemap.runtime.client.accessors import (
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal
 from drivemap.runtime.client.bus import AsyncBus
 from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.review import refuse_open
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
 from drivemap.runtime.errors import ReadOnlyRegister
 
@@ -103,6 +104,8 @@ class AsyncClientBase(_Common[S, AsyncBus]):
         return general, fallback
 
     async def write_many(self, items: Iterable[tuple[AsyncWriteOnly[Any] | AsyncReadWrite[Any], Any]]) -> None:
+        items = list(items)
+        refuse_open(self._core, (acc.key for acc, _ in items))
         await self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     async def read_by_name(self, name: str) -> Any:
@@ -115,6 +118,7 @@ class AsyncClientBase(_Common[S, AsyncBus]):
         if isinstance(acc, _Array):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
+            self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
             await self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
             return
         self._core.check_write(acc.key)

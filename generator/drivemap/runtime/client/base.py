@@ -18,8 +18,9 @@ from drivemap.runtime.client.declare import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
 from drivemap.runtime.client.quirks import accept as accept_reply_quirks
+from drivemap.runtime.client.review import warn_review
 from drivemap.runtime.client.sansio import Core, Deferred, PagePolicy, spec_tables
-from drivemap.runtime.client.writes import element_writer
+from drivemap.runtime.client.writes import element_writer, refusing_writer
 from drivemap.runtime.errors import (
     DeviceException,
     DriveError,
@@ -351,6 +352,8 @@ class _Common(Generic[S, B]):
     def _read_all_program(self) -> Program:
         core = self._core
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
+        if core.tables.under_review:
+            warn_review(core, core.tables.all_keys)
         program = self._all_program = self._snapshot_program(core.tables.all_keys, self.plan(), True)
         return program
 
@@ -371,6 +374,8 @@ class _Common(Generic[S, B]):
         if writer is not None:
             return writer
         codec, key = acc.codec, acc.key
+        if acc.spec.name in self._core.tables.under_review:  # refused before the value is looked at
+            return refusing_writer(self._core, key, self._ASYNC)
         if self._ASYNC:
             async def general_async(client: Any, value: Any) -> None:
                 await client._write_raw_items([(key, encode_for_write(codec, value))])

@@ -45,6 +45,7 @@ from drivemap.runtime.client.planner import (
     request_for,
     split_units,
 )
+from drivemap.runtime.client.review import warn_review
 from drivemap.runtime.client.runner import Op, arun, arun_replay, run, run_replay
 from drivemap.runtime.client.tables import SpecTables, spec_tables
 from drivemap.runtime.client.wire import ILLEGAL_ADDRESS, READ_REQUESTS, Deferred, RawItem, reply_words
@@ -55,6 +56,7 @@ from drivemap.runtime.errors import (
     InvalidArgument,
     InvalidValue,
     NotBroadcastable,
+    OpenForReview,
     PartialWrite,
     ReadOnlyRegister,
     TransportError,
@@ -93,6 +95,7 @@ class Core:
         #: words (bits) the device refused on their own: (table, address)
         self.holes: set[Hole] = set()
         self._hole_plans: dict[frozenset[Key], tuple[ReadRequest, ...]] = {}
+        self.review_warned: set[str] = set()  # registers open for review whose read warned (.review)
 
     # -- checks and replies
     def raise_for(self, reply: ModbusPDU | None, function: int) -> ModbusPDU:
@@ -196,6 +199,8 @@ class Core:
             if name not in readable:
                 self.spec.register(name)  # KeyError for a name the map does not have
                 raise WriteOnlyRegister(f"{name} is write-only")
+        if self.tables.under_review:
+            warn_review(self, keys)
 
     def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...], *,
                  checked: bool = False) -> Op[dict[Key, int]]:
@@ -320,6 +325,8 @@ class Core:
         reg = self.spec.register(key[0])
         if not reg.writable:
             raise ReadOnlyRegister(f"{reg.element_name(key[1])} is read-only")
+        if reg.review and reg.open_for_writes:
+            raise OpenForReview(reg.name, reg.open_for_writes)
         if self.broadcast and not reg.broadcast:
             raise NotBroadcastable(f"{reg.element_name(key[1])} may not be written by broadcast")
         refuse_misaligned(self.spec, reg.table, reg.element_address(key[1]), reg.words, "write")

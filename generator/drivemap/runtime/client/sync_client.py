@@ -48,6 +48,7 @@ from drivemap.runtime.client.async_client import AsyncClientBase
 from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal, broadcast_unit
 from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
 from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.review import refuse_open
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
 from drivemap.runtime.errors import DriveError, PartialWrite, ReadOnlyRegister
 
@@ -136,6 +137,8 @@ class ClientBase(_Common[S, Bus]):
         same 10h request where the map allows it.
 
         If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
+        items = list(items)
+        refuse_open(self._core, (acc.key for acc, _ in items))
         self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     def read_by_name(self, name: str) -> Any:
@@ -150,6 +153,7 @@ class ClientBase(_Common[S, Bus]):
         if isinstance(acc, _Array):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
+            self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
             self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
             return
         self._core.check_write(acc.key)

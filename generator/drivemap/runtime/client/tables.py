@@ -30,6 +30,9 @@ class SpecTables:
     fc10: FunctionSpec | None
     write_limits: Mapping[str, int]
     """:func:`max_write_words` per writable table."""
+    under_review: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
+    """Per register whose ``review:`` leaves a field open that decides its words: those fields
+    (:attr:`RegisterSpec.open_for_writes`); empty for most maps."""
 
 
 _TABLES: dict[int, tuple[DeviceSpec, SpecTables]] = {}
@@ -57,6 +60,7 @@ def spec_tables(spec: DeviceSpec) -> SpecTables:
         fc0f=spec.protocol.function(0x0F),
         fc10=spec.protocol.function(0x10),
         write_limits={"holding": max_write_words(spec, "holding"), "coil": max_write_words(spec, "coil")},
+        under_review={r.name: r.open_for_writes for r in spec.registers if r.open_for_writes},
     )
     _TABLES[id(spec)] = (spec, tables)
     return tables

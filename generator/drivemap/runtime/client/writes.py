@@ -79,8 +79,8 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
         reg = core.spec.register(acc.spec.name)  # the client's map (what the general path checks against)
     except KeyError:
         return None
-    if codec.scale_key is not None or acc.index != 0 or reg.count != 1:
-        return None
+    if codec.scale_key is not None or acc.index != 0 or reg.count != 1 or reg.review:
+        return None  # (a register open for review: the general path refuses it)
     prepared = _request(core, reg)
     if prepared is None:
         return None
@@ -130,4 +130,17 @@ def element_writer(core: Core, acc: Any, asynchronous: bool) -> Writer | None:
     return awrite if asynchronous else write
 
 
-__all__ = ["Writer", "element_writer"]
+def refusing_writer(core: Core, key: Any, asynchronous: bool) -> Writer:
+    """The writer of a register open for review (``review:``): :class:`OpenForReview` before the value
+    is looked at, nothing sent."""
+    if asynchronous:
+        async def refuse_async(client: Any, value: Any) -> None:
+            core.check_write(key)
+        return refuse_async
+
+    def refuse(client: Any, value: Any) -> None:
+        core.check_write(key)
+    return refuse
+
+
+__all__ = ["Writer", "element_writer", "refusing_writer"]

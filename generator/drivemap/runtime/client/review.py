@@ -1,0 +1,43 @@
+"""Registers open for review (the map's ``review:``): their reads warn once, their writes are refused.
+
+A register whose ``review:`` names a field that decides its words (:attr:`RegisterSpec.open_for_writes
+<drivemap.runtime.spec.RegisterSpec.open_for_writes>`; the client's :attr:`SpecTables.under_review
+<drivemap.runtime.client.tables.SpecTables.under_review>`) is read as the map says, with one
+:class:`ReviewWarning` per register and client, and never written: :meth:`Core.check_write
+<drivemap.runtime.client.sansio.Core.check_write>` raises :class:`OpenForReview` naming the fields,
+before anything is sent (and, through :func:`refuse_open`, before the values are looked at).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable
+from typing import Any
+
+from drivemap.runtime.client.planner import Key
+from drivemap.runtime.errors import ReviewWarning
+
+__all__ = ["refuse_open", "warn_review"]
+
+
+def warn_review(core: Any, keys: Iterable[Key]) -> None:
+    """A :class:`ReviewWarning` for each register of ``keys`` whose map leaves a field that decides
+    its value open (once per register and client): the read works, its value may be wrong."""
+    review = core.tables.under_review
+    warned: set[str] = core.review_warned
+    for name, _ in keys:
+        fields = review.get(name)
+        if fields and name not in warned:
+            warned.add(name)
+            warnings.warn(ReviewWarning(f"{name}: its map leaves {', '.join(fields)} open for review; the value "
+                                        "read may be wrong"), stacklevel=4)
+
+
+def refuse_open(core: Any, keys: Iterable[Key]) -> None:
+    """:class:`OpenForReview` (through ``core.check_write``) for the first of ``keys`` whose register
+    is open for review, before any value is encoded."""
+    review = core.tables.under_review
+    if review:
+        for name, index in keys:
+            if name in review:
+                core.check_write((name, index))
