@@ -111,9 +111,9 @@ def test_units_and_device_classes(messages: dict[str, dict[str, Any]]) -> None:
     assert sensor("meter", "phase_1_volt_amps")["device_class"] == "apparent_power"
     assert (sensor("meter", "total_system_var")["unit_of_measurement"], sensor("meter", "total_system_var")[
         "device_class"]) == ("var", "reactive_power")
-    kvarh = sensor("meter", "total_kvarh")
-    assert (kvarh["unit_of_measurement"], kvarh["device_class"], kvarh["state_class"]) == (
-        "kvarh", "reactive_energy", "total_increasing")
+    kvarh = sensor("meter", "total_kvarh")  # by default no class HA before 2025.6 refuses (it drops the entity)
+    assert (kvarh["unit_of_measurement"], kvarh.get("device_class"), kvarh["state_class"]) == (
+        "kvarh", None, "total_increasing")
     assert "device_class" not in sensor("meter", "total_vah")  # HA has no class for apparent energy
     assert messages["number/drivemap_plant_pump1/communication_setting"]["suggested_display_precision"] == 2
     assert sensor("inv", "ac_power")["device_class"] == "power"
@@ -194,8 +194,8 @@ def test_discovery_device_has_only_keys_home_assistant_2024_3_accepts(messages: 
 
 
 def test_discovery_leaves_out_device_classes_the_configured_release_lacks(tmp_path: Path) -> None:
-    """`mqtt.ha_version: "2024.3"`: kvarh gets no reactive_energy class (that release refuses the entity);
-    without it (the current release) the class is announced."""
+    """Without `mqtt.ha_version` (the oldest supported release) and with "2024.3", kvarh gets no
+    reactive_energy class (HA before 2025.6 refuses the entity); with "2025.6" the class is announced."""
 
     def meter_classes(text: str) -> dict[str, Any]:
         path = tmp_path / "gw.yaml"
@@ -210,9 +210,14 @@ def test_discovery_leaves_out_device_classes_the_configured_release_lacks(tmp_pa
                 for _, payload in discovery_messages("plant", meter, "homeassistant", "x", cfg.mqtt.ha_version)
                 if payload.get("unit_of_measurement") in ("kvarh", "kWh")}
 
-    assert meter_classes(CONFIG) == {"kvarh": "reactive_energy", "kWh": "energy"}
+    assert meter_classes(CONFIG) == {"kvarh": None, "kWh": "energy"}
     old = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '2024.3'}")
     assert meter_classes(old) == {"kvarh": None, "kWh": "energy"}
+    for release in ("2025.6", "2026.1"):
+        new = CONFIG.replace("mqtt: {host: 127.0.0.1}", f"mqtt: {{host: 127.0.0.1, ha_version: '{release}'}}")
+        assert meter_classes(new) == {"kvarh": "reactive_energy", "kWh": "energy"}
+    before = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '2025.5'}")
+    assert meter_classes(before) == {"kvarh": None, "kWh": "energy"}
     bad = CONFIG.replace("mqtt: {host: 127.0.0.1}", "mqtt: {host: 127.0.0.1, ha_version: '24.3'}")
     with pytest.raises(CompileError, match="ha_version"):
         meter_classes(bad)
@@ -228,8 +233,9 @@ def test_discovery_and_the_home_assistant_export_read_one_unit_table(unit: str) 
 
     reg = replace(compile_map(ROOT / "maps" / "vfd1000.yaml").registers[0], unit=unit, scale=1.0, offset=0.0,
                   precision=None)
-    found = unit_info(reg)
-    exported = _unit_keys(unit)
-    assert found["unit_of_measurement"] == exported["unit_of_measurement"]
-    assert found.get("device_class") == exported.get("device_class")
-    assert found["state_class"] == exported.get("state_class", "measurement")
+    for release in ((2024, 3), (2025, 6)):  # at the same Home Assistant release (their defaults differ)
+        found = unit_info(reg, release)
+        exported = _unit_keys(unit, release)
+        assert found["unit_of_measurement"] == exported["unit_of_measurement"]
+        assert found.get("device_class") == exported.get("device_class")
+        assert found["state_class"] == exported.get("state_class", "measurement")

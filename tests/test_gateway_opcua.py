@@ -116,8 +116,8 @@ async def _only_the_operator_writes_and_every_write_is_checked(url: str, gw: Any
         assert await _status_of_write(node, 42.5, ua.VariantType.Double) == "Good"
         assert sim.get("communication_setting") == pytest.approx(42.5)
         command = await _node(operator, "plant", "pump1", "control_command")
-        assert await _status_of_write(command, 5, ua.VariantType.Int64) == "Good"  # STOP
-        assert await _status_of_write(command, 99, ua.VariantType.Int64) == "BadOutOfRange"
+        assert await _status_of_write(command, 5, ua.VariantType.UInt16) == "Good"  # STOP
+        assert await _status_of_write(command, 99, ua.VariantType.UInt16) == "BadOutOfRange"
 
 
 async def _a_wrong_password_is_refused(url: str) -> None:

@@ -71,8 +71,8 @@ async def test_opcua_exact_types_units_and_access(tmp_path: Path) -> None:
 
                 bits = await node(operator, "conveyor", "net_in")
                 writes = dict(gw.lines[1].bus.stats.by_function)
-                for value in (2**40, -1, 0x10000):
-                    assert await status(bits, value, ua.VariantType.Int64) == "BadOutOfRange", value
+                for value in (2**40, -1, 0x10000):  # another type than the variable's UInt16: refused as such
+                    assert await status(bits, value, ua.VariantType.Int64) == "BadTypeMismatch", value
                 assert dict(gw.lines[1].bus.stats.by_function) == writes  # nothing truncated reached the drive
                 assert await status(bits, 0b101, ua.VariantType.UInt16) == "Good"
                 assert esim.get_raw("net_in") == 0b101

@@ -47,6 +47,9 @@ PAYLOADS: list[tuple[str, bytes]] = [
     ("enum name that is not one", b"SIDEWAYS_RUNNING"),
     ("UNKNOWN pseudo-member", b"UNKNOWN_0"),
     ("press in a list", b'["PRESS"]'),
+    ("a number that underflows a float (0 as one)", b"1e-400"),
+    ("more digits than a float holds (100.0 as one)", b"99.999999999999999999"),
+    ("a key named twice", b'{"X0": true, "X0": false}'),
 ]
 
 #: Index parts of ``.../REGISTER/INDEX/set`` topics that are not array indexes.

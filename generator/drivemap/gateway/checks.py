@@ -1,4 +1,4 @@
-"""Checks of what a gateway configuration points at: the OPC UA endpoint and serial ports.
+"""Checks of what a gateway configuration points at: map files, the OPC UA endpoint and serial ports.
 
 Each returns the reason (a sentence for a located error) or None. ``drivemap gateway --check``
 and the run make the same checks, so a configuration that passes ``--check`` does not end in a
@@ -72,6 +72,23 @@ def bind_problem(endpoint: str) -> str | None:
                     return f"endpoint {endpoint!r}: port {port} on {host} is already in use"
                 return f"endpoint {endpoint!r}: cannot listen on {host}:{port}: {exc.strerror or exc}"
     return None
+
+
+def map_file_problem(path: Path) -> str | None:
+    """Why ``path`` (a device's ``map:``) cannot be read as a map: missing, or not a regular file (a
+    device such as /dev/zero, a FIFO, a directory: reading it would never end or block), or None."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return f"no such map file: {display(path)}"
+    except OSError as exc:
+        return f"cannot read map file {display(path)}: {exc.strerror}"
+    if stat.S_ISREG(st.st_mode):
+        return None
+    kind = ("a directory" if stat.S_ISDIR(st.st_mode) else "a character device" if stat.S_ISCHR(st.st_mode)
+            else "a block device" if stat.S_ISBLK(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
+            else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+    return f"map file {display(path)} is {kind}, not a regular file: give the path of a map (.yaml)"
 
 
 def serial_port_problem(path: Path) -> str | None:

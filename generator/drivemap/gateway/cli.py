@@ -131,6 +131,8 @@ def _check_endpoint(cfg: GatewayConfig) -> None:
 async def _check(cfg: GatewayConfig) -> None:
     from drivemap.gateway.service import Gateway
 
+    for warning in cfg.warnings:
+        print(warning.format(), file=sys.stderr)
     print("\n".join(summary(cfg, Gateway(cfg))))
 
 
@@ -143,6 +145,8 @@ async def _serve(cfg: GatewayConfig) -> None:
     for sig in (signal.SIGINT, signal.SIGTERM):
         with contextlib.suppress(NotImplementedError, RuntimeError):
             loop.add_signal_handler(sig, stop.set)
+    for warning in cfg.warnings:
+        print(warning.format(), file=sys.stderr, flush=True)
     print("\n".join(summary(cfg, gateway)), flush=True)
     await gateway.run(stop)
     print(f"gateway {cfg.name} stopped", flush=True)

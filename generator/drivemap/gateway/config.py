@@ -20,7 +20,13 @@ from drivemap.frontend import schema
 from drivemap.frontend.load import Document, PathT, load_file
 from drivemap.frontend.project import Project, display, load_project
 from drivemap.gateway.access import group_writables
-from drivemap.gateway.checks import certificate_problem, endpoint_problem, key_pair_problem, serial_port_problem
+from drivemap.gateway.checks import (
+    certificate_problem,
+    endpoint_problem,
+    key_pair_problem,
+    map_file_problem,
+    serial_port_problem,
+)
 from drivemap.model.nodes import Model
 
 #: The configuration schema shipped with the package (a link to ``schemas/gateway.schema.json``).
@@ -130,6 +136,9 @@ class GatewayConfig:
     backoff_min: float = 1.0
     backoff_max: float = 30.0
     devices: dict[str, DeviceConfig] = field(default_factory=dict, compare=False)
+    warnings: tuple[Diagnostic, ...] = field(default=(), compare=False)
+    """Located warnings (``drivemap gateway --check`` prints them): a register listed as writable
+    that takes no command while its map leaves a field open, a ``writable:`` group that opens none."""
 
 
 class _Checker:
@@ -139,6 +148,7 @@ class _Checker:
         self.doc = doc
         self.project = project
         self.errors: list[Diagnostic] = []
+        self.warnings: list[Diagnostic] = []
         self.base = Path(doc.path).parent
         self.models: dict[Path, Model] = {}
 
@@ -151,6 +161,9 @@ class _Checker:
 
     def error(self, where: PathT, message: str, *, key: bool = False) -> None:
         self.errors.append(Diagnostic(self.doc.positions.at(where, key=key), message))
+
+    def warning(self, where: PathT, message: str) -> None:
+        self.warnings.append(Diagnostic(self.doc.positions.at(where), message, severity="warning"))
 
     def path(self, text: str) -> Path:
         p = Path(text)
@@ -193,7 +206,7 @@ def load_config(path: str | os.PathLike[str], project: Project | None = None, *,
     backoff = data.get("offline_backoff", {})
     devices = {d.name: d for b in buses for d in b.devices}
     return GatewayConfig(doc.path, data["name"], buses, mqtt, opcua, backoff.get("min", 1.0),
-                         backoff.get("max", max(30.0, backoff.get("min", 1.0))), devices)
+                         backoff.get("max", max(30.0, backoff.get("min", 1.0))), devices, tuple(check.warnings))
 
 
 def _unique_names(check: _Checker, data: dict[str, Any]) -> None:
@@ -251,9 +264,11 @@ def _model(check: _Checker, dev: dict[str, Any], where: PathT) -> Model | None:
         return None
     key = given[0]
     name = dev[key] if key == "model" else str(check.path(dev[key]))
-    if key == "map" and not Path(name).is_file():
-        check.error(where + (key,), f"no such map file: {display(name)}")
-        return None
+    if key == "map":
+        problem = map_file_problem(Path(name))
+        if problem is not None:
+            check.error(where + (key,), problem)
+            return None
     try:
         return check.compile(name)
     except CompileError as exc:
@@ -296,7 +311,13 @@ def _writable(check: _Checker, model: Model, dev: dict[str, Any], where: PathT,
     for i, name in enumerate(entries or ()):
         here = where + ("writable", i)
         if name in groups and name not in {r.name for r in model.registers}:
-            out.extend(n for n in group_writables(model, name) if n in shown or not model.register(n).readable)
+            opened = [n for n in group_writables(model, name) if n in shown or not model.register(n).readable]
+            if not opened:
+                check.warning(here, f"group {name!r} of {model.name} opens no register to commands: "
+                              + _why_none(model, name, shown))
+            for n in opened:
+                _warn_open(check, model, n, here)
+            out.extend(opened)
             continue
         try:
             reg = model.register(name)
@@ -309,8 +330,30 @@ def _writable(check: _Checker, model: Model, dev: dict[str, Any], where: PathT,
             check.error(here, f"{model.name}.{name} is not published: a command reaches only a register the gateway "
                         "publishes (add it to publish)")
         else:
+            _warn_open(check, model, name, here)
             out.append(name)
     return tuple(dict.fromkeys(out))
+
+
+def _warn_open(check: _Checker, model: Model, name: str, here: PathT) -> None:
+    """A register listed as writable whose map leaves open a field that decides the written words."""
+    reg = model.register(name)
+    if reg.open_for_writes:
+        check.warning(here, f"{model.name}.{name} takes no command: the map leaves "
+                      f"{', '.join(reg.open_for_writes)} open (review:), which decide the words a write sends; "
+                      "its reads are published")
+
+
+def _why_none(model: Model, group: str, shown: set[str]) -> str:
+    """Why a group entry of ``writable`` opens no register (for the warning)."""
+    regs = model.group_registers(group)
+    writable = [r for r in regs if r.writable]
+    if not writable:
+        return "none of its registers is writable in the map"
+    if not group_writables(model, group):
+        return (f"its writable registers are link settings ({', '.join(r.name for r in writable[:5])}), "
+                "which are opened one by one only")
+    return "its writable registers are not published (add them to publish, or list them one by one)"
 
 
 def _register_ok(check: _Checker, model: Model, name: str, where: PathT) -> bool:

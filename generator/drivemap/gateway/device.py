@@ -13,7 +13,10 @@ Commands are parsed and checked here, before they are queued: the register must 
 writable in the map and be listed in the device's ``writable`` list; the payload is parsed strictly
 and bounded (:mod:`drivemap.gateway.payload`), must have the register's type, and must pass the
 codec's checks (range, enum membership, representability, exactness: a value the register cannot
-hold exactly is refused, never rounded). A register with a value set takes
+hold exactly is refused, never rounded). A register whose map leaves open a field that decides the
+words a write sends (``review:`` naming its type, scale, word order, table, address ...:
+:attr:`~drivemap.runtime.spec.RegisterSpec.open_for_writes`) takes no command
+(:class:`UnreviewedRegister`, naming the open fields); its reads are published as usual. A register with a value set takes
 a value of the set by option text, label or value (:mod:`drivemap.gateway.valuesets`). Everything that fails raises a
 typed :class:`~drivemap.runtime.errors.DriveError`; only checked raw values reach the bus.
 """
@@ -43,10 +46,22 @@ from drivemap.gateway.valuesets import set_value
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
 from drivemap.runtime.client.display import display_text, register_text
-from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
+from drivemap.runtime.errors import AccessError, InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
 PRESS = "PRESS"
+
+
+class UnreviewedRegister(AccessError):
+    """A command for a register whose map still leaves open (``review:``) a field that decides the
+    words a write sends: nothing is written until a person states it."""
+
+
+def open_fields_reason(device: str, reg: Register) -> str:
+    """Why ``reg`` takes no command: the open fields that decide what a write sends."""
+    fields = ", ".join(reg.open_for_writes)
+    return (f"{device}.{reg.name}: the map leaves {fields} open (review: {list(reg.open_for_writes)}), "
+            "which decide the words a write sends: state them in the map before writing")
 
 
 @dataclass
@@ -156,6 +171,11 @@ class Device:
         """Whether the gateway's configuration lets commands reach register ``name``."""
         return name in self.cfg.writable
 
+    def commandable(self, reg: Register) -> bool:
+        """Whether commands for ``reg`` are offered (discovery's controls, OPC UA's CurrentWrite):
+        writable in the map, listed in ``writable``, and no field that decides its words open."""
+        return reg.writable and self.may_write(reg.name) and not reg.open_for_writes
+
     def command(self, target: str, payload: bytes | str, source: str = "mqtt") -> Command:
         """Parse and check a command; raise a typed DriveError before anything is queued."""
         text = payload_text(payload)
@@ -165,6 +185,8 @@ class Device:
         if not self.may_write(reg.name):
             raise ReadOnlyRegister(f"{self.name}.{reg.name}: the gateway configuration does not accept commands for "
                                    "it (list it in the device's writable)")
+        if reg.open_for_writes:
+            raise UnreviewedRegister(open_fields_reason(self.name, reg))
         if reg.command_value is not None:  # a command register takes PRESS (or its command value) only
             if text.strip().upper() != PRESS and integer_word(text.strip()) != reg.command_value:
                 raise InvalidValue(f"{reg.name} is a command: send {PRESS} (it writes {reg.command_value}), "

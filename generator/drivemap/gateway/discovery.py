@@ -6,9 +6,11 @@ map; what the map does not state is left out) and, per register: a ``sensor`` fo
 for numbers: the map's ``precision`` when it gives one, else the decimals of its scale, ``enum``
 options for enumerated values), a ``binary_sensor`` per single bit of a
 bit-field register (wider fields are sensors) and per read-only coil or discrete input. Controls
-only for registers in the device's ``writable`` list: a ``select`` per enumerated register and per
+only for registers in the device's ``writable`` list (none for a register whose map leaves open a
+field that decides the written words: it takes no command, its reads are published): a ``select`` per enumerated register and per
 register with a value set (``values:``; options are the labels, the value where a value has none), a
-``number`` per register with a range in the map (min/max, step = the map's scale), a ``button`` per
+``number`` per numeric register (min/max: the map's range, or where the map gives none the range of
+its type in engineering units, :func:`number_bounds`; step = the map's scale), a ``button`` per
 command register, a ``switch`` per coil or bool register (payloads true/false). Strings are text
 sensors (no unit or state class); a register with not-available values publishes null for them,
 which the sensor shows as unknown (its value template turns null into HA's "None" payload). Array
@@ -27,6 +29,8 @@ retained, with ``node_id = drivemap_<gateway>_<device>``.
 from __future__ import annotations
 
 import json
+import sys
+from decimal import Decimal
 from typing import Any
 
 from drivemap import __version__
@@ -35,6 +39,7 @@ from drivemap.backends.views.integrations import decimals
 from drivemap.gateway.device import PRESS, Device
 from drivemap.gateway.valuesets import value_options
 from drivemap.model.nodes import Model, Register
+from drivemap.runtime.types import TYPE_BOUNDS
 
 
 def precision(reg: Register) -> int | None:
@@ -50,15 +55,29 @@ def precision(reg: Register) -> int | None:
     return decimals(reg.scale, reg.offset or 0)
 
 
+#: The oldest Home Assistant release the gateway's discovery is written for (the release the project's
+#: tools tier runs): without ``mqtt.ha_version`` discovery uses only device classes it accepts, so no
+#: supported release drops an entity (HA before 2025.6 refuses ``reactive_energy``: kvarh sensors
+#: get no device class). Device classes and the release that brought them:
+#: :data:`drivemap.backends.views.integrations.DEVICE_CLASS_SINCE` (read, shared with the HA export).
+OLDEST_HA: tuple[int, int] = (2024, 3)
+
+
+def ha_release(ha_version: tuple[int, int] | None) -> tuple[int, int]:
+    """The Home Assistant release discovery is for: ``mqtt.ha_version``, else :data:`OLDEST_HA`."""
+    return ha_version if ha_version is not None else OLDEST_HA
+
+
 def unit_info(reg: Register, ha_version: tuple[int, int] | None = None) -> dict[str, Any]:
     """unit_of_measurement / device_class / state_class / suggested_display_precision of a number
-    (device classes Home Assistant ``ha_version`` does not know are left out)."""
+    (device classes Home Assistant ``ha_version`` - default :data:`OLDEST_HA` - does not know are
+    left out)."""
     out: dict[str, Any] = {"state_class": "measurement"}
     if reg.unit is not None:
         unit = iv.unit_for(reg.unit)
         device_class, state_class = iv.DEVICE_CLASSES.get(unit, (None, "measurement"))
         out = {"unit_of_measurement": unit, "state_class": state_class}
-        if device_class and iv.device_class_known(device_class, ha_version):
+        if device_class and iv.device_class_known(device_class, ha_release(ha_version)):
             out["device_class"] = device_class
     digits = precision(reg)
     if digits is not None:
@@ -171,7 +190,7 @@ def _register(b: _Builder, reg: Register, published: bool, control: bool) -> Non
             b.add("select", object_id, name, {**st, "command_topic": command, "options": options})
         elif reg.values and control:
             _value_select(b, reg, object_id, name, st, command, index)
-        elif control and reg.min is not None and reg.max is not None and reg.type != "string":
+        elif control and number_bounds(reg) is not None:
             _number(b, reg, object_id, name, st, command, index)
         elif published and reg.enum:
             b.add("sensor", object_id, name, {**st, "value_template": _announced(_field(index), options),
@@ -188,17 +207,53 @@ def _sensor(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str,
     b.add("sensor", object_id, name, {**st, **unit_info(reg, b.ha_version)})
 
 
+#: The largest finite values of the float types (a float register without a range is bounded by them).
+_FLOAT_MAX = {"f32": float(Decimal("3.4028234663852886e38")), "f64": sys.float_info.max}
+
+
+def _whole(value: Decimal) -> int | float:
+    """An end of a range: an int when whole and within the integer types' reach, else a float."""
+    return int(value) if value == value.to_integral_value() and abs(value) <= 2**64 else float(value)
+
+
+def number_bounds(reg: Register) -> tuple[int | float, int | float] | None:
+    """The (min, max) of a ``number`` control: the map's range where it gives one, else (either end)
+    its type's raw range in engineering units (raw * scale + offset); None for what is no plain
+    number (strings, bools, bit fields) and for a register scaled by a scale register (its factor,
+    and so its range, is known only when read)."""
+    if reg.type in ("string", "bool") or reg.bit_table or reg.bits or reg.enum:
+        return None
+    if reg.min is not None and reg.max is not None:
+        return reg.min, reg.max
+    if reg.scale_register is not None:
+        return None
+    scale, offset = Decimal(repr(reg.scale)), Decimal(repr(reg.offset or 0))
+    if reg.type in _FLOAT_MAX:
+        top = Decimal(repr(_FLOAT_MAX[reg.type]))
+        ends = [-top * scale + offset, top * scale + offset]
+        limit = Decimal(repr(sys.float_info.max))
+        ends = [max(-limit, min(limit, e)) for e in ends]
+    else:
+        low, high = TYPE_BOUNDS[reg.type]
+        ends = [Decimal(low) * scale + offset, Decimal(high) * scale + offset]
+    lo, hi = sorted(_whole(e) for e in ends)
+    return (reg.min if reg.min is not None else lo), (reg.max if reg.max is not None else hi)
+
+
 def _number(b: _Builder, reg: Register, object_id: str, name: str, st: dict[str, Any], command: str,
             index: int | None) -> None:
-    """A number entity over the map's writable range; Home Assistant refuses a state outside it, so a
-    reading outside the range shows as unknown there and in full in a ``<name> reading`` sensor."""
-    assert reg.min is not None and reg.max is not None
+    """A number entity over the map's writable range (without one: the range of the register's type,
+    scaled); Home Assistant refuses a state outside it, so a reading outside the range shows as
+    unknown there and in full in a ``<name> reading`` sensor."""
+    bounds = number_bounds(reg)
+    assert bounds is not None
+    low, high = bounds
     step = reg.scale if not float(reg.scale).is_integer() else int(reg.scale)
     info = {k: v for k, v in unit_info(reg, b.ha_version).items() if k != "state_class"}
     if st:
-        st = {**st, "value_template": _in_range(_field(index), reg.min, reg.max)}
-    b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": reg.min,
-                                      "max": reg.max, "step": step, "mode": "box"})
+        st = {**st, "value_template": _in_range(_field(index), low, high)}
+    b.add("number", object_id, name, {**st, **info, "command_topic": command, "min": low,
+                                      "max": high, "step": abs(step), "mode": "box"})
     if st:
         reading = {"state_topic": st["state_topic"], **({"value_template": f"{{{{ {_field(index)} }}}}"}
                                                         if index is not None else {})}
@@ -266,7 +321,7 @@ def discovery_messages(gateway: str, device: Device, discovery_prefix: str, avai
     b = _Builder(gateway, device, discovery_prefix, availability, ha_version)
     published = set(device.cfg.publish)
     for reg in device.model.registers:
-        control = reg.writable and device.may_write(reg.name)
+        control = device.commandable(reg)
         if reg.name in published or control:
             _register(b, reg, reg.name in published, control)
     return b.out

@@ -14,7 +14,11 @@ Connections are admitted by :mod:`drivemap.gateway.opcua_limits`.
 Writes go through the same checks as MQTT commands (:meth:`drivemap.gateway.device.Device.command`)
 before anything is queued, then wait for the device's reply; the status says what happened:
 ``BadUserAccessDenied`` (anonymous writes are off unless ``anonymous_writes: true``, or a user
-without ``write``), ``BadNotWritable``, ``BadTypeMismatch``, ``BadOutOfRange``, ``BadTimeout`` /
+without ``write``), ``BadNotWritable`` (a read-only register, an array, a register the device's
+``writable`` list does not name, or one whose map leaves open a field that decides the written
+words: the log names the fields), ``BadTypeMismatch`` (a variant of another type than the
+variable's DataType: a UInt16 variable takes a UInt16, never an Int32 or a Double; or a value the
+register's type does not take), ``BadOutOfRange``, ``BadTimeout`` /
 ``BadCommunicationError`` (no answer), ``BadDeviceFailure`` (exception reply).
 
 Security: the policies listed in ``security`` (``none``, ``Basic256Sha256_Sign``,
@@ -38,7 +42,7 @@ from asyncua.server.internal_server import InternalServer
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.gateway.config import OpcuaConfig, OpcuaUser
-from drivemap.gateway.device import Device
+from drivemap.gateway.device import Device, open_fields_reason
 from drivemap.gateway.opcua_limits import LimitedServer, anonymous_sessions
 from drivemap.gateway.opcua_types import CEFACT, unit_id, variant_name
 from drivemap.model.nodes import Register
@@ -330,7 +334,7 @@ class OpcuaBridge:
         first = _INITIAL.get(vtype, 0)
         initial: Any = [first] * reg.count if reg.is_array else first
         node = await obj.add_variable(ua.NodeId(f"{device.name}.{reg.name}", self.idx), f"{self.idx}:{reg.name}", initial, vtype)
-        writable = reg.writable and device.may_write(reg.name) and not reg.is_array
+        writable = device.commandable(reg) and not reg.is_array
         level = (ua.AccessLevel.CurrentRead.mask if readable else 0) | (ua.AccessLevel.CurrentWrite.mask if writable else 0)
         for attr in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel):
             await node.write_attribute(attr, ua.DataValue(ua.Variant(level, ua.VariantType.Byte)))
@@ -395,7 +399,16 @@ class OpcuaBridge:
             return _status(ua.StatusCodes.BadUserAccessDenied)
         if user.role == UserRole.User and user.name not in self.writers:
             return _status(ua.StatusCodes.BadUserAccessDenied)
-        given = value.Value.Value if value.Value is not None else None
+        if not reg.writable or reg.is_array or not device.may_write(reg.name) or reg.open_for_writes:
+            if reg.open_for_writes:
+                log.warning("OPC UA: refusing a write: %s", open_fields_reason(device.name, reg))
+            return _status(ua.StatusCodes.BadNotWritable)
+        expected = _variant_type(reg)
+        if value.Value is None or value.Value.VariantType != expected or value.Value.is_array:
+            got = value.Value.VariantType.name if value.Value is not None else "no value"
+            log.warning("OPC UA: refusing a write of %s to %s.%s (a %s)", got, device.name, reg.name, expected.name)
+            return _status(ua.StatusCodes.BadTypeMismatch)
+        given = value.Value.Value
         try:
             if reg.bits and isinstance(given, int) and not isinstance(given, bool):
                 given = _bits_json(device, reg, given)

@@ -5,9 +5,13 @@
 * ``max_connections`` TCP connections at once. A connection past it evicts the oldest
   connection that has no authenticated user (one still in its handshake first, then an anonymous
   session); when every connection belongs to a user, it is refused.
-* ``per_source``: connections without an authenticated user from one IP address; one more is
-  refused at once (a user's session does not count: an operator is never locked out by the
-  anonymous viewers on the same host).
+* ``per_source``: connections from one IP address still in their handshake (no session activated
+  yet). One more does not refuse the newcomer, whose credentials are not known until it activates
+  a session: it closes the oldest handshake from that address, so the connections one host keeps
+  silent stay at ``per_source`` and a user who connects and logs in (a handshake takes
+  milliseconds) always gets in. Anonymous and user sessions do not count here: an operator is never
+  locked out by the anonymous viewers or the half-open connections on the same host (or behind the
+  same NAT); anonymous sessions are bounded by ``anonymous_sessions``.
 * ``reserve``: the last connections are for users: connections without a user (in handshake or
   anonymous) never hold more than ``max_connections - reserve``; past that the oldest of them is
   closed to make room.
@@ -54,8 +58,8 @@ class _LimitedProtocol(OPCUAProtocol):
         source = peer[0] if isinstance(peer, tuple) else str(peer)
         self.opened = time.monotonic()
         if not admit(self.clients, source, self.admission):
-            log.warning("OPC UA: refusing a connection from %s (limits: %d per source, %d in all)", source,
-                        self.admission.per_source, self.admission.max_connections)
+            log.warning("OPC UA: refusing a connection from %s (%d connections, each with a user session)", source,
+                        self.admission.max_connections)
             transport.close()
             return
         super().connection_made(transport)
@@ -74,21 +78,28 @@ def _source(c: OPCUAProtocol) -> str:
     return str(peer[0] if isinstance(peer, tuple) else peer)
 
 
+def _close(clients: list[OPCUAProtocol], victim: OPCUAProtocol, why: str) -> None:
+    log.warning("OPC UA: closing a connection from %s %s", _source(victim), why)
+    if victim.transport is not None:
+        victim.transport.close()
+    if victim in clients:
+        clients.remove(victim)
+
+
 def admit(clients: list[OPCUAProtocol], source: str, limits: OpcuaLimits) -> bool:
-    """Whether a new connection from ``source`` is admitted; closes the connections it displaces."""
+    """Whether a new connection from ``source`` is admitted; closes the connections it displaces (the
+    oldest handshake from the same address past ``per_source``; the oldest connections without a
+    user past the room they have)."""
+    pending = [c for c in _unauthenticated(clients) if _user_role(c) is None and _source(c) == source]
+    for victim in pending[:max(0, len(pending) + 1 - limits.per_source)]:
+        _close(clients, victim, f"still in its handshake ({limits.per_source} at most from one address)")
     others = _unauthenticated(clients)
-    if sum(1 for c in others if _source(c) == source) >= limits.per_source:
-        return False
     room_for_others = limits.max_connections - limits.reserve
     excess = max(len(others) + 1 - room_for_others, len(clients) + 1 - limits.max_connections, 0)
     if excess > len(others):
         return False
     for victim in others[:excess]:
-        log.warning("OPC UA: closing a connection from %s without a user session to make room", _source(victim))
-        if victim.transport is not None:
-            victim.transport.close()
-        if victim in clients:
-            clients.remove(victim)
+        _close(clients, victim, "without a user session to make room")
     return True
 
 

@@ -8,7 +8,10 @@ is 0, 1, true or false; integers are integers (a float only when it is a whole n
 and numbers in names are ASCII digits. What is accepted is written exactly: the register's codec
 refuses a value the register cannot hold exactly (``12.345`` at a resolution of 0.01, ``30.123456789``
 in an f32) with :class:`~drivemap.runtime.errors.InexactValue` naming the nearest values it can hold;
-the gateway never rounds.
+the gateway never rounds. Exactness starts at the text as sent: a JSON number whose decimal value
+(``Decimal`` of the text) a binary float does not hold (``1e-400`` would be 0, ``99.999999999999999999``
+100.0) is refused before any codec sees it. An object that names a key twice
+(``{"X0": true, "X0": false}``) is refused, never "last one wins".
 """
 
 from __future__ import annotations
@@ -16,9 +19,10 @@ from __future__ import annotations
 import json
 import math
 import re
+from decimal import Decimal
 from typing import Any
 
-from drivemap.runtime.errors import InvalidValue, ValueOutOfRange
+from drivemap.runtime.errors import InexactValue, InvalidValue, ValueOutOfRange
 
 #: The longest command payload (bytes); a bit-field object of every field of a 64-bit register fits.
 MAX_PAYLOAD_BYTES = 4096
@@ -76,12 +80,53 @@ def _no_constant(name: str) -> Any:
     raise ValueError(f"{name} is not a value")
 
 
+class _Refused(Exception):
+    """A payload refused while JSON parses it (carries the typed error past ``json.loads``)."""
+
+    def __init__(self, error: Exception) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+def exact_float(register: str, text: str) -> float:
+    """The float of a JSON number's text, only when it holds the text's decimal value exactly (a
+    number too large for a float is infinite, which :func:`number` refuses as not finite)."""
+    value = float(text)
+    if math.isfinite(value) and Decimal(text) != Decimal(repr(value)):
+        raise InexactValue(f"{register}: {show(text)} is not a number the gateway can pass on exactly "
+                           f"(as a binary float it is {value!r}); send the value the register holds",
+                           (value,))
+    return value
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    seen: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in seen:
+            raise _Refused(InvalidValue(f"the payload names {show(key)} twice"))
+        seen[key] = value
+    return seen
+
+
 def parse_json(register: str, text: str) -> Any:
-    """A JSON value, after the depth check; NaN/Infinity and malformed text are InvalidValue."""
+    """A JSON value, after the depth check; NaN/Infinity, malformed text and an object naming a key
+    twice are InvalidValue, a number the text states more exactly than a float holds InexactValue."""
     if nesting(text) > MAX_DEPTH:
         raise InvalidValue(f"{register}: the payload nests deeper than {MAX_DEPTH} levels")
+
+    def parse_float(word: str) -> float:
+        try:
+            return exact_float(register, word)
+        except InexactValue as exc:
+            raise _Refused(exc) from None
+
     try:
-        return json.loads(text, parse_constant=_no_constant)
+        return json.loads(text, parse_constant=_no_constant, parse_float=parse_float,
+                          object_pairs_hook=_unique_keys)
+    except _Refused as refused:
+        if isinstance(refused.error, InvalidValue):
+            raise InvalidValue(f"{register}: {refused.error}") from None
+        raise refused.error from None
     except (ValueError, RecursionError):
         raise InvalidValue(f"{register}: payload {show(text)} is not a value (JSON number, name or object)") from None
 
