@@ -15,12 +15,15 @@ This package imports nothing of drivemap itself (the new modules are imported by
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.machinery
 import sys
 import types
 import warnings
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, cast
+
+if TYPE_CHECKING:
+    from importlib.abc import Loader
 
 #: The release that removes what this package keeps.
 REMOVAL = "1.0"
@@ -50,12 +53,14 @@ class _Moved(types.ModuleType):
         return sorted(set(self.__all__) | set(super().__dir__()))
 
 
-class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+class _Finder:
+    """A meta path finder and loader (the protocols of :mod:`importlib`, without importing its ABCs at startup)."""
+
     def find_spec(self, fullname: str, path: Sequence[str] | None, target: types.ModuleType | None = None,
                   ) -> importlib.machinery.ModuleSpec | None:
         if fullname not in MOVED_MODULES:
             return None
-        return importlib.machinery.ModuleSpec(fullname, self)
+        return importlib.machinery.ModuleSpec(fullname, cast("Loader", self))
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
         new = MOVED_MODULES[spec.name]
