@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import re
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from drivemap.onboard.importers.es_context import VALUE_TYPES, Ctx
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, located
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.esphome import Ctx
 
 __all__ = ["entity", "finish"]
 
@@ -49,8 +47,9 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
         return _skip(ctx, item, f"register_type {item.get('register_type')!r}")
     if suffix is not None:
         return _part(ctx, platform, item, name, suffix)
-    if name in ctx.regs:
-        name = ctx.doc.name(name)
+    if name in ctx.regs or ctx.doc.taken(name):
+        name = ctx.doc.name(name)  # a second entity of the same name: a register of its own
+    ctx.doc.claim(name)
     if table in ("coil", "discrete"):
         reg: dict[str, Any] | None = _bit_table(ctx, platform, item, table)
     elif platform == "switch":
@@ -78,8 +77,6 @@ def _write_code(ctx: Ctx, reg: dict[str, Any], item: Node) -> None:
 
 
 def _batch(ctx: Ctx, platform: str, item: Node) -> None:
-    from drivemap.onboard.importers.esphome import VALUE_TYPES
-
     table = "holding" if platform == "select" else str(item.get("register_type"))
     if item.get("assumed_state") or not isinstance(item.get("address"), int):
         return
@@ -141,8 +138,6 @@ def _command(ctx: Ctx, item: Node) -> dict[str, Any] | None:
 
 
 def _typed(ctx: Ctx, item: Node, name: str) -> dict[str, Any] | None:
-    from drivemap.onboard.importers.esphome import VALUE_TYPES
-
     if "raw_encode" in item:
         if item.get("raw_encode") == "ANSI":
             count = item.get("register_count")

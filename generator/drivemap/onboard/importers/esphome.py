@@ -13,47 +13,15 @@ their interval so a re-export can repeat it. Anything else (lambdas, custom comm
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
+from drivemap.onboard.importers.es_context import PARITY, PLATFORMS, RAW_ITEM, RAW_NOTE, Ctx
+from drivemap.onboard.importers.es_entities import entity, finish
+from drivemap.onboard.importers.mapdoc import MapDoc, snake
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
 
 __all__ = ["import_esphome"]
-
-PLATFORMS = ("sensor", "binary_sensor", "number", "select", "switch", "text_sensor")
-TABLES = {"holding": "holding", "read": "input", "coil": "coil", "discrete_input": "discrete"}
-VALUE_TYPES = {"U_WORD": ("u16", None), "S_WORD": ("s16", None), "U_DWORD": ("u32", "high_first"),
-               "U_DWORD_R": ("u32", "low_first"), "S_DWORD": ("s32", "high_first"), "S_DWORD_R": ("s32", "low_first"),
-               "FP32": ("f32", "high_first"), "FP32_R": ("f32", "low_first"), "U_QWORD": ("u64", "high_first"),
-               "U_QWORD_R": ("u64", "low_first"), "S_QWORD": ("s64", "high_first"), "S_QWORD_R": ("s64", "low_first")}
-PARITY = {"NONE": "none", "EVEN": "even", "ODD": "odd"}
-_RAW_NOTE = re.compile(r"text_sensor with the wire bytes as hex \(ESPHome has no value_type for them\): (.*)")
-_RAW_ITEM = re.compile(r"^(\S+) \((\w+), word order ([\w-]+), byte order (\w+)\)$")
-
-
-@dataclass
-class Ctx:
-    doc: MapDoc
-    path: Path
-    prefix: str
-    base: int
-    regs: dict[str, dict[str, Any]] = field(default_factory=dict)
-    raw_types: dict[str, tuple[str, str | None, str]] = field(default_factory=dict)
-    factors: dict[str, str] = field(default_factory=dict)
-    intervals: dict[str, int] = field(default_factory=dict)
-    #: polled entities as (table, address) -> (words, starts a new read): drivemap's batching
-    batches: dict[tuple[str, int], tuple[int, bool]] = field(default_factory=dict)
-
-    def key(self, name: str) -> tuple[str, str | None]:
-        """(register name, suffix after it: a bit, an enum value or 'label') of an entity name."""
-        rest = name[len(self.prefix) + 1:] if name.startswith(self.prefix + " ") else name
-        head, sep, tail = rest.partition(" ")
-        if sep and re.fullmatch(r"[a-z][a-z0-9_]*", head) and (tail == "label" or re.fullmatch(r"[A-Z][A-Z0-9_]*", tail)):
-            return head, tail
-        return safe(rest), None
-
 
 def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     path = paths[0]
@@ -70,8 +38,6 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     ctx = Ctx(doc, path, model, base)
     _line(ctx, data, controller)
     ctx.raw_types = _raw_types(path)
-    from drivemap.onboard.importers.es_entities import entity, finish
-
     found = 0
     for platform in PLATFORMS:
         items = data.get(platform) or []
@@ -152,10 +118,10 @@ def _raw_types(path: Path) -> dict[str, tuple[str, str | None, str]]:
     for line in path.read_text(encoding="utf-8").splitlines():
         if not line.startswith("#"):
             break
-        match = _RAW_NOTE.search(line)
+        match = RAW_NOTE.search(line)
         if match:
             for item in match.group(1).split("; "):
-                found = _RAW_ITEM.match(item.strip())
+                found = RAW_ITEM.match(item.strip())
                 if found:
                     name, rtype, word, byte = found.groups()
                     out[name] = (rtype, None if word == "-" else word, byte)

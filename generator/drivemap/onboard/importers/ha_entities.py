@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from drivemap.onboard.importers.ha_context import LEGACY, SIZED, TABLES, Ctx
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, located, renamed
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.homeassistant import Ctx
 
 __all__ = ["arrays", "binary_sensor", "climate", "sensor", "switches"]
 
@@ -43,8 +41,6 @@ def _address(ctx: Ctx, entry: Node, key: str = "address") -> int:
 
 def data_type(ctx: Ctx, entry: Node, default: str = "int16") -> tuple[str, int | None]:
     """(drivemap type, string length) of an entity's data_type (+ count)."""
-    from drivemap.onboard.importers.homeassistant import LEGACY, SIZED
-
     kind = str(entry.get("data_type", default))
     count = entry.get("count")
     if kind in SIZED:
@@ -111,8 +107,6 @@ def sensor(ctx: Ctx, entry: Node) -> None:
 
 
 def binary_sensor(ctx: Ctx, entry: Node) -> None:
-    from drivemap.onboard.importers.homeassistant import TABLES
-
     table = TABLES.get(str(entry.get("input_type", "coil")))
     if table in ("coil", "discrete"):
         reg = {"table": table, "address": _address(ctx, entry), "type": "bool", "access": "r"}

@@ -21,12 +21,10 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from drivemap.onboard.importers.ha_context import Ctx
 from drivemap.onboard.importers.mapdoc import upper
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.homeassistant import Ctx
 
 __all__ = ["apply_templates"]
 

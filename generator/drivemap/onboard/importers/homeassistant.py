@@ -19,67 +19,16 @@ by their interval, so a re-export can repeat it). Whatever does not map is liste
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from drivemap.onboard.importers.ha_context import PARITY, Ctx
+from drivemap.onboard.importers.ha_entities import arrays, binary_sensor, climate, sensor, switches
 from drivemap.onboard.importers.ha_templates import apply_templates
-from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
+from drivemap.onboard.importers.mapdoc import MapDoc, snake
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
 
 __all__ = ["import_homeassistant"]
-
-SIZED = {"int16": "s16", "uint16": "u16", "int32": "s32", "uint32": "u32", "int64": "s64", "uint64": "u64",
-         "float32": "f32", "float64": "f64"}
-LEGACY = {("int", 1): "s16", ("int", 2): "s32", ("int", 4): "s64", ("uint", 1): "u16", ("uint", 2): "u32",
-          ("uint", 4): "u64", ("float", 2): "f32", ("float", 4): "f64"}
-TABLES = {"holding": "holding", "input": "input", "coil": "coil", "discrete_input": "discrete"}
-PARITY = {"N": "none", "E": "even", "O": "odd"}
-_ELEMENT = re.compile(r"^([a-z][a-z0-9_]*) (\d+)$")
-
-
-@dataclass
-class Ctx:
-    """One hub being imported: its registers by name (arrays as {index: register}), the entity ids."""
-
-    doc: MapDoc
-    path: Path
-    prefix: str
-    regs: dict[str, dict[int, dict[str, Any]]] = field(default_factory=dict)
-    entities: dict[str, tuple[str, int]] = field(default_factory=dict)
-    units: set[int] = field(default_factory=set)
-    intervals: dict[str, int] = field(default_factory=dict)
-
-    def split(self, text: str) -> tuple[str, int, bool]:
-        """(register name, element index, is it a '<name> raw' sensor) of an entity name."""
-        rest = text[len(self.prefix) + 1:] if text.startswith(self.prefix + " ") else text
-        raw = rest.endswith(" raw")
-        rest = rest[:-4] if raw else rest
-        match = _ELEMENT.match(rest)
-        if match:
-            return match.group(1), int(match.group(2)), raw
-        return safe(rest), 0, raw
-
-    def put(self, entry: Node, reg: dict[str, Any], entity: str | None = None) -> None:
-        name, index, _ = self.split(str(entry.get("name", "")))
-        if not name or name == "register":
-            raise located(self.path, entry, "an entity without a name")
-        elements = self.regs.setdefault(name, {})
-        if index in elements:
-            name = self.doc.name(name)  # a second entity of the same name: a register of its own
-            elements = self.regs.setdefault(name, {})
-        elements[index] = reg
-        text = str(entry.get("name", ""))
-        slug = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
-        self.entities[f"{entity or 'sensor'}.{slug}"] = (name, index)
-        plain = re.sub(r"[^a-z0-9]+", "_", text.removesuffix(" raw").lower()).strip("_")
-        for i in range(1, reg.get("count", 1)):  # the elements of a virtual_count array
-            self.entities[f"{entity or 'sensor'}.{plain}_{i}"] = (name, index)
-        unit = entry.get("device_address", entry.get("slave"))
-        if isinstance(unit, int):
-            self.units.add(unit)
-
 
 def import_homeassistant(doc: MapDoc, paths: list[Path]) -> str | None:
     """Fill ``doc`` from the files' first hub; the hub's name (the model id it suggests)."""
@@ -165,8 +114,6 @@ def _port(ctx: Ctx, hub: Node, method: str) -> dict[str, Any]:
 
 
 def _entities(ctx: Ctx, hub: Node) -> None:
-    from drivemap.onboard.importers.ha_entities import binary_sensor, climate, sensor, switches
-
     for entry in _list(ctx, hub, "sensors"):
         sensor(ctx, entry)
     for entry in _list(ctx, hub, "binary_sensors"):
@@ -184,12 +131,15 @@ def _list(ctx: Ctx, hub: Node, key: str) -> list[Node]:
     items = hub.get(key) or []
     if not isinstance(items, list) or not all(isinstance(e, Node) for e in items):
         raise located(ctx.path, hub, f"{key}: a list of entities")
+    for entry in items:
+        if id(entry) in ctx.seen:
+            raise located(ctx.path, entry, f"{key}: the entity {entry.get('name')!r} is listed again by a YAML alias "
+                                           "(*name): one entity per register, delete the repeat")
+        ctx.seen.add(id(entry))
     return items
 
 
 def _finish(ctx: Ctx) -> None:
-    from drivemap.onboard.importers.ha_entities import arrays
-
     for name, elements in ctx.regs.items():
         ctx.doc.add(arrays(ctx, name, elements))
     if len(ctx.units) == 1 and ctx.units != {1}:

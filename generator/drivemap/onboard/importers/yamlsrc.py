@@ -40,11 +40,23 @@ def renamed(node: Node, name: str) -> Node:
     return out
 
 
-class _Loader(yaml.SafeLoader):
-    pass
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """libyaml's parser where it is installed (the pure-Python one is ten times slower)."""
+
+
+class DuplicateKey(yaml.MarkedYAMLError):
+    """A key given twice in one mapping (YAML says keys are unique; the last one would silently win)."""
 
 
 def _mapping(loader: _Loader, node: yaml.MappingNode) -> Node:
+    seen: dict[str, yaml.Node] = {}
+    for key_node, _ in node.value:
+        key = str(loader.construct_object(key_node, deep=True))
+        if key in seen and key != "<<":
+            first = seen[key].start_mark
+            raise DuplicateKey(None, None, f"the key {key!r} is given twice in this mapping (first on line "
+                                           f"{first.line + 1}): keep one", key_node.start_mark)
+        seen[key] = key_node
     out = Node({str(k): v for k, v in loader.construct_mapping(node, deep=True).items()})
     out.line, out.col = node.start_mark.line + 1, node.start_mark.column + 1
     return out
@@ -90,7 +102,8 @@ def load_yaml(path: Path) -> Any:
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
-        raise CompileError([Diagnostic(Location(shown, line, col), f"not YAML: {exc.problem or exc}")]) from None
+        said = exc.problem if isinstance(exc, DuplicateKey) else f"not YAML: {exc.problem or exc}"
+        raise CompileError([Diagnostic(Location(shown, line, col), str(said))]) from None
     except (yaml.YAMLError, RecursionError) as exc:
         raise CompileError([Diagnostic(Location(shown, 1, 1), f"not YAML: {exc}")]) from None
 
