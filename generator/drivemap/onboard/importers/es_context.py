@@ -34,6 +34,8 @@ class Ctx:
     intervals: dict[str, int] = field(default_factory=dict)
     #: polled entities as (table, address) -> (words, starts a new read): drivemap's batching
     batches: dict[tuple[str, int], tuple[int, bool]] = field(default_factory=dict)
+    #: entities with a bitmask by (table, address): one register of bit fields (:mod:`.es_bits`)
+    masked: dict[tuple[str, int], list[tuple[str, Any]]] = field(default_factory=dict)
 
     def key(self, name: str) -> tuple[str, str | None]:
         """(register name, suffix after it: a bit, an enum value or 'label') of an entity name."""

@@ -5,8 +5,9 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from drivemap.onboard.importers.es_bits import add_masked, masked_registers
 from drivemap.onboard.importers.es_context import VALUE_TYPES, Ctx
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, located
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, located
 
 __all__ = ["entity", "finish"]
 
@@ -14,7 +15,7 @@ _FACTOR = re.compile(r"^return x \* powf\(10\.0f, id\(sf_([a-z][a-z0-9_]*)\)\.st
 
 
 def _skip(ctx: Ctx, item: Node, why: str) -> None:
-    ctx.doc.review.skipped.append(f"{ctx.path.name}:{item.line}: {item.get('name') or item.get('id')!r}: {why}")
+    ctx.doc.review.skipped.append(f"{here(item, ctx.path)}: {item.get('name') or item.get('id')!r}: {why}")
 
 
 def _group(ctx: Ctx, item: Node) -> str:
@@ -45,6 +46,10 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
                                                     "discrete_input": "discrete"}.get(str(item.get("register_type")))
     if table is None:
         return _skip(ctx, item, f"register_type {item.get('register_type')!r}")
+    if suffix is not None and name in ctx.regs:
+        return _part(ctx, platform, item, name, suffix)
+    if add_masked(ctx, platform, item, table, _address(ctx, item)):
+        return None
     if suffix is not None:
         return _part(ctx, platform, item, name, suffix)
     if name in ctx.regs or ctx.doc.taken(name):
@@ -59,7 +64,7 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
     if reg is not None:
         _write_code(ctx, reg, item)
         reg.setdefault("group", _group(ctx, item))
-        ctx.regs[name] = {"name": name, **reg, "source": f"{ctx.path.name}:{item.line}"}
+        ctx.regs[name] = {"name": name, **reg, "source": here(item, ctx.path)}
     return None
 
 
@@ -117,7 +122,7 @@ def _gap(ctx: Ctx, item: Node) -> None:
         return _skip(ctx, item, "an internal filler entity")
     start = _address(ctx, item)
     ctx.doc.reserved.append({"table": table, "start": start, "end": start + count - 1, "readable": True,
-                             "kind": "unlabeled", "source": f"{ctx.path.name}:{item.line}",
+                             "kind": "unlabeled", "source": here(item, ctx.path),
                              "notes": "Read as part of a batched request; nothing is named here."})
     return None
 
@@ -213,7 +218,7 @@ def _part(ctx: Ctx, platform: str, item: Node, name: str, suffix: str) -> None:
     if platform == "switch" and isinstance(item.get("bitmask"), int):
         if reg is None:
             reg = ctx.regs[name] = {"name": name, "table": "holding", "address": _address(ctx, item), "type": "u16",
-                                    "access": "w", "group": _group(ctx, item), "source": f"{ctx.path.name}:{item.line}"}
+                                    "access": "w", "group": _group(ctx, item), "source": here(item, ctx.path)}
             ctx.doc.review.miss(name, "enum labels (the switches name the values only)")
         reg.setdefault("_values", []).append((int(item["bitmask"]), suffix))
         return
@@ -277,6 +282,9 @@ def _free_reserved(ctx: Ctx) -> None:
 
 
 def finish(ctx: Ctx) -> None:
+    for reg, first in masked_registers(ctx):
+        reg["group"] = _group(ctx, first)
+        ctx.regs[reg["name"]] = reg
     _free_reserved(ctx)
     max_reads(ctx)
     for reg in ctx.regs.values():

@@ -18,8 +18,10 @@ from typing import Any
 
 from drivemap.onboard.importers.es_context import PARITY, PLATFORMS, RAW_ITEM, RAW_NOTE, Ctx
 from drivemap.onboard.importers.es_entities import entity, finish
+from drivemap.onboard.importers.es_packages import expand
 from drivemap.onboard.importers.mapdoc import MapDoc, snake
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
+from drivemap.onboard.importers.yamlinclude import load_config
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, left_out, located
 
 __all__ = ["import_esphome"]
 
@@ -27,8 +29,10 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     path = paths[0]
     if len(paths) > 1:
         doc.review.skipped.extend(f"{p.name}: one ESPHome device per map (import it on its own)" for p in paths[1:])
-    data = load_yaml(path)
+    data, read = load_config(path)
     doc.review.skipped.extend(left_out(path))
+    doc.review.notes.extend(read.secrets)
+    data = expand(data, path, doc.review)
     if not isinstance(data, dict):
         raise located(path, None, "not an ESPHome configuration (a mapping with esphome:, modbus_controller:, ...)")
     node = str((data.get("esphome") or {}).get("name") or path.stem.split(".")[0])
@@ -45,6 +49,9 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
             if isinstance(item, Node) and item.get("platform") == "modbus_controller":
                 found += 1
                 entity(ctx, platform, item)
+            elif isinstance(item, Node):
+                doc.review.skipped.append(f"{here(item, path)}: {platform} {item.get('name') or item.get('id')!r} "
+                                          f"(platform {item.get('platform')}: not a Modbus register)")
     if not found:
         raise located(path, None, "no modbus_controller entities here")
     finish(ctx)
