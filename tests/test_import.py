@@ -361,7 +361,7 @@ def test_bad_input_is_located_and_nothing_is_overwritten(tmp_path: Path, capsys:
     included = tmp_path / "configuration.yaml"
     included.write_text("homeassistant:\n  name: home\nmodbus: !include modbus.yaml\n", encoding="utf-8")
     code, _, err = run(capsys, "import", "homeassistant", str(included), "-o", str(tmp_path / "x.yaml"))
-    assert code == 1 and "error: modbus: !include modbus.yaml: import that file" in err
+    assert code == 1 and "configuration.yaml:3:9: error: !include modbus.yaml: no such file" in err  # resolved, not ignored
     included.unlink()
     code, _, err = run(capsys, "import", "excel", str(broken))
     assert code == 1 and err.startswith("<command line>:1:") and "unknown format 'excel'" in err

@@ -57,6 +57,7 @@ class Ctx:
             elements = self.regs[name] = {}
         self.doc.claim(name)
         elements[index] = reg
+        reg.setdefault("_file", (entry.file or self.path).name)
         text = str(entry.get("name", ""))
         slug = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
         self.entities[f"{entity or 'sensor'}.{slug}"] = (name, index)

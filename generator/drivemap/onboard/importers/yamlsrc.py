@@ -42,7 +42,7 @@ class Node(dict[str, Any]):
 def renamed(node: Node, name: str) -> Node:
     """A copy of ``node`` with another ``name`` (and the same place in the file)."""
     out = Node(node, name=name)
-    out.line, out.col = node.line, node.col
+    out.line, out.col, out.file = node.line, node.col, node.file
     return out
 
 
