@@ -54,6 +54,7 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
                                           f"(platform {item.get('platform')}: not a Modbus register)")
     if not found:
         raise located(path, None, "no modbus_controller entities here")
+    _unread(doc, data)
     finish(ctx)
     return model
 
@@ -133,3 +134,24 @@ def _raw_types(path: Path) -> dict[str, tuple[str, str | None, str]]:
                     name, rtype, word, byte = found.groups()
                     out[name] = (rtype, None if word == "-" else word, byte)
     return out
+
+
+#: the entity keys the import reads (or that only route an entity: id, platform, controller id)
+ENTITY_KEYS = {"platform", "name", "id", "modbus_controller_id", "register_type", "address", "offset", "value_type",
+               "bitmask", "register_count", "filters", "unit_of_measurement", "min_value", "max_value", "step",
+               "multiply", "optionsmap", "skip_updates", "force_new_range", "use_write_multiple", "internal",
+               "raw_encode", "write_lambda", "assumed_state"}
+
+
+def _unread(doc: MapDoc, data: dict[str, Any]) -> None:
+    """One review line naming the entity keys that are not register facts (how many entities have each)."""
+    counts: dict[str, int] = {}
+    for platform in PLATFORMS:
+        items = data.get(platform) or []
+        for item in items if isinstance(items, list) else []:
+            if isinstance(item, dict) and item.get("platform") == "modbus_controller":
+                for key in set(item) - ENTITY_KEYS:
+                    counts[key] = counts.get(key, 0) + 1
+    if counts:
+        listed = ", ".join(f"{k} ({n} entit{'y' if n == 1 else 'ies'})" for k, n in sorted(counts.items()))
+        doc.review.notes.append(f"entity keys not imported (ESPHome's presentation, not register facts): {listed}")
