@@ -118,6 +118,16 @@ ES_HEAD = "esphome:\n  name: box\nmodbus_controller:\n  - address: 1\n"
     ("homeassistant", {"configuration.yaml": "modbus: !include hubs.yaml\n",
                        "hubs.yaml": "- name: hub\n  type: tcp\n  sensors:\n    - name: a\n      address: x1\n"},
      r"hubs.yaml:4:7: error: a: address 'x1' is not an integer"),
+    ("homeassistant", {"configuration.yaml": "modbus:\n  - name: hub\n    type: tcp\n    sensors:\n"
+                                             "      - name: power\n        address: 10\n        data_type: int32\n"
+                                             "      - name: power low\n        address: 11\n"},
+     r"configuration.yaml:8:9: error: 'power low' reads holding address 11, which 'power' \(configuration.yaml:5\) "
+     r"reads too: one register, one entity"),
+    ("esphome", {"box.yaml": ES_HEAD + "sensor:\n  - platform: modbus_controller\n    name: a\n"
+                                       "    register_type: holding\n    address: 1\n"
+                                       "  - platform: modbus_controller\n    name: b\n"
+                                       "    register_type: holding\n    address: 1\n"},
+     r"box.yaml:10:5: error: 'b' reads holding address 1, which 'a' \(box.yaml:6\) reads too: .* with bitmask"),
     ("esphome", {"box.yaml": ES_HEAD + "sensor:\n  - platform: modbus_controller\n    name: odd\n"
                                        "    register_type: holding\n    address: 1\n    bitmask: 5\n"},
      r"box.yaml:6:5: error: odd: bitmask 0x5 is not one run of bits: split it into one entity per run"),

@@ -7,6 +7,7 @@ from typing import Any
 
 from drivemap.onboard.importers.es_bits import add_masked, masked_registers
 from drivemap.onboard.importers.es_context import VALUE_TYPES, Ctx
+from drivemap.onboard.importers.overlaps import check_overlaps
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, located
 
 __all__ = ["entity", "finish"]
@@ -64,7 +65,7 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
     if reg is not None:
         _write_code(ctx, reg, item)
         reg.setdefault("group", _group(ctx, item))
-        ctx.regs[name] = {"name": name, **reg, "source": here(item, ctx.path)}
+        ctx.regs[name] = {"name": name, **reg, "source": here(item, ctx.path), "_node": item}
     return None
 
 
@@ -285,6 +286,8 @@ def finish(ctx: Ctx) -> None:
     for reg, first in masked_registers(ctx):
         reg["group"] = _group(ctx, first)
         ctx.regs[reg["name"]] = reg
+    check_overlaps(ctx.path, [(reg, reg.pop("_node", None)) for reg in ctx.regs.values()],
+                   "one register, one entity: delete one, or read parts of one register with bitmask")
     _free_reserved(ctx)
     max_reads(ctx)
     for reg in ctx.regs.values():

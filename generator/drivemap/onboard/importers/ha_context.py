@@ -58,6 +58,7 @@ class Ctx:
         self.doc.claim(name)
         elements[index] = reg
         reg.setdefault("_file", (entry.file or self.path).name)
+        reg.setdefault("_node", entry)
         text = str(entry.get("name", ""))
         slug = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
         self.entities[f"{entity or 'sensor'}.{slug}"] = (name, index)

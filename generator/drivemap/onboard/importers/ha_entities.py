@@ -218,7 +218,7 @@ def _hvac_mode(ctx: Ctx, entry: Node, name: str) -> None:
 def arrays(ctx: Ctx, name: str, elements: dict[int, dict[str, Any]]) -> dict[str, Any]:
     """One register from its entities: a single one, or elements i..i+n-1 at a fixed stride."""
     first = elements[min(elements)]
-    reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group", "_file")}}
+    reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group", "_file", "_node")}}
     if len(elements) > 1:
         indexes = sorted(elements)
         addresses = [elements[i]["address"] for i in indexes]

@@ -26,6 +26,7 @@ from drivemap.onboard.importers.ha_context import PARITY, Ctx
 from drivemap.onboard.importers.ha_entities import arrays, binary_sensor, climate, merge_switches, sensor, switches
 from drivemap.onboard.importers.ha_templates import apply_templates
 from drivemap.onboard.importers.mapdoc import MapDoc, snake
+from drivemap.onboard.importers.overlaps import check_overlaps
 from drivemap.onboard.importers.yamlinclude import load_config
 from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, left_out, located, renamed
 
@@ -207,6 +208,10 @@ def _list(ctx: Ctx, hub: Node, key: str) -> list[Node]:
 
 
 def _finish(ctx: Ctx) -> None:
+    singles = [(reg, reg.get("_node")) for elements in ctx.regs.values() if len(elements) == 1
+               for reg in elements.values()]
+    check_overlaps(ctx.path, singles, "one register, one entity: delete one entity, or give the second the "
+                                      "address of its own register")
     for name, elements in ctx.regs.items():
         ctx.doc.add(arrays(ctx, name, elements))
     if len(ctx.units) == 1 and ctx.units != {1}:
