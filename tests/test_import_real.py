@@ -112,7 +112,7 @@ ES_HEAD = "esphome:\n  name: box\nmodbus_controller:\n  - address: 1\n"
 
 @pytest.mark.parametrize(("fmt", "files", "expected"), [
     ("homeassistant", {"top/configuration.yaml": "modbus: !include ../outside.yaml\n", "outside.yaml": "[]\n"},
-     r"configuration.yaml:1:9: error: !include \.\./outside\.yaml: outside .* copy it into that folder"),
+     r"configuration.yaml:1:9: error: !include \.\./outside\.yaml: outside .* copy the file into that folder"),
     ("homeassistant", {"configuration.yaml": "modbus: !include hubs.yaml\n", "hubs.yaml": "- !include configuration.yaml\n"},
      r"hubs.yaml:1:3: error: !include configuration.yaml: an include cycle"),
     ("homeassistant", {"configuration.yaml": "modbus: !include hubs.yaml\n",

@@ -100,8 +100,8 @@ def _inside(value: Tagged, path: Path, found: Found, name: str, folder: bool = F
         raise located(path, value, f"{value.tag} names no file")
     target = ((value.file or path).parent / name).resolve()
     if target != found.root and found.root not in target.parents:
-        raise located(path, value, f"{value.tag} {name}: outside {found.root} (the folder of the file imported): "
-                                   "copy it into that folder, or import from a folder above both")
+        raise located(path, value, f"{value.tag} {name}: outside {found.root} (the folder of the file imported; "
+                                   "includes are read only inside it): copy the file into that folder")
     if folder and not target.is_dir():
         raise located(path, value, f"{value.tag} {name}: no such folder")
     if not folder and not target.is_file():
