@@ -210,7 +210,12 @@ def _filters(ctx: Ctx, reg: dict[str, Any], item: Node) -> None:
         elif kind == "lambda" and _FACTOR.match(str(value)):
             reg["scale_register"] = _FACTOR.match(str(value)).group(1)  # type: ignore[union-attr]
         else:
-            ctx.doc.review.notes.append(f"{item.get('name')}: filter {kind} is ESPHome's processing, not imported")
+            opened = {"calibrate_linear": ["scale", "offset"], "calibrate_polynomial": ["scale", "offset"],
+                      "lambda": ["scale"]}.get(str(kind), [])
+            if opened:  # the source converts the value itself: the register's conversion is for review
+                reg["review"] = list(dict.fromkeys([*reg.get("review", []), *opened]))
+            ctx.doc.review.notes.append(f"{here(item, ctx.path)}: {item.get('name')!r}: filter {kind} is ESPHome's "
+                                        "processing, not imported" + (f" (review: {', '.join(opened)})" if opened else ""))
 
 
 def _part(ctx: Ctx, platform: str, item: Node, name: str, suffix: str) -> None:
