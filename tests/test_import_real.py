@@ -86,18 +86,20 @@ def test_esphome_packages_substitutions_and_bitmasks(tmp_path: Path, capsys: pyt
     assert regs["heat_pump_target_water_temperature"].access == "rw"
     status = regs["heat_pump_status"]
     assert status.address == 0x20 and [(b.name, b.offset, b.width) for b in status.bits] == [
-        ("COMPRESSOR_RUNNING", 0, 1), ("DEFROST_ACTIVE", 1, 1), ("OPERATING_MODE", 4, 3)]
+        ("COMPRESSOR_RUNNING", 0, 1), ("DEFROST_ACTIVE", 1, 1), ("ENABLE", 3, 1), ("OPERATING_MODE", 4, 3)]
+    assert status.access == "rw" and status.review == ("access",)  # the switch writes bit 3: the rest is open
+    assert "switch 'Heat pump enable' writes bits of heat_pump_status" in out
     alarm = regs["heat_pump_alarm"]  # a lone bitmask: 7 is a 3-bit field, not the whole word
     assert alarm.table == "input" and [(b.offset, b.width) for b in alarm.bits] == [(0, 3)]
     assert len(regs) == 6
     assert "sensor 'Heat pump WiFi signal' (platform wifi_signal: not a Modbus register)" in out
     assert "remote package 'remote' (github://example/esphome-configs/heatpump-extra.yaml@main): not downloaded" in out
     assert "export again with --unit 3" in out  # the substitution '3' reached the controller's address
-    assert "heatpump.yaml:16: !secret wifi_ssid (named, not read)" in out
+    assert "heatpump.yaml:17: !secret wifi_ssid (named, not read)" in out
     accounted = sum(len([e for e in source(p).get(k) or [] if e.get("platform") == "modbus_controller"])
                     for p in (folder / "heatpump.yaml", folder / "common" / "temperatures.yaml")
-                    for k in ("sensor", "binary_sensor", "number"))
-    assert accounted == 8 == sum(len(r.bits) or 1 for r in model.registers)  # an entity: a register or a bit field
+                    for k in ("sensor", "binary_sensor", "number", "switch"))
+    assert accounted == 9 == sum(len(r.bits) or 1 for r in model.registers)  # an entity: a register or a bit field
 
 
 def _case(tmp_path: Path, files: dict[str, str]) -> Path:

@@ -1,7 +1,7 @@
 """ESPHome entities that read a part of a register (``bitmask:``): one register, each entity a bit field.
 
-Several ``sensor`` / ``binary_sensor`` / ``text_sensor`` entities with a ``bitmask`` at one address are
-one register of the device: each mask becomes a bit field (one bit: a flag; several: a field of that
+Several ``sensor`` / ``binary_sensor`` / ``text_sensor`` entities with a ``bitmask`` at one address (and
+``switch`` entities that set bits there: the register is then writable) are one register of the device: each mask becomes a bit field (one bit: a flag; several: a field of that
 width), named after its entity. A single masked entity is such a register too, so its mask is never
 lost (the whole word is not what it reads). A mask that is not one run of bits, or bits two entities
 both read, are located errors saying what to change.
@@ -23,7 +23,8 @@ _PLATFORMS = ("sensor", "binary_sensor", "text_sensor")
 def add_masked(ctx: Ctx, platform: str, item: Node, table: str, address: int) -> bool:
     """Keep a masked entity for its register; False when it is not one (no bitmask, a writable platform)."""
     mask = item.get("bitmask")
-    if platform not in _PLATFORMS or table not in ("holding", "input") or isinstance(mask, bool) \
+    switch = platform == "switch" and table == "holding" and "write_lambda" not in item
+    if (platform not in _PLATFORMS and not switch) or table not in ("holding", "input") or isinstance(mask, bool) \
             or not isinstance(mask, int):
         return False
     if mask <= 0:
@@ -80,7 +81,14 @@ def masked_registers(ctx: Ctx) -> list[tuple[dict[str, Any], Node]]:
                                "type": "u16" if rtype == "s16" else "u32" if rtype == "s32" else rtype}
         if word_order:
             reg["word_order"] = word_order
-        reg["access"] = "r"
+        writes = [item for platform, item in items if platform == "switch"]
+        reg["access"] = "rw" if writes else "r"  # a switch sets its bits: ESPHome reads, changes and writes the word
+        if writes and len(writes) < len(items):
+            reg["review"] = ["access"]  # the source writes the switches' bits only: the others' writability is open
+            ctx.doc.review.notes.append(
+                f"{here(writes[0], ctx.path)}: switch {', '.join(repr(str(w.get('name'))) for w in writes)} writes "
+                f"bits of {name}: the register is writable (read, change, write); whether its other bits may be "
+                "written is for review")
         used = 0
         taken: set[str] = set()
         bits = []

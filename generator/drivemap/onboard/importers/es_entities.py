@@ -290,6 +290,7 @@ def _free_reserved(ctx: Ctx) -> None:
 def finish(ctx: Ctx) -> None:
     for reg, first in masked_registers(ctx):
         reg["group"] = _group(ctx, first)
+        _write_code(ctx, reg, first)
         ctx.regs[reg["name"]] = reg
     check_overlaps(ctx.path, [(reg, reg.pop("_node", None)) for reg in ctx.regs.values()],
                    "one register, one entity: delete one, or read parts of one register with bitmask")
