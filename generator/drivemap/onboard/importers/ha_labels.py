@@ -25,6 +25,7 @@ _BRANCH = re.compile(r"\{%-?\s*(?:if|elif)\s+(?:[a-z_][a-z0-9_]*|\(?states\([^)]
                      r")['\"]?\s*-?%\}([^{]*)")
 _IS_STATE = re.compile(r"\{%-?\s*(?:if|elif)\s+is_state\(\s*['\"]sensor\.[a-z0-9_]+['\"]\s*,\s*['\"](" + _INT +
                        r")['\"]\s*\)\s*-?%\}([^{]*)")
+_MAX_LITERALS = 20
 _FILTERS = {"int", "string", "default", "trim", "lower", "upper", "title"}
 _ARITHMETIC = re.compile(r"(?<![{%])[*/+](?![}%])|//|\s-\s|\bfloat\b|\bround\b|bitwise|>>|<<|\|\s*abs|\bmax\b|\bmin\b")
 
@@ -42,17 +43,18 @@ def _literal(template: str) -> tuple[dict[int, str], str] | None:
     """The one mapping literal of integer keys and text values in the template, and the template
     without it."""
     found = None
-    for match in re.finditer(r"\{(?![{%#])", template):
-        depth, end = 0, None
-        for i in range(match.start(), len(template)):
-            depth += {"{": 1, "}": -1}.get(template[i], 0)
-            if depth == 0:
-                end = i + 1
-                break
-        if end is None:
-            continue
+    ends: dict[int, int] = {}
+    stack: list[int] = []
+    for i, char in enumerate(template):  # every brace's partner in one pass
+        if char == "{":
+            stack.append(i)
+        elif char == "}" and stack:
+            ends[stack.pop()] = i + 1
+    starts = [m.start() for m in re.finditer(r"\{(?![{%#])", template) if m.start() in ends]
+    for start in starts[:_MAX_LITERALS]:
+        end = ends[start]
         try:
-            value = ast.literal_eval(template[match.start():end])
+            value = ast.literal_eval(template[start:end])
         except (ValueError, SyntaxError, MemoryError, RecursionError):
             continue
         if not isinstance(value, dict) or not value:
@@ -65,7 +67,7 @@ def _literal(template: str) -> tuple[dict[int, str], str] | None:
             return None
         if found is not None:
             return None  # two mappings: not a plain lookup
-        found = (pairs, template[:match.start()] + " LABELS " + template[end:])
+        found = (pairs, template[:start] + " LABELS " + template[end:])
     return found
 
 
@@ -77,8 +79,14 @@ def _plain(rest: str) -> bool:
     return all(f in _FILTERS for f in re.findall(r"\|\s*([a-z_]+)", rest))
 
 
+#: a label map is short; a longer template is the user's own logic (and no scan of it grows with its square)
+MAX_TEMPLATE = 20_000
+
+
 def label_map(template: str) -> tuple[str, dict[int, str]] | None:
     """(entity id, {value: label}) of a template that is a plain label map, else None."""
+    if len(template) > MAX_TEMPLATE:
+        return None
     entities = entities_of(template)
     if len(entities) != 1:
         return None
@@ -103,6 +111,8 @@ def open_fields(template: str) -> list[str]:
     """The register fields a template that is not a label map decodes itself, so the register's source
     leaves them open: ``bits`` (bit tests on the value), ``enum`` (value comparisons giving text). A
     template that only computes with the value (a sum, a unit conversion) opens no field."""
+    if len(template) > MAX_TEMPLATE:
+        return []
     bare = re.sub(r"'[^']*'|\"[^\"]*\"", "''", template)
     if re.search(r"bitwise_and|//\s*\d+\s*\)\s*%\s*2|>>", bare):
         return ["bits"]
