@@ -175,3 +175,14 @@ def test_label_map_reading_is_bounded_on_hostile_templates() -> None:
                      "{{ m[c] if c in m else 'Unknown' }}") == ("sensor.x", {0: "A", 1: "B"})
     assert label_map("{{ states('sensor.x') | int * 10 }}") is None
     assert label_map("{{ {0: 'a', 1: 'b'}[states('sensor.x') | int] * 2 }}") is None
+
+
+def test_includes_are_bounded(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file included over and over (no cycle, a fan-out) stops at the bound, located."""
+    (tmp_path / "leaf.yaml").write_text("[]\n", encoding="utf-8")
+    (tmp_path / "mid.yaml").write_text("- !include leaf.yaml\n" * 40, encoding="utf-8")
+    (tmp_path / "configuration.yaml").write_text(
+        "modbus:\n" + "".join("  - !include mid.yaml\n" for _ in range(40)), encoding="utf-8")
+    code, _, err = run(capsys, "import", "homeassistant", str(tmp_path / "configuration.yaml"), "-o",
+                       str(tmp_path / "x.yaml"))
+    assert code == 1 and "error: more than 500 included files: not a device configuration" in err

@@ -24,6 +24,7 @@ from drivemap.onboard.importers.yamlsrc import Node, Tagged, load_yaml, located
 __all__ = ["Found", "load_config"]
 
 _MAX_FILES = 500
+_MAX_BYTES = 32 << 20
 _DIR_TAGS = ("!include_dir_named", "!include_dir_list", "!include_dir_merge_named", "!include_dir_merge_list")
 
 
@@ -33,6 +34,7 @@ class Found:
 
     root: Path
     files: list[Path] = field(default_factory=list)
+    size: int = 0
     secrets: list[str] = field(default_factory=list)
 
 
@@ -46,6 +48,13 @@ def _load(path: Path, found: Found, chain: tuple[Path, ...]) -> Any:
     found.files.append(path)
     if len(found.files) > _MAX_FILES:
         raise located(path, None, f"more than {_MAX_FILES} included files: not a device configuration")
+    try:
+        found.size += path.stat().st_size
+    except OSError:
+        pass  # load_yaml says why it cannot be read
+    if found.size > _MAX_BYTES:
+        raise located(path, None, f"the configuration and its includes are larger than {_MAX_BYTES >> 20} MiB: "
+                                  "not a device configuration")
     return _resolve(load_yaml(path), path, found, (*chain, path.resolve()))
 
 
