@@ -295,13 +295,14 @@ def test_hand_written_esphome(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     outdoor = m.register("outdoor_temperature")
     assert (outdoor.table, outdoor.address, outdoor.type, outdoor.scale) == ("input", 16, "s16", 0.1)
     assert (m.register("power").type, m.register("power").word_order) == ("u32", "low_first")
+    assert m.register("power").review == ("scale",)  # the lambda converts it: its scale is for review
     setpoint = m.register("setpoint")
     assert (setpoint.access, setpoint.scale, setpoint.min, setpoint.max) == ("rw", 0.5, 20, 60)
     assert [v.label for v in m.enum(m.register("mode").enum or "").members] == ["Off", "Heat"]
     assert m.register("defrost").table == "coil" and m.register("firmware").length == 4
     port = m.protocol.ports[0]
     assert (port.default_baudrate, port.default_parity) == (19200, "even")
-    assert "filter lambda is ESPHome's processing, not imported" in out and "--unit 16" in out
+    assert "filter lambda is ESPHome's processing, not imported (review: scale)" in out and "--unit 16" in out
 
 
 VENDOR = """\
@@ -361,7 +362,7 @@ def test_bad_input_is_located_and_nothing_is_overwritten(tmp_path: Path, capsys:
     included = tmp_path / "configuration.yaml"
     included.write_text("homeassistant:\n  name: home\nmodbus: !include modbus.yaml\n", encoding="utf-8")
     code, _, err = run(capsys, "import", "homeassistant", str(included), "-o", str(tmp_path / "x.yaml"))
-    assert code == 1 and "error: modbus: !include modbus.yaml: import that file" in err
+    assert code == 1 and "configuration.yaml:3:9: error: !include modbus.yaml: no such file" in err  # resolved, not ignored
     included.unlink()
     code, _, err = run(capsys, "import", "excel", str(broken))
     assert code == 1 and err.startswith("<command line>:1:") and "unknown format 'excel'" in err

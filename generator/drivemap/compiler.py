@@ -24,15 +24,15 @@ from drivemap import cache
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import family, formats
 from drivemap.frontend.load import MAX_MAP_BYTES, MAX_REGISTERS, Document, load_file, load_text
-from drivemap.frontend.project import Project, display, load_project
+from drivemap.frontend.project import SHIPPED_MAPS, Project, catalogue_maps, display, load_project, shipped_maps
 from drivemap.model.nodes import Model
 
 if TYPE_CHECKING:
     from drivemap.backends.exporters.base import Exporter
 
-#: The seed maps shipped with drivemap (ev, vfd1000, v2, edx): a model id that the project does
-#: not have is looked up here.
-BUNDLED_MAPS = Path(__file__).resolve().parent / "data" / "maps"
+#: The maps shipped with drivemap (and its catalogue below ``catalogue/``): a model id that the project
+#: does not have is looked up here.
+BUNDLED_MAPS = SHIPPED_MAPS
 
 
 def display_path(path: str | os.PathLike[str]) -> str:
@@ -189,8 +189,8 @@ def map_paths() -> list[Path]:
 
 
 def bundled_maps() -> list[Path]:
-    """The seed maps that ship with drivemap (sorted by name)."""
-    return sorted(BUNDLED_MAPS.glob("*.yaml")) if BUNDLED_MAPS.is_dir() else []
+    """The seed maps that ship with drivemap (sorted by name; the catalogue: :func:`catalogue_maps`)."""
+    return shipped_maps()
 
 
 def looks_like_path(text: str) -> bool:
@@ -210,22 +210,25 @@ def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Pat
         if path.is_file():
             return path
         raise CompileError([Diagnostic(Location(display(path), 1, 1), "no such map file")])
-    found = project.find_map(name)
+    found = project.find_map(name) or next((p for p in project.excluded_files() if p.stem == name), None)
     shipped = next((p for p in bundled_maps() if p.stem == name), None)
+    kind = "the map shipped with drivemap"
+    if shipped is None:
+        shipped, kind = next((p for p in catalogue_maps() if p.stem == name), None), "the catalogue map"
     if found is not None and shipped is not None and _differ(found, shipped):
         _say(notes, Diagnostic(Location(display(found), 1, 1),
-                               f"the project's map of {name!r} differs from the map of the same id shipped with "
-                               f"drivemap ({shipped}); using the project's", severity="warning").format())
+                               f"the project's map of {name!r} overrides {kind} of the same id ({shipped}); "
+                               "using the project's", severity="warning").format())
     if found is None and shipped is not None:
         where = ", ".join(display(m) for m in project.maps)
-        _say(notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using the map shipped with "
-                    f"drivemap: {shipped}")
+        _say(notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using {kind}: {shipped}")
         found = shipped
     if found is None:
         known = sorted({p.stem for p in project.map_files()})
         hint = f" (the project has: {', '.join(known)})" if known else " (the project has no maps)"
         where = display(project.maps_folder() / f"{name}.yaml")
-        raise CompileError([Diagnostic(Location(where, 1, 1), f"no map for model {name!r}{hint}")])
+        raise CompileError([Diagnostic(Location(where, 1, 1), f"no map for model {name!r}{hint}; `drivemap list` "
+                                                              "shows the shipped and catalogue maps")])
     return found
 
 

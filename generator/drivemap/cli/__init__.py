@@ -41,6 +41,9 @@ def parser() -> argparse.ArgumentParser:
 
     import_parser(sub)  # import: Home Assistant, ESPHome, SunSpec, CSV definitions -> a map
     probe_parser(sub)  # probe: what a live device answers, as a skeleton map
+    from drivemap.cli.listing import add_parser as list_parser
+
+    list_parser(sub)  # list: the maps a model id finds, with their evidence
     gateway_parser(sub)
     return p
 

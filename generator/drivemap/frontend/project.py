@@ -9,7 +9,11 @@ command-line flags win over the table.
 =============  ===============================  =============================================
 key            default                          meaning
 =============  ===============================  =============================================
-maps           ``"maps"``                       a folder of ``*.yaml`` maps, or a list of files/folders
+maps           ``"maps"``                       a folder of ``*.yaml`` maps (and its subfolders), or a list of
+                                                files/folders
+exclude        ``[]``                           files/folders under ``maps`` that are not the project's maps
+                                                (``["maps/catalogue"]``): build, check and validate skip them;
+                                                a model id still finds them (like a shipped map)
 out            ``"generated"``                  the generated package's folder
 package        the name of ``out``'s folder     the generated package's import name
 docs           ``"<out>/docs"``                 the generated Markdown
@@ -31,9 +35,13 @@ from typing import Any
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 
-__all__ = ["ExportEntry", "Project", "display", "find_project", "load_project"]
+__all__ = ["SHIPPED_MAPS", "ExportEntry", "Project", "catalogue_maps", "display", "find_project", "load_project",
+           "shipped_maps"]
 
-CONFIG_KEYS = ("maps", "out", "package", "docs", "behaviours", "exports")
+CONFIG_KEYS = ("maps", "exclude", "out", "package", "docs", "behaviours", "exports")
+#: The maps shipped inside the package: drivemap's own (``*.yaml``) and the catalogue
+#: (``catalogue/<source>/*.yaml``), in the repository a link to its ``maps/`` folder.
+SHIPPED_MAPS = Path(__file__).resolve().parent.parent / "data" / "maps"
 _DOTTED = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 
 
@@ -72,15 +80,32 @@ class Project:
     docs: Path
     behaviours: tuple[str, ...] = ()
     exports: tuple[ExportEntry, ...] = ()
+    exclude: tuple[Path, ...] = ()
 
     def map_files(self) -> list[Path]:
-        """Every map of the project: the files named, and ``*.yaml`` in the folders named (sorted)."""
-        files: list[Path] = []
+        """Every map of the project: the files named, and ``*.yaml`` in the folders named and their
+        subfolders (sorted; hidden names left out, and what ``exclude`` names below a folder)."""
+        return [p for p, out in self._walk() if not out]
+
+    def excluded_files(self) -> list[Path]:
+        """The maps below the ``maps`` folders that ``exclude`` leaves out (found by model id, not built)."""
+        return [p for p, out in self._walk() if out]
+
+    def _walk(self) -> list[tuple[Path, bool]]:
+        """(file, excluded) of every map the entries name; a file or folder named outright is never
+        excluded (``drivemap validate maps/catalogue`` checks what it names)."""
+        files: list[tuple[Path, bool]] = []
         for entry in self.maps:
             if entry.is_dir():
-                files.extend(sorted(p for p in entry.glob("*.yaml") if not p.name.startswith(".")))
+                top = entry.resolve()
+                below = [ex.resolve() for ex in self.exclude if top in ex.resolve().parents]
+                for p in sorted((p for p in entry.rglob("*.yaml")
+                                 if not any(part.startswith(".") for part in p.relative_to(entry).parts)),
+                                key=lambda p: _folder_order(p.relative_to(entry))):
+                    full = top / p.relative_to(entry)
+                    files.append((p, any(full == ex or ex in full.parents for ex in below)))
             elif entry.exists() or entry.suffix in (".yaml", ".yml"):
-                files.append(entry)  # a missing file is reported where it is read
+                files.append((entry, False))  # a missing file is reported where it is read
         return files
 
     def maps_folder(self) -> Path:
@@ -211,6 +236,7 @@ def load_project(
     docs_dir = (cwd / docs) if docs else (root / configured_docs if configured_docs else out_dir / "docs")
     pkg = package or string("package") or out_dir.name
     _check_package(pkg, package, string("package"), out, string("out"), out_dir, where, prefix)
+    exclude = tuple(root / e for e in (strings("exclude") or []))
     mods = list(behaviours) if behaviours else (strings("behaviours") or [])
     for mod in mods:
         if not _DOTTED.fullmatch(mod):
@@ -226,7 +252,29 @@ def load_project(
         docs=docs_dir,
         behaviours=tuple(mods),
         exports=_exports(table.get("exports"), root, where, prefix),
+        exclude=exclude,
     )
+
+
+def shipped_maps() -> list[Path]:
+    """The maps that ship with drivemap (``data/maps/*.yaml``, sorted by name)."""
+    return sorted(SHIPPED_MAPS.glob("*.yaml")) if SHIPPED_MAPS.is_dir() else []
+
+
+def catalogue_maps() -> list[Path]:
+    """The catalogue maps that ship with drivemap (``data/maps/catalogue/<source>/*.yaml``, sorted by
+    source folder and name)."""
+    folder = SHIPPED_MAPS / "catalogue"
+    if not folder.is_dir():
+        return []
+    return sorted((p for p in folder.rglob("*.yaml") if not any(part.startswith(".") for part in
+                                                                p.relative_to(folder).parts)),
+                  key=lambda p: _folder_order(p.relative_to(folder)))
+
+
+def _folder_order(rel: Path) -> tuple[bool, tuple[str, ...]]:
+    """A folder's own files first (by name), then its subfolders' (by path)."""
+    return len(rel.parts) > 1, rel.parts
 
 
 def _check_package(pkg: str, flag: str | None, configured: str | None, out: str | None, configured_out: str | None,

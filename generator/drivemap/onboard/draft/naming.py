@@ -1,50 +1,15 @@
-"""Names: snake_case register names, UPPER_CASE members and flags, CamelCase enums; arrays of
-numbered series."""
+"""Arrays of numbered series; the names themselves follow :mod:`drivemap.onboard.naming` (re-exported here)."""
 
 from __future__ import annotations
 
-import keyword
 import re
-import unicodedata
 
 from drivemap.onboard.draft.tables import Drafted
+from drivemap.onboard.naming import camel, snake, unique, upper
 
-_WORD = re.compile(r"[A-Za-z][A-Za-z0-9]*|[0-9]+")
-_CAMEL = re.compile(r"(?<=[a-z]{2})(?=[A-Z])|(?<=[A-Za-z][0-9])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z]{2})")
-"""Word starts inside a run of letters: ``InverterStatus``, ``PV1Curr``, ``PpvH``, ``DCBus`` (not ``kWh``)."""
+__all__ = ["arrays", "camel", "snake", "unique", "upper"]
+
 _SERIES = re.compile(r"^(?P<base>.*?\D)\s*(?:no\.?\s*)?(?P<n>\d{1,3})\s*$", re.I)
-
-
-def snake(text: str, fallback: str) -> str:
-    """``Phase 1 line to neutral volts`` -> ``phase_1_line_to_neutral_volts``; ``fallback`` if no ASCII word."""
-    ascii_text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode()
-    ascii_text = ascii_text.replace("%", " percent ").replace("&", " and ")
-    ascii_text = _CAMEL.sub(" ", ascii_text)
-    words = [w.lower() for w in _WORD.findall(ascii_text)]
-    name = "_".join(words)[:56].strip("_")
-    if not name or not name[0].isalpha():
-        name = f"{fallback}_{name}" if name else fallback
-    name = name[:48].rstrip("_")  # room for a suffix: names are at most 64 characters
-    if keyword.iskeyword(name) or keyword.issoftkeyword(name):
-        name += "_value"  # `class` -> `class_value`; other refused names are renamed after the compiler's check
-    return name
-
-
-def upper(text: str, fallback: str) -> str:
-    return snake(text, fallback.lower()).upper()
-
-
-def camel(name: str) -> str:
-    return "".join(p[:1].upper() + p[1:] for p in name.split("_") if p) or "Values"
-
-
-def unique(name: str, taken: set[str]) -> str:
-    candidate, n = name, 2
-    while candidate in taken:
-        candidate = f"{name}_{n}"
-        n += 1
-    taken.add(candidate)
-    return candidate
 
 
 def _series_key(d: Drafted) -> tuple[str, int] | None:

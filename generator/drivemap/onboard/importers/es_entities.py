@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import re
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, located
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.esphome import Ctx
+from drivemap.onboard.importers.es_bits import add_masked, masked_registers
+from drivemap.onboard.importers.es_context import VALUE_TYPES, Ctx
+from drivemap.onboard.importers.overlaps import check_overlaps
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, located
 
 __all__ = ["entity", "finish"]
 
@@ -16,7 +16,7 @@ _FACTOR = re.compile(r"^return x \* powf\(10\.0f, id\(sf_([a-z][a-z0-9_]*)\)\.st
 
 
 def _skip(ctx: Ctx, item: Node, why: str) -> None:
-    ctx.doc.review.skipped.append(f"{ctx.path.name}:{item.line}: {item.get('name') or item.get('id')!r}: {why}")
+    ctx.doc.review.skipped.append(f"{here(item, ctx.path)}: {item.get('name') or item.get('id')!r}: {why}")
 
 
 def _group(ctx: Ctx, item: Node) -> str:
@@ -47,10 +47,15 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
                                                     "discrete_input": "discrete"}.get(str(item.get("register_type")))
     if table is None:
         return _skip(ctx, item, f"register_type {item.get('register_type')!r}")
+    if suffix is not None and name in ctx.regs:
+        return _part(ctx, platform, item, name, suffix)
+    if add_masked(ctx, platform, item, table, _address(ctx, item)):
+        return None
     if suffix is not None:
         return _part(ctx, platform, item, name, suffix)
-    if name in ctx.regs:
-        name = ctx.doc.name(name)
+    if name in ctx.regs or ctx.doc.taken(name):
+        name = ctx.doc.name(name)  # a second entity of the same name: a register of its own
+    ctx.doc.claim(name)
     if table in ("coil", "discrete"):
         reg: dict[str, Any] | None = _bit_table(ctx, platform, item, table)
     elif platform == "switch":
@@ -60,7 +65,7 @@ def entity(ctx: Ctx, platform: str, item: Node) -> None:
     if reg is not None:
         _write_code(ctx, reg, item)
         reg.setdefault("group", _group(ctx, item))
-        ctx.regs[name] = {"name": name, **reg, "source": f"{ctx.path.name}:{item.line}"}
+        ctx.regs[name] = {"name": name, **reg, "source": here(item, ctx.path), "_node": item}
     return None
 
 
@@ -78,8 +83,6 @@ def _write_code(ctx: Ctx, reg: dict[str, Any], item: Node) -> None:
 
 
 def _batch(ctx: Ctx, platform: str, item: Node) -> None:
-    from drivemap.onboard.importers.esphome import VALUE_TYPES
-
     table = "holding" if platform == "select" else str(item.get("register_type"))
     if item.get("assumed_state") or not isinstance(item.get("address"), int):
         return
@@ -120,7 +123,7 @@ def _gap(ctx: Ctx, item: Node) -> None:
         return _skip(ctx, item, "an internal filler entity")
     start = _address(ctx, item)
     ctx.doc.reserved.append({"table": table, "start": start, "end": start + count - 1, "readable": True,
-                             "kind": "unlabeled", "source": f"{ctx.path.name}:{item.line}",
+                             "kind": "unlabeled", "source": here(item, ctx.path),
                              "notes": "Read as part of a batched request; nothing is named here."})
     return None
 
@@ -141,8 +144,6 @@ def _command(ctx: Ctx, item: Node) -> dict[str, Any] | None:
 
 
 def _typed(ctx: Ctx, item: Node, name: str) -> dict[str, Any] | None:
-    from drivemap.onboard.importers.esphome import VALUE_TYPES
-
     if "raw_encode" in item:
         if item.get("raw_encode") == "ANSI":
             count = item.get("register_count")
@@ -209,7 +210,12 @@ def _filters(ctx: Ctx, reg: dict[str, Any], item: Node) -> None:
         elif kind == "lambda" and _FACTOR.match(str(value)):
             reg["scale_register"] = _FACTOR.match(str(value)).group(1)  # type: ignore[union-attr]
         else:
-            ctx.doc.review.notes.append(f"{item.get('name')}: filter {kind} is ESPHome's processing, not imported")
+            opened = {"calibrate_linear": ["scale", "offset"], "calibrate_polynomial": ["scale", "offset"],
+                      "lambda": ["scale"]}.get(str(kind), [])
+            if opened:  # the source converts the value itself: the register's conversion is for review
+                reg["review"] = list(dict.fromkeys([*reg.get("review", []), *opened]))
+            ctx.doc.review.notes.append(f"{here(item, ctx.path)}: {item.get('name')!r}: filter {kind} is ESPHome's "
+                                        "processing, not imported" + (f" (review: {', '.join(opened)})" if opened else ""))
 
 
 def _part(ctx: Ctx, platform: str, item: Node, name: str, suffix: str) -> None:
@@ -218,7 +224,7 @@ def _part(ctx: Ctx, platform: str, item: Node, name: str, suffix: str) -> None:
     if platform == "switch" and isinstance(item.get("bitmask"), int):
         if reg is None:
             reg = ctx.regs[name] = {"name": name, "table": "holding", "address": _address(ctx, item), "type": "u16",
-                                    "access": "w", "group": _group(ctx, item), "source": f"{ctx.path.name}:{item.line}"}
+                                    "access": "w", "group": _group(ctx, item), "source": here(item, ctx.path)}
             ctx.doc.review.miss(name, "enum labels (the switches name the values only)")
         reg.setdefault("_values", []).append((int(item["bitmask"]), suffix))
         return
@@ -282,6 +288,12 @@ def _free_reserved(ctx: Ctx) -> None:
 
 
 def finish(ctx: Ctx) -> None:
+    for reg, first in masked_registers(ctx):
+        reg["group"] = _group(ctx, first)
+        _write_code(ctx, reg, first)
+        ctx.regs[reg["name"]] = reg
+    check_overlaps(ctx.path, [(reg, reg.pop("_node", None)) for reg in ctx.regs.values()],
+                   "one register, one entity: delete one, or read parts of one register with bitmask")
     _free_reserved(ctx)
     max_reads(ctx)
     for reg in ctx.regs.values():

@@ -13,54 +13,26 @@ their interval so a re-export can repeat it. Anything else (lambdas, custom comm
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
+from drivemap.onboard.importers.es_context import PARITY, PLATFORMS, RAW_ITEM, RAW_NOTE, Ctx
+from drivemap.onboard.importers.es_entities import entity, finish
+from drivemap.onboard.importers.es_packages import expand
+from drivemap.onboard.importers.mapdoc import MapDoc, snake
+from drivemap.onboard.importers.yamlinclude import load_config
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, left_out, located
 
 __all__ = ["import_esphome"]
-
-PLATFORMS = ("sensor", "binary_sensor", "number", "select", "switch", "text_sensor")
-TABLES = {"holding": "holding", "read": "input", "coil": "coil", "discrete_input": "discrete"}
-VALUE_TYPES = {"U_WORD": ("u16", None), "S_WORD": ("s16", None), "U_DWORD": ("u32", "high_first"),
-               "U_DWORD_R": ("u32", "low_first"), "S_DWORD": ("s32", "high_first"), "S_DWORD_R": ("s32", "low_first"),
-               "FP32": ("f32", "high_first"), "FP32_R": ("f32", "low_first"), "U_QWORD": ("u64", "high_first"),
-               "U_QWORD_R": ("u64", "low_first"), "S_QWORD": ("s64", "high_first"), "S_QWORD_R": ("s64", "low_first")}
-PARITY = {"NONE": "none", "EVEN": "even", "ODD": "odd"}
-_RAW_NOTE = re.compile(r"text_sensor with the wire bytes as hex \(ESPHome has no value_type for them\): (.*)")
-_RAW_ITEM = re.compile(r"^(\S+) \((\w+), word order ([\w-]+), byte order (\w+)\)$")
-
-
-@dataclass
-class Ctx:
-    doc: MapDoc
-    path: Path
-    prefix: str
-    base: int
-    regs: dict[str, dict[str, Any]] = field(default_factory=dict)
-    raw_types: dict[str, tuple[str, str | None, str]] = field(default_factory=dict)
-    factors: dict[str, str] = field(default_factory=dict)
-    intervals: dict[str, int] = field(default_factory=dict)
-    #: polled entities as (table, address) -> (words, starts a new read): drivemap's batching
-    batches: dict[tuple[str, int], tuple[int, bool]] = field(default_factory=dict)
-
-    def key(self, name: str) -> tuple[str, str | None]:
-        """(register name, suffix after it: a bit, an enum value or 'label') of an entity name."""
-        rest = name[len(self.prefix) + 1:] if name.startswith(self.prefix + " ") else name
-        head, sep, tail = rest.partition(" ")
-        if sep and re.fullmatch(r"[a-z][a-z0-9_]*", head) and (tail == "label" or re.fullmatch(r"[A-Z][A-Z0-9_]*", tail)):
-            return head, tail
-        return safe(rest), None
-
 
 def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     path = paths[0]
     if len(paths) > 1:
         doc.review.skipped.extend(f"{p.name}: one ESPHome device per map (import it on its own)" for p in paths[1:])
-    data = load_yaml(path)
+    data, read = load_config(path)
     doc.review.skipped.extend(left_out(path))
+    doc.review.notes.extend(read.secrets)
+    data = expand(data, path, doc.review)
     if not isinstance(data, dict):
         raise located(path, None, "not an ESPHome configuration (a mapping with esphome:, modbus_controller:, ...)")
     node = str((data.get("esphome") or {}).get("name") or path.stem.split(".")[0])
@@ -70,8 +42,6 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     ctx = Ctx(doc, path, model, base)
     _line(ctx, data, controller)
     ctx.raw_types = _raw_types(path)
-    from drivemap.onboard.importers.es_entities import entity, finish
-
     found = 0
     for platform in PLATFORMS:
         items = data.get(platform) or []
@@ -79,8 +49,12 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
             if isinstance(item, Node) and item.get("platform") == "modbus_controller":
                 found += 1
                 entity(ctx, platform, item)
+            elif isinstance(item, Node):
+                doc.review.skipped.append(f"{here(item, path)}: {platform} {item.get('name') or item.get('id')!r} "
+                                          f"(platform {item.get('platform')}: not a Modbus register)")
     if not found:
         raise located(path, None, "no modbus_controller entities here")
+    _unread(doc, data)
     finish(ctx)
     return model
 
@@ -152,11 +126,32 @@ def _raw_types(path: Path) -> dict[str, tuple[str, str | None, str]]:
     for line in path.read_text(encoding="utf-8").splitlines():
         if not line.startswith("#"):
             break
-        match = _RAW_NOTE.search(line)
+        match = RAW_NOTE.search(line)
         if match:
             for item in match.group(1).split("; "):
-                found = _RAW_ITEM.match(item.strip())
+                found = RAW_ITEM.match(item.strip())
                 if found:
                     name, rtype, word, byte = found.groups()
                     out[name] = (rtype, None if word == "-" else word, byte)
     return out
+
+
+#: the entity keys the import reads (or that only route an entity: id, platform, controller id)
+ENTITY_KEYS = {"platform", "name", "id", "modbus_controller_id", "register_type", "address", "offset", "value_type",
+               "bitmask", "register_count", "filters", "unit_of_measurement", "min_value", "max_value", "step",
+               "multiply", "optionsmap", "skip_updates", "force_new_range", "use_write_multiple", "internal",
+               "raw_encode", "write_lambda", "assumed_state"}
+
+
+def _unread(doc: MapDoc, data: dict[str, Any]) -> None:
+    """One review line naming the entity keys that are not register facts (how many entities have each)."""
+    counts: dict[str, int] = {}
+    for platform in PLATFORMS:
+        items = data.get(platform) or []
+        for item in items if isinstance(items, list) else []:
+            if isinstance(item, dict) and item.get("platform") == "modbus_controller":
+                for key in set(item) - ENTITY_KEYS:
+                    counts[key] = counts.get(key, 0) + 1
+    if counts:
+        listed = ", ".join(f"{k} ({n} entit{'y' if n == 1 else 'ies'})" for k, n in sorted(counts.items()))
+        doc.review.notes.append(f"entity keys not imported (ESPHome's presentation, not register facts): {listed}")

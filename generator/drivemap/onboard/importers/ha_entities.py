@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, located, renamed
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.homeassistant import Ctx
+from drivemap.onboard.importers.ha_context import LEGACY, SIZED, TABLES, Ctx
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, located, renamed
 
 __all__ = ["arrays", "binary_sensor", "climate", "sensor", "switches"]
 
@@ -43,8 +41,6 @@ def _address(ctx: Ctx, entry: Node, key: str = "address") -> int:
 
 def data_type(ctx: Ctx, entry: Node, default: str = "int16") -> tuple[str, int | None]:
     """(drivemap type, string length) of an entity's data_type (+ count)."""
-    from drivemap.onboard.importers.homeassistant import LEGACY, SIZED
-
     kind = str(entry.get("data_type", default))
     count = entry.get("count")
     if kind in SIZED:
@@ -64,7 +60,7 @@ class _Skip(Exception):
 
 
 def _skip(ctx: Ctx, entry: Node, why: str) -> None:
-    ctx.doc.review.skipped.append(f"{ctx.path.name}:{entry.line}: {entry.get('name')!r}: {why}")
+    ctx.doc.review.skipped.append(f"{here(entry, ctx.path)}: {entry.get('name')!r}: {why}")
 
 
 def _swap(reg: dict[str, Any], swap: Any) -> None:
@@ -111,8 +107,6 @@ def sensor(ctx: Ctx, entry: Node) -> None:
 
 
 def binary_sensor(ctx: Ctx, entry: Node) -> None:
-    from drivemap.onboard.importers.homeassistant import TABLES
-
     table = TABLES.get(str(entry.get("input_type", "coil")))
     if table in ("coil", "discrete"):
         reg = {"table": table, "address": _address(ctx, entry), "type": "bool", "access": "r"}
@@ -143,7 +137,7 @@ def switches(ctx: Ctx, entries: list[Node]) -> None:
         if kind in ("coil", "coils"):
             verify = "verify" in entry
             reg = {"table": "coil", "address": _address(ctx, entry), "type": "bool", "access": "rw" if verify else "w",
-                   "group": _group(ctx, entry)}
+                   "group": _group(ctx, entry), "_switch": (entry, [])}
             ctx.put(entry, reg, "switch")
         elif kind in ("holding", "holdings"):
             by_address.setdefault(_address(ctx, entry), []).append(entry)
@@ -160,6 +154,7 @@ def _holding_switches(ctx: Ctx, address: int, group: list[Node]) -> None:
     first = group[0]
     if len(group) == 1 and values[0][0] == values[0][1]:
         reg["command"] = {"value": values[0][0]}
+        reg["_switch"] = (first, [(values[0][0], str(first.get("name")))])
         ctx.put(first, reg, "switch")
         return
     if len(group) > 1 and all(on == off for on, off in values):
@@ -167,6 +162,7 @@ def _holding_switches(ctx: Ctx, address: int, group: list[Node]) -> None:
         items = [(on, str(e.get("name", "")).rpartition(" ")[2]) for (on, _), e in zip(values, group, strict=True)]
         name, _, _ = ctx.split(base)
         reg["enum"] = ctx.doc.enum(name, items)
+        reg["_switch"] = (first, items)
         ctx.put(renamed(first, base), reg, "switch")
         ctx.doc.review.miss(name, "enum labels (the switches name the values only)")
         return
@@ -175,6 +171,7 @@ def _holding_switches(ctx: Ctx, address: int, group: list[Node]) -> None:
         pairs = [(on, "on")] + ([(off, "off")] if off is not None and off != on else [])
         name, _, _ = ctx.split(str(entry.get("name", "")))
         one["enum"] = ctx.doc.enum(f"{name}_state", pairs)
+        one["_switch"] = (entry, pairs)
         ctx.put(entry, one, "switch")
 
 
@@ -221,7 +218,7 @@ def _hvac_mode(ctx: Ctx, entry: Node, name: str) -> None:
 def arrays(ctx: Ctx, name: str, elements: dict[int, dict[str, Any]]) -> dict[str, Any]:
     """One register from its entities: a single one, or elements i..i+n-1 at a fixed stride."""
     first = elements[min(elements)]
-    reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group",)}}
+    reg: dict[str, Any] = {"name": name, **{k: v for k, v in first.items() if k not in ("group", "_file", "_node")}}
     if len(elements) > 1:
         indexes = sorted(elements)
         addresses = [elements[i]["address"] for i in indexes]
@@ -235,5 +232,40 @@ def arrays(ctx: Ctx, name: str, elements: dict[int, dict[str, Any]]) -> dict[str
         if stride != 1:
             reg["stride"] = stride
     reg["group"] = first["group"]
-    reg["source"] = f"{ctx.path.name} ({ctx.prefix})"
+    reg["source"] = f"{first.get('_file', ctx.path.name)} ({ctx.prefix})"
     return reg
+
+
+def merge_switches(ctx: Ctx) -> None:
+    """A switch at the register a sensor reads is that register's command: one register, readable and
+    writable, whose value set is what the switch writes (its labels: on, off or the switch names)."""
+    read: dict[tuple[str, int], tuple[str, int]] = {}
+    for name, elements in ctx.regs.items():
+        for index, reg in elements.items():
+            if "_switch" not in reg and "count" not in reg:
+                read.setdefault((reg["table"], reg["address"]), (name, index))
+    for name, elements in list(ctx.regs.items()):
+        for index, reg in list(elements.items()):
+            switch = reg.pop("_switch", None)
+            owner = read.get((reg["table"], reg["address"])) if switch is not None else None
+            if switch is None or owner is None:
+                continue
+            entry, pairs = switch
+            target = ctx.regs[owner[0]][owner[1]]
+            target["access"] = "rw"
+            if pairs and target["type"] != "bool":
+                scale, offset = target.get("scale", 1), target.get("offset", 0)
+                target["values"] = [{"value": v * scale + offset if (scale, offset) != (1, 0) else v, "label": label}
+                                    for v, label in pairs]
+            del elements[index]
+            if not elements:
+                del ctx.regs[name]
+            for entity, place in ctx.entities.items():
+                if place == (name, index):
+                    ctx.entities[entity] = owner
+            what = ", ".join(f"{label}={v}" for v, label in pairs) or "on/off"
+            ctx.doc.review.notes.append(f"{here(entry, ctx.path)}: switch {entry.get('name')!r} writes the register of "
+                                        f"{owner[0]} (one register: readable, and writes {what})")
+            if reg.get("enum") and not any(r.get("enum") == reg["enum"] for els in ctx.regs.values()
+                                           for r in els.values()):
+                ctx.doc.enums.pop(reg["enum"], None)

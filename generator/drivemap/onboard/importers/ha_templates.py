@@ -21,12 +21,12 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from drivemap.onboard.importers.ha_context import Ctx
+from drivemap.onboard.importers.ha_labels import entities_of, label_map, open_fields
 from drivemap.onboard.importers.mapdoc import upper
-
-if TYPE_CHECKING:
-    from drivemap.onboard.importers.homeassistant import Ctx
+from drivemap.onboard.importers.yamlsrc import here
 
 __all__ = ["apply_templates"]
 
@@ -48,9 +48,48 @@ def apply_templates(ctx: Ctx, path: Path, block: Any) -> None:
         return
     for kind in ("sensor", "binary_sensor", "select"):
         for entry in block.get(kind) or []:
-            if isinstance(entry, dict) and not (_select(ctx, entry) if kind == "select" else _apply(ctx, entry)):
-                ctx.doc.review.skipped.append(f"{path.name}: template {kind} {entry.get('name')!r} (the user's own "
-                                              "logic, not a register fact)")
+            if not isinstance(entry, dict):
+                continue
+            if _select(ctx, entry) if kind == "select" else (_apply(ctx, entry) or _label_map(ctx, path, entry)):
+                continue
+            _user_logic(ctx, path, kind, entry)
+    for kind, entries in block.items():
+        if kind not in ("sensor", "binary_sensor", "select", "trigger", "unique_id") and isinstance(entries, list):
+            for entry in entries:
+                ctx.doc.review.skipped.append(f"{here(entry, path)}: template {kind} "
+                                              f"{entry.get('name') if isinstance(entry, dict) else entry!r} "
+                                              "(not a register fact)")
+
+
+def _label_map(ctx: Ctx, path: Path, entry: dict[str, Any]) -> bool:
+    """A template that only maps a register's values to text: that register's enum."""
+    found = label_map(str(entry.get("state", "")))
+    if found is None:
+        return False
+    reg = _register(ctx, found[0])
+    name = str(entry.get("name", ""))
+    if reg is None or reg.get("enum") or reg.get("type") in ("f32", "f64", "string", "bool") or "scale" in reg:
+        return False
+    owner = ctx.entities[found[0]][0]
+    reg["enum"] = ctx.doc.enum(name or owner, sorted(found[1].items()))
+    ctx.doc.review.notes.append(f"{here(entry, path)}: template sensor {name!r}: the labels of {owner} "
+                                f"(enum {reg['enum']}, {len(found[1])} values)")
+    return True
+
+
+def _user_logic(ctx: Ctx, path: Path, kind: str, entry: dict[str, Any]) -> None:
+    """Listed; a register it reads gets the fields it seems to compute in its ``review``."""
+    state = str(entry.get("state", ""))
+    regs = [(e, _register(ctx, e)) for e in entities_of(state)]
+    named = [ctx.entities[e][0] for e, reg in regs if reg is not None]
+    fields = open_fields(state) if len(named) == 1 else []
+    for _, reg in regs:
+        if reg is not None and fields:
+            reg["review"] = list(dict.fromkeys([*reg.get("review", []), *fields]))
+    reads = f" over {', '.join(named)}" if named else ""
+    review = f"; review: {', '.join(fields)} of {named[0]}" if fields else ""
+    ctx.doc.review.skipped.append(f"{here(entry, path)}: template {kind} {entry.get('name')!r}{reads} (the user's own "
+                                  f"logic, not a register fact{review})")
 
 
 def _register(ctx: Ctx, entity: str) -> dict[str, Any] | None:

@@ -19,96 +19,85 @@ by their interval, so a re-export can repeat it). Whatever does not map is liste
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from drivemap.onboard.importers.ha_context import PARITY, Ctx
+from drivemap.onboard.importers.ha_entities import arrays, binary_sensor, climate, merge_switches, sensor, switches
 from drivemap.onboard.importers.ha_templates import apply_templates
-from drivemap.onboard.importers.mapdoc import MapDoc, safe, snake
-from drivemap.onboard.importers.yamlsrc import Node, Tagged, left_out, load_yaml, located
+from drivemap.onboard.importers.mapdoc import MapDoc, snake
+from drivemap.onboard.importers.overlaps import check_overlaps
+from drivemap.onboard.importers.yamlinclude import load_config
+from drivemap.onboard.importers.yamlsrc import Node, Tagged, here, left_out, located, renamed
 
 __all__ = ["import_homeassistant"]
-
-SIZED = {"int16": "s16", "uint16": "u16", "int32": "s32", "uint32": "u32", "int64": "s64", "uint64": "u64",
-         "float32": "f32", "float64": "f64"}
-LEGACY = {("int", 1): "s16", ("int", 2): "s32", ("int", 4): "s64", ("uint", 1): "u16", ("uint", 2): "u32",
-          ("uint", 4): "u64", ("float", 2): "f32", ("float", 4): "f64"}
-TABLES = {"holding": "holding", "input": "input", "coil": "coil", "discrete_input": "discrete"}
-PARITY = {"N": "none", "E": "even", "O": "odd"}
-_ELEMENT = re.compile(r"^([a-z][a-z0-9_]*) (\d+)$")
-
-
-@dataclass
-class Ctx:
-    """One hub being imported: its registers by name (arrays as {index: register}), the entity ids."""
-
-    doc: MapDoc
-    path: Path
-    prefix: str
-    regs: dict[str, dict[int, dict[str, Any]]] = field(default_factory=dict)
-    entities: dict[str, tuple[str, int]] = field(default_factory=dict)
-    units: set[int] = field(default_factory=set)
-    intervals: dict[str, int] = field(default_factory=dict)
-
-    def split(self, text: str) -> tuple[str, int, bool]:
-        """(register name, element index, is it a '<name> raw' sensor) of an entity name."""
-        rest = text[len(self.prefix) + 1:] if text.startswith(self.prefix + " ") else text
-        raw = rest.endswith(" raw")
-        rest = rest[:-4] if raw else rest
-        match = _ELEMENT.match(rest)
-        if match:
-            return match.group(1), int(match.group(2)), raw
-        return safe(rest), 0, raw
-
-    def put(self, entry: Node, reg: dict[str, Any], entity: str | None = None) -> None:
-        name, index, _ = self.split(str(entry.get("name", "")))
-        if not name or name == "register":
-            raise located(self.path, entry, "an entity without a name")
-        elements = self.regs.setdefault(name, {})
-        if index in elements:
-            name = self.doc.name(name)  # a second entity of the same name: a register of its own
-            elements = self.regs.setdefault(name, {})
-        elements[index] = reg
-        text = str(entry.get("name", ""))
-        slug = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
-        self.entities[f"{entity or 'sensor'}.{slug}"] = (name, index)
-        plain = re.sub(r"[^a-z0-9]+", "_", text.removesuffix(" raw").lower()).strip("_")
-        for i in range(1, reg.get("count", 1)):  # the elements of a virtual_count array
-            self.entities[f"{entity or 'sensor'}.{plain}_{i}"] = (name, index)
-        unit = entry.get("device_address", entry.get("slave"))
-        if isinstance(unit, int):
-            self.units.add(unit)
-
 
 def import_homeassistant(doc: MapDoc, paths: list[Path]) -> str | None:
     """Fill ``doc`` from the files' first hub; the hub's name (the model id it suggests)."""
     hubs: list[tuple[Path, Node]] = []
     templates: list[tuple[Path, Any]] = []
     for path in paths:
-        data = load_yaml(path)
+        top, read = load_config(path)
         doc.review.skipped.extend(left_out(path))
-        hubs.extend((path, hub) for hub in _hubs(path, data))
-        if isinstance(data, dict) and isinstance(data.get("template"), list):
-            templates.extend((path, block) for block in data["template"])
+        doc.review.notes.extend(read.secrets)
+        for data in _documents(top, path, doc):
+            hubs.extend((path, hub) for hub in _hubs(path, data))
+            blocks = data.get("template") if isinstance(data, dict) else None
+            if isinstance(blocks, list):
+                templates.extend((path, block) for block in blocks)
+            elif isinstance(blocks, dict):
+                templates.append((path, blocks))
+            templates.extend((path, block) for block in _legacy_templates(data))
     if not hubs:
-        data = load_yaml(paths[0])
-        included = data.get("modbus") if isinstance(data, dict) else None
-        if isinstance(included, Tagged):
-            raise located(paths[0], data, f"modbus: {included.tag} {included}: import that file")
-        raise located(paths[0], None, "no modbus: hub here (a modbus: key with a list of hubs, or such a list)")
+        raise located(paths[0], None, "no modbus: hub here (a modbus: key with a list of hubs, or such a list; "
+                                      "or homeassistant: packages: holding one)")
     path, hub = hubs[0]
     for other_path, other in hubs[1:]:
-        doc.review.skipped.append(f"{other_path.name}:{other.line}: hub {other.get('name')!r} (one map per device: "
+        doc.review.skipped.append(f"{here(other, other_path)}: hub {other.get('name')!r} (one map per device: "
                                   "import it on its own)")
     name = str(hub.get("name") or "modbus_hub")
     ctx = Ctx(doc, path, name)
     _hub(ctx, hub)
     _entities(ctx, hub)
+    merge_switches(ctx)
     for tpath, block in templates:
         apply_templates(ctx, tpath, block)
     _finish(ctx)
     return snake(name, "device")
+
+
+def _documents(data: Any, path: Path, doc: MapDoc) -> list[Any]:
+    """The configuration and each package it holds (``homeassistant: packages:``, included or inline),
+    as Home Assistant merges them: their ``modbus:`` hubs and ``template:`` blocks add up."""
+    out = [data]
+    core = data.get("homeassistant") if isinstance(data, dict) else None
+    packages = core.get("packages") if isinstance(core, dict) else None
+    if isinstance(packages, dict):
+        for name, package in packages.items():
+            if isinstance(package, dict):
+                out.extend(_documents(package, path, doc))
+            else:
+                doc.review.skipped.append(f"{here(core, path)}: package {name!r} is not a configuration (a mapping)")
+    return out
+
+
+def _legacy_templates(data: Any) -> list[dict[str, Any]]:
+    """``sensor: - platform: template`` / ``binary_sensor:`` (``sensors: {id: {value_template: ...}}``) as
+    ``template:`` blocks (the entity id is the key; the name its friendly_name)."""
+    out: list[dict[str, Any]] = []
+    for kind in ("sensor", "binary_sensor"):
+        items = data.get(kind) if isinstance(data, dict) else None
+        for item in items if isinstance(items, list) else []:
+            if not isinstance(item, dict) or item.get("platform") != "template" or not isinstance(item.get("sensors"), dict):
+                continue
+            entries = []
+            for key, spec in item["sensors"].items():
+                if isinstance(spec, Node):
+                    entry = renamed(spec, str(spec.get("friendly_name") or key))
+                    entry["state"] = spec.get("value_template", "")
+                    entries.append(entry)
+            out.append({kind: entries})
+    return out
 
 
 def _hubs(path: Path, data: Any) -> list[Node]:
@@ -165,8 +154,6 @@ def _port(ctx: Ctx, hub: Node, method: str) -> dict[str, Any]:
 
 
 def _entities(ctx: Ctx, hub: Node) -> None:
-    from drivemap.onboard.importers.ha_entities import binary_sensor, climate, sensor, switches
-
     for entry in _list(ctx, hub, "sensors"):
         sensor(ctx, entry)
     for entry in _list(ctx, hub, "binary_sensors"):
@@ -176,20 +163,55 @@ def _entities(ctx: Ctx, hub: Node) -> None:
         climate(ctx, entry)
     for key in ("covers", "fans", "lights"):
         for entry in _list(ctx, hub, key):
-            ctx.doc.review.skipped.append(f"{ctx.path.name}:{entry.line}: {key[:-1]} {entry.get('name')!r} "
+            ctx.doc.review.skipped.append(f"{here(entry, ctx.path)}: {key[:-1]} {entry.get('name')!r} "
                                           "(no register meaning to import)")
+    _unread(ctx, hub)
+
+
+#: the hub keys and entity keys the import reads (or reports itself); any other key is named in the review
+HUB_KEYS = {"name", "type", "host", "port", "method", "baudrate", "bytesize", "parity", "stopbits", "timeout",
+            "message_wait_milliseconds", "sensors", "binary_sensors", "switches", "climates", "covers", "fans",
+            "lights"}
+ENTITY_KEYS = {"name", "address", "input_type", "data_type", "count", "swap", "scale", "offset", "nan_value",
+               "unit_of_measurement", "virtual_count", "slave_count", "slave", "device_address", "scan_interval",
+               "min_value", "max_value", "zero_suppress", "structure", "write_type", "command_on", "command_off",
+               "verify", "target_temp_register", "min_temp", "max_temp", "temperature_unit", "hvac_mode_register",
+               "precision"}
+
+
+def _unread(ctx: Ctx, hub: Node) -> None:
+    """One review line per key the import does not read: the hub's (with its value), the entities' (how often)."""
+    for key in sorted(set(hub) - HUB_KEYS):
+        ctx.doc.review.notes.append(f"{here(hub, ctx.path)}: hub {key}: {hub[key]!r} not imported (a setting of Home "
+                                    "Assistant's connection, not of the device)")
+    counts: dict[str, int] = {}
+    for kind in ("sensors", "binary_sensors", "switches", "climates"):
+        for entry in hub.get(kind) or []:
+            for key in set(entry) - ENTITY_KEYS if isinstance(entry, dict) else ():
+                counts[key] = counts.get(key, 0) + 1
+    if counts:
+        listed = ", ".join(f"{k} ({n} entit{'y' if n == 1 else 'ies'})" for k, n in sorted(counts.items()))
+        ctx.doc.review.notes.append(f"entity keys not imported (Home Assistant's presentation, not register facts): "
+                                    f"{listed}")
 
 
 def _list(ctx: Ctx, hub: Node, key: str) -> list[Node]:
     items = hub.get(key) or []
     if not isinstance(items, list) or not all(isinstance(e, Node) for e in items):
         raise located(ctx.path, hub, f"{key}: a list of entities")
+    for entry in items:
+        if id(entry) in ctx.seen:
+            raise located(ctx.path, entry, f"{key}: the entity {entry.get('name')!r} is listed again by a YAML alias "
+                                           "(*name): one entity per register, delete the repeat")
+        ctx.seen.add(id(entry))
     return items
 
 
 def _finish(ctx: Ctx) -> None:
-    from drivemap.onboard.importers.ha_entities import arrays
-
+    singles = [(reg, reg.get("_node")) for elements in ctx.regs.values() if len(elements) == 1
+               for reg in elements.values()]
+    check_overlaps(ctx.path, singles, "one register, one entity: delete one entity, or give the second the "
+                                      "address of its own register")
     for name, elements in ctx.regs.items():
         ctx.doc.add(arrays(ctx, name, elements))
     if len(ctx.units) == 1 and ctx.units != {1}:

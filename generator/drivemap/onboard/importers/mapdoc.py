@@ -43,15 +43,12 @@ def snake(text: str, fallback: str = "register") -> str:
 
 
 def safe(text: str) -> str:
-    """A register name from ``text``; a keyword, a builtin the generated classes use or a client
-    attribute gets ``_reg`` appended (the generated client could not have it)."""
-    from drivemap.backends.python.reserved import reserved
-    from drivemap.model.nodes import is_keyword
+    """A register name from ``text`` that the compiler accepts, renamed as ``draft`` renames
+    (:func:`drivemap.onboard.naming.register_name`: a keyword + ``_value``, a client attribute such
+    as ``self`` or a builtin the generated classes use + ``_reg``)."""
+    from drivemap.onboard.naming import register_name
 
-    name = snake(text)
-    if is_keyword(name) or name in reserved().annotation or name in reserved().client:
-        name = f"{name}_reg"
-    return name
+    return register_name(snake(text))
 
 
 def upper(text: str, fallback: str = "VALUE") -> str:
@@ -121,10 +118,25 @@ class MapDoc:
     identity: list[dict[str, Any]] = field(default_factory=list)
     examples: list[dict[str, Any]] = field(default_factory=list)
     _names: set[str] = field(default_factory=set)
+    _next: dict[str, int] = field(default_factory=dict)
 
     def name(self, wanted: str) -> str:
-        """A unique register name (see :func:`safe`)."""
-        return unique_name(safe(wanted), self._names)
+        """A unique register name (see :func:`safe`): the name, else ``name_2``, ``name_3`` ... (counted
+        per name, so a name repeated n times costs n steps, not n squared)."""
+        name = safe(wanted)
+        candidate, n = name, self._next.get(name, 2)
+        while candidate in self._names:
+            candidate, n = f"{name}_{n}", n + 1
+        self._next[name] = n
+        self._names.add(candidate)
+        return candidate
+
+    def claim(self, name: str) -> None:
+        """Mark ``name`` as taken (a register named by the source itself), so :meth:`name` never repeats it."""
+        self._names.add(name)
+
+    def taken(self, name: str) -> bool:
+        return name in self._names
 
     def group(self, name: str, title: str | None = None) -> str:
         """A group; its title gets " (group)" where the docs page has a fixed heading of that anchor."""
@@ -228,7 +240,9 @@ class MapDoc:
                          "this entry (and 'rtu' in modes) is a placeholder until the manual says more."}
 
     def text(self) -> str:
-        body = yaml.safe_dump(self.data(), sort_keys=False, allow_unicode=True, width=110, default_flow_style=False)
+        dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+        body = yaml.dump(self.data(), Dumper=dumper, sort_keys=False, allow_unicode=True, width=110,
+                         default_flow_style=False)
         return f"# drivemap map written from {self.source}; review every null before use.\n{body}"
 
 
