@@ -11,7 +11,7 @@ import json
 
 import pytest
 
-from drivemap.compiler import export_model
+from drivemap.build import export_model
 
 MODEL = "vfd1000"
 

@@ -28,6 +28,12 @@ __all__ = ["entry_options", "export_files", "options_for", "outputs_by_root", "o
            "settled"]
 
 
+def build_checks() -> tuple[Exporter, ...]:
+    """The checks of the outputs ``drivemap build`` always writes (the python package's names, the docs
+    page's anchors), which ``build`` and ``check`` hand to the compiler."""
+    return (PythonExporter(), DocsExporter())
+
+
 def options_for(project: Project, values: Mapping[str, Any] | None = None) -> Options:
     return Options(package=project.package, root=project.root, out=project.out, docs=project.docs,
                    values=dict(values or {}))
@@ -243,3 +249,11 @@ def write_tree(root: Path, files: Mapping[str, str], *, force: bool = False) -> 
 
     with output.locked([root]):
         output.write(output.plan(root, files, prune=True, force=force))
+
+
+def export_model(name: str) -> dict[str, Any]:
+    """Compile the map of a model id or path and return its export contract (``--format json``)."""
+    from drivemap.backends.export import export
+    from drivemap.compiler import load_model
+
+    return export(load_model(name))

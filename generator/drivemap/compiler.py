@@ -1,10 +1,9 @@
-"""The pipeline: load -> schema -> semantic checks -> the exporters' checks -> immutable model.
+"""The pipeline: load -> schema -> semantic checks -> immutable model.
 
-The front end (:mod:`drivemap.frontend`) knows no back end. The exporters' ``validate`` hooks (the
-python exporter's generated names, the docs exporter's anchors) run here, on the checked document,
-and render nothing; they run for the exporters a verb writes (``build``: python and docs), and
-``drivemap validate`` runs only the front end unless it is asked for exporters (``--exporter``), so
-this module imports no back end until a hook is wanted.
+The compiler is the front end and the model: it imports no back end. A verb that writes an output
+asks for that output's own checks by handing them in (``checks``: anything with an exporter's
+``validate(document)``; ``build`` and ``check`` hand in the python and docs exporters, ``export``
+the exporter it runs, ``drivemap validate --exporter NAME`` the ones named); by default none run.
 """
 
 from __future__ import annotations
@@ -15,20 +14,17 @@ import stat
 import sys
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, Protocol, TextIO
 
 from drivemap import cache
-from drivemap.diagnostics import CompileError, Diagnostic, Location
+from drivemap.diagnostics import CompileError, Diagnostic, Location, Problem
 from drivemap.frontend import family, formats
 from drivemap.frontend.load import MAX_MAP_BYTES, MAX_REGISTERS, Document, load_file, load_text
 from drivemap.frontend.project import SHIPPED_MAPS, Project, catalogue_maps, display, load_project, shipped_maps
 from drivemap.model.nodes import Model
-
-if TYPE_CHECKING:
-    from drivemap.backends.exporters.base import Exporter
 
 #: The maps shipped with drivemap (and its catalogue below ``catalogue/``): a model id that the project
 #: does not have is looked up here.
@@ -40,28 +36,26 @@ def display_path(path: str | os.PathLike[str]) -> str:
     return display(path)
 
 
-def default_exporters() -> tuple[Exporter, ...]:
-    """The exporters whose checks a compiled map passes by default: the outputs ``drivemap build`` always writes."""
-    from drivemap.backends.exporters.docs import DocsExporter
-    from drivemap.backends.exporters.python import PythonExporter
+class MapCheck(Protocol):
+    """An output's own checks of a map that passed the front end (an exporter's ``validate``)."""
 
-    return (PythonExporter(), DocsExporter())
+    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]: ...
 
 
-def compile_map(path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
-    """Load, validate and check one map (and run the ``validate`` hook of each of ``exporters``,
-    by default :func:`default_exporters`); raise :class:`CompileError` with every error found."""
+def compile_map(path: str | os.PathLike[str], checks: Sequence[MapCheck] = ()) -> Model:
+    """Load, validate and check one map (and run each of ``checks``, an output's own checks: none by
+    default); raise :class:`CompileError` with every error found."""
     shown = display_path(path)
-    return compile_document(load_file(shown), exporters)
+    return compile_document(load_file(shown), checks)
 
 
-def compile_cached(path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
+def compile_cached(path: str | os.PathLike[str], checks: Sequence[MapCheck] = ()) -> Model:
     """:func:`compile_map`, reusing the model compiled before from the same bytes (of the map and
     of every map it extends), shown under the same path, with the same checks, by the same
     drivemap (:mod:`drivemap.cache`). A map that does not compile is never cached (its errors are
     raised anew); warnings a compile gave are given again when its model comes from the cache.
     """
-    chosen = default_exporters() if exporters is None else exporters
+    chosen = tuple(checks)
     shown = display_path(path)
     names = sorted(f"{type(e).__module__}.{type(e).__qualname__}" for e in chosen)
     if not cache.enabled() or any(not n.startswith("drivemap.") for n in names):
@@ -148,16 +142,17 @@ def _warn_again(given: list[tuple[str, type[Warning], str, int]]) -> None:
         warnings.warn_explicit(message, category, filename, lineno)
 
 
-def compile_text(text: str, path: str | os.PathLike[str], exporters: Sequence[Exporter] | None = None) -> Model:
+def compile_text(text: str, path: str | os.PathLike[str], checks: Sequence[MapCheck] = ()) -> Model:
     """:func:`compile_map` of ``text`` as if it were the content of ``path`` (nothing is read but
     the maps it extends)."""
-    return compile_document(load_text(text, display_path(path)), exporters)
+    return compile_document(load_text(text, display_path(path)), checks)
 
 
-def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None) -> Model:
-    """Validate and check a loaded map (and the maps it extends), with the ``validate`` hooks of
-    ``exporters`` (default :func:`default_exporters`); the model."""
-    from drivemap.frontend import checks, schema  # here: a model from the cache needs neither (nor jsonschema)
+def compile_document(doc: Document, checks: Sequence[MapCheck] = ()) -> Model:
+    """Validate and check a loaded map (and the maps it extends), with ``checks`` (outputs' own
+    checks); the model."""
+    from drivemap.frontend import checks as semantic  # here: a model from the cache needs neither (nor jsonschema)
+    from drivemap.frontend import schema
     from drivemap.model.build import build_model
 
     shown = doc.path
@@ -173,9 +168,9 @@ def compile_document(doc: Document, exporters: Sequence[Exporter] | None = None)
     errors = schema.validate(doc)
     if errors:
         raise CompileError(family.note_overrides(doc, errors))
-    problems, statuses = checks.check(doc)
-    for exporter in default_exporters() if exporters is None else exporters:
-        problems += checks.located(doc, exporter.validate(doc.data))
+    problems, statuses = semantic.check(doc)
+    for check in checks:
+        problems += semantic.located(doc, check.validate(doc.data))
     if problems:
         raise CompileError(family.note_overrides(doc, problems))
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
@@ -253,10 +248,3 @@ def _differ(a: Path, b: Path) -> bool:
 def load_model(name: str, project: Project | None = None) -> Model:
     """Compile the map of a model id or path (see :func:`resolve_map`)."""
     return compile_map(resolve_map(name, project or load_project()))
-
-
-def export_model(name: str) -> dict[str, Any]:
-    """Compile the map of a model id or path and return its export contract (``--format json``)."""
-    from drivemap.backends.export import export
-
-    return export(load_model(name))

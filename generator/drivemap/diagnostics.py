@@ -4,6 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
+
+#: One problem found at a place of a map document: (path of keys and indexes, message, options of a located
+#: error: ``key``, ``related``, ``note``, ``related_key``), as an exporter's ``validate`` gives it.
+Problem = tuple[tuple[str | int, ...], str, dict[str, Any]]
 
 
 @dataclass(frozen=True)

@@ -9,48 +9,56 @@ error: ...`` lines and exit status 1, never a traceback.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from collections.abc import Sequence
 
 from drivemap import __version__
 from drivemap.cli.common import Parser, UsageError, report
-from drivemap.cli.export import export_parser
-from drivemap.cli.verbs import check_parsers, gateway_parser, other_parsers
 from drivemap.diagnostics import CompileError
 from drivemap.frontend.project import display
 
 __all__ = ["UsageError", "main", "parser"]
 
 
-def parser() -> argparse.ArgumentParser:
+#: Which function adds each verb's parser (module, function); a function may add several verbs. A run
+#: imports only the module of the verb it runs (``drivemap build`` loads no draft, import or live
+#: code); ``--help``, no verb or an unknown one builds them all.
+VERBS: dict[str, tuple[str, str]] = {
+    **dict.fromkeys(("validate", "build", "check", "examples"), ("drivemap.cli.verbs", "check_parsers")),
+    "export": ("drivemap.cli.export", "export_parser"),
+    **dict.fromkeys(("new", "migrate", "schema", "simulate"), ("drivemap.cli.verbs", "other_parsers")),
+    **dict.fromkeys(("read", "write", "watch", "scan", "verify"), ("drivemap.live", "add_parsers")),
+    "draft": ("drivemap.onboard.draft.cli", "add_parser"),
+    "import": ("drivemap.onboard.importers.cli", "add_parser"),
+    "probe": ("drivemap.onboard.probe_cli", "add_parser"),
+    "list": ("drivemap.cli.listing", "add_parser"),
+    "gateway": ("drivemap.cli.verbs", "gateway_parser"),
+}
+
+
+def _verb(argv: Sequence[str]) -> str | None:
+    """The verb ``argv`` runs (its first word that is not an option), if drivemap has it."""
+    first = next((w for w in argv if not w.startswith("-")), None)
+    return first if first in VERBS else None
+
+
+def parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The command's parser: with ``argv``, only the sub-parser of the verb it names (all of them else)."""
     p = Parser(prog="drivemap", description="Register-map compiler for Modbus drives.")
     p.add_argument("--version", action="version", version=f"drivemap {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
-    check_parsers(sub)  # validate, build, check, examples
-    export_parser(sub)
-    other_parsers(sub)  # new, migrate, schema, simulate
-    from drivemap.live import add_parsers
-
-    add_parsers(sub)  # read, write, watch, scan, verify: a live device by name
-    from drivemap.onboard.draft.cli import add_parser as draft_parser
-
-    draft_parser(sub)  # draft: a map from the register tables of a manual
-    from drivemap.onboard.importers.cli import add_parser as import_parser
-    from drivemap.onboard.probe_cli import add_parser as probe_parser
-
-    import_parser(sub)  # import: Home Assistant, ESPHome, SunSpec, CSV definitions -> a map
-    probe_parser(sub)  # probe: what a live device answers, as a skeleton map
-    from drivemap.cli.listing import add_parser as list_parser
-
-    list_parser(sub)  # list: the maps a model id finds, with their evidence
-    gateway_parser(sub)
+    verb = _verb(argv) if argv is not None else None
+    wanted = [VERBS[verb]] if verb is not None else list(dict.fromkeys(VERBS.values()))
+    for module, function in wanted:
+        getattr(importlib.import_module(module), function)(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     try:
-        args, rest = parser().parse_known_args(argv)
+        args, rest = parser(sys.argv[1:] if argv is None else argv).parse_known_args(argv)
         if rest and args.command != "export" and not getattr(args, "takes_rest", False):
             raise UsageError(f"drivemap {args.command}", f"unrecognized arguments: {' '.join(rest)}")
         args.rest = rest

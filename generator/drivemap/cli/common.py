@@ -14,8 +14,8 @@ from drivemap.frontend.project import Project, display, load_project
 from drivemap.model.nodes import Model
 
 if TYPE_CHECKING:
-    from drivemap.backends.exporters.base import Exporter
     from drivemap.backends.output import Change
+    from drivemap.compiler import MapCheck
 
 
 class UsageError(Exception):
@@ -40,15 +40,15 @@ def project_of(args: argparse.Namespace, maps: Sequence[str] | None = None) -> P
     )
 
 
-def compile_files(files: Sequence[Path], exporters: Sequence[Exporter] | None = None) -> tuple[list[Model], list[Diagnostic]]:
-    """Compile every map with the checks of ``exporters`` (None: the ones ``build`` writes)."""
+def compile_files(files: Sequence[Path], checks: Sequence[MapCheck] = ()) -> tuple[list[Model], list[Diagnostic]]:
+    """Compile every map with ``checks`` (outputs' own checks; none: the front end alone)."""
     from drivemap.compiler import compile_cached
 
     models: list[Model] = []
     errors: list[Diagnostic] = []
     for path in files:
         try:
-            models.append(compile_cached(path, exporters))
+            models.append(compile_cached(path, checks))
         except CompileError as exc:
             errors.extend(exc.diagnostics)
     first: dict[str, Model] = {}
@@ -70,12 +70,12 @@ def model_line(path: str) -> int:
     return next((n for n, line in enumerate(lines, 1) if line.strip().startswith("model:")), 1)
 
 
-def project_models(project: Project, exporters: Sequence[Exporter] | None = None) -> list[Model]:
+def project_models(project: Project, checks: Sequence[MapCheck] = ()) -> list[Model]:
     files = project.map_files()
     if not files:
         where = ", ".join(display(m) for m in project.maps)
         raise CompileError([Diagnostic(Location(where, 1, 1), "no maps found (run `drivemap new MODEL`, or set maps)")])
-    models, errors = compile_files(files, exporters)
+    models, errors = compile_files(files, checks)
     if errors:
         raise CompileError(errors)
     return models

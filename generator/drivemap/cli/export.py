@@ -47,7 +47,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     except UsageError as exc:
         raise UsageError(f"drivemap export --format {args.format}", str(exc).split(": error: ", 1)[-1] + hint) from None
     project = project_of(args)
-    devices = [(compile_map(resolve_map(name, project)), unit) for name, unit in map(_device, args.model)]
+    devices = [(compile_map(resolve_map(name, project), [exporter]), unit) for name, unit in map(_device, args.model)]
     try:
         if len(devices) == 1:
             model, unit = devices[0]

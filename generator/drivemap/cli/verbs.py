@@ -54,10 +54,10 @@ def _checking_exporters(names: Sequence[str]) -> list[Exporter]:
 
 def cmd_build(args: argparse.Namespace) -> int:
     from drivemap.backends import output
-    from drivemap.build import outputs_cached, settled
+    from drivemap.build import build_checks, outputs_cached, settled
 
     project = project_of(args, args.paths)
-    models = project_models(project)
+    models = project_models(project, build_checks())
     grouped = outputs_cached(project, models)
     changes = [output.plan(root, files, prune=prune, force=args.force) for root, (files, prune) in grouped.items()
                if root.is_dir()]
@@ -86,10 +86,10 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from drivemap.backends import output
-    from drivemap.build import outputs_cached
+    from drivemap.build import build_checks, outputs_cached
 
     project = project_of(args, args.paths)
-    models = project_models(project)
+    models = project_models(project, build_checks())
     stale = [(root / rel, why) for root, (files, _) in outputs_cached(project, models).items()
              for rel, why in output.check(root, files)]
     if stale:

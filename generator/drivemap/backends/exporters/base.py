@@ -19,10 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
+from drivemap.diagnostics import Problem
 from drivemap.model.nodes import Model
-
-#: One exporter-side problem: (path in the map document, message, options of a located error).
-Problem = tuple[tuple[str | int, ...], str, dict[str, Any]]
 
 __all__ = ["Exporter", "OptionError", "Options", "Problem"]
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from drivemap import compiler
+from drivemap.build import build_checks
 from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.frontend import checks, schema
 from drivemap.frontend.load import load_text
@@ -83,7 +83,7 @@ def _exporter_problems(doc: Any) -> list[Diagnostic]:
     """The checks of the exporters ``drivemap build`` runs (generated names, docs anchors), so that a
     draft builds as written, not only validates."""
     return [Diagnostic(doc.positions.at(where), message)
-            for exporter in compiler.default_exporters() for where, message, _options in exporter.validate(doc.data)]
+            for exporter in build_checks() for where, message, _options in exporter.validate(doc.data)]
 
 
 def compile_text(text: str, path: str) -> list[Diagnostic]:
