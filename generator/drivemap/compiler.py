@@ -99,19 +99,15 @@ def compile_cached(path: str | os.PathLike[str], checks: Sequence[MapCheck] = ()
     return model
 
 
-#: id(model) -> (model, its content key) of the models compile_cached gave in this process.
-_KEYS: dict[int, tuple[Model, str]] = {}
-
-
 def _remember(model: Model, entry: str, deps: tuple[tuple[str, str], ...]) -> None:
-    _KEYS[id(model)] = (model, cache.key(entry, *(d for _, d in deps)))
+    """Give the model the key of everything it was compiled from (``Model.cache_key``, set once here)."""
+    object.__setattr__(model, "cache_key", cache.key(entry, *(d for _, d in deps)))
 
 
 def content_key(model: Model) -> str | None:
     """A key of everything ``model`` was compiled from (the map's bytes and path, the maps it
     extends, the checks, drivemap's code), when :func:`compile_cached` gave it; else None."""
-    hit = _KEYS.get(id(model))
-    return hit[1] if hit is not None and hit[0] is model else None
+    return model.cache_key
 
 
 def _digest(path: str) -> str:
@@ -211,12 +207,12 @@ def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Pat
     if shipped is None:
         shipped, kind = next((p for p in catalogue_maps() if p.stem == name), None), "the catalogue map"
     if found is not None and shipped is not None and _differ(found, shipped):
-        _say(notes, Diagnostic(Location(display(found), 1, 1),
+        _say(project, notes, Diagnostic(Location(display(found), 1, 1),
                                f"the project's map of {name!r} overrides {kind} of the same id ({shipped}); "
                                "using the project's", severity="warning").format())
     if found is None and shipped is not None:
         where = ", ".join(display(m) for m in project.maps)
-        _say(notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using {kind}: {shipped}")
+        _say(project, notes, f"drivemap: note: {name!r} is not a map of the project ({where}); using {kind}: {shipped}")
         found = shipped
     if found is None:
         known = sorted({p.stem for p in project.map_files()})
@@ -227,14 +223,11 @@ def resolve_map(name: str, project: Project, notes: TextIO | None = None) -> Pat
     return found
 
 
-_SAID: set[str] = set()
-
-
-def _say(notes: TextIO | None, text: str) -> None:
-    """Print a note about which map is used, once per process (a verb may resolve a model twice)."""
-    if notes is None and text in _SAID:
+def _say(project: Project, notes: TextIO | None, text: str) -> None:
+    """Print a note about which map is used, once per project (a verb may resolve a model twice)."""
+    if notes is None and text in project.said:
         return
-    _SAID.add(text)
+    project.said.add(text)
     print(text, file=notes if notes is not None else sys.stderr)
 
 

@@ -81,6 +81,8 @@ class Project:
     behaviours: tuple[str, ...] = ()
     exports: tuple[ExportEntry, ...] = ()
     exclude: tuple[Path, ...] = ()
+    #: the notes already printed about which map a model id finds (each is said once per project)
+    said: set[str] = field(default_factory=set, compare=False, repr=False)
 
     def map_files(self) -> list[Path]:
         """Every map of the project: the files named, and ``*.yaml`` in the folders named and their

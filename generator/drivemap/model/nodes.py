@@ -330,6 +330,8 @@ class Model(DeviceSpec):
     identity: tuple[IdentityCheck, ...] = ()
     #: set when the map extends another (model.family)
     variant: Variant | None = None
+    #: the compile cache's key of everything this model was compiled from (None: not from compile_cached)
+    cache_key: str | None = field(default=None, compare=False, repr=False)
     #: where the map states it (file, line, column, YAML path)
     src: SourceRef | None = field(default=None, compare=False, repr=False)
 
