@@ -124,7 +124,7 @@ def test_removing_a_register_an_example_reads_is_an_error(family: Path) -> None:
 
 
 def test_protocol_items_merge_by_code_and_registers_keep_their_file(family: Path) -> None:
-    from drivemap.live.target import load_target
+    from drivemap.device.target import load_target
 
     (family / "maps" / "acme_lite.yaml").write_text(
         "drivemap: 2\nextends: acme\ndevice: {model: acme_lite, title: Lite}\n"

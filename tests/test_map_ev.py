@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivemap.compiler import export_model
+from drivemap.build import export_model
 
 
 @pytest.fixture(scope="module")

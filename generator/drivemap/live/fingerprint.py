@@ -15,7 +15,7 @@ from typing import Any
 from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.register_message import ReadHoldingRegistersResponse, ReadInputRegistersResponse
 
-from drivemap.live.target import Target
+from drivemap.device.target import Target
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.client.exchange import Exchange

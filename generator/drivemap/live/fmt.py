@@ -14,7 +14,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from drivemap.live.target import Target
+from drivemap.device.target import Target
 from drivemap.live.values import to_text
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.display import display_text

@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from drivemap.live.connection import add_connection_arguments
-from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.connection import add_connection_arguments
+from drivemap.device.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import load_target, project_of
 from drivemap.live.fmt import Row, console, rows_of, table, to_csv, to_json
 from drivemap.live.pages import Cell, current_pages, on_shown_page, restore, selectors
 from drivemap.live.selection import add_selection_arguments, positionals, select_cells
 from drivemap.live.session import Session, describe_keys, keys_of, session_for
-from drivemap.live.target import load_target, project_of
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -25,8 +25,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from drivemap.diagnostics import CompileError
-from drivemap.live.connection import (
+from drivemap.device.connection import (
     PARITIES,
     Link,
     add_connection_arguments,
@@ -34,11 +33,12 @@ from drivemap.live.connection import (
     open_bus,
     resolve_link,
 )
-from drivemap.live.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import Target, load_target, project_of
+from drivemap.diagnostics import CompileError
 from drivemap.live.fingerprint import Fit, SharedReads, fingerprint, identify
 from drivemap.live.fmt import console
 from drivemap.live.session import read_words
-from drivemap.live.target import Target, load_target, project_of
 from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.client.planner import read_function
 from drivemap.runtime.client.sync_client import Core

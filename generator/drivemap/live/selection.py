@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from drivemap.live.errors import EXIT_INPUT, LiveError
-from drivemap.live.target import Target
-from drivemap.live.values import locate_error, lookup
+from drivemap.device.errors import EXIT_INPUT, LiveError
+from drivemap.device.target import Target, locate_error
+from drivemap.live.values import lookup
 from drivemap.model.nodes import Register
 
 Cell = tuple[Register, int]

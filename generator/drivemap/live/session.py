@@ -12,9 +12,9 @@ import sys
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from drivemap.live.connection import Link, open_bus, resolve_link, run
-from drivemap.live.errors import EXIT_IDENTITY, EXIT_INPUT, LiveError
-from drivemap.live.target import Target
+from drivemap.device.connection import Link, open_bus, resolve_link, run
+from drivemap.device.errors import EXIT_IDENTITY, EXIT_INPUT, LiveError
+from drivemap.device.target import Target
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus, Exchange
 from drivemap.runtime.client.identity import Mismatch, identity_keys, identity_mismatches

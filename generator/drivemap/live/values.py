@@ -22,13 +22,12 @@ import contextlib
 import dataclasses
 import enum
 import re
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from drivemap.device.target import Target, locate_error
 from drivemap.diagnostics import CompileError
-from drivemap.live.target import Target, command_line_error, register_note
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.codec import (
     BoolCodec,
@@ -59,17 +58,6 @@ class Assignment:
     items: tuple[tuple[str, int, int | Deferred, Any], ...]
     #: what ``--round`` changed: "NAME: asked X, sending Y"
     rounded: tuple[str, ...] = ()
-
-
-def locate_error(token: str, message: str, target: Target | None = None, reg: Register | None = None,
-                 argv: Sequence[str] | None = None) -> CompileError:
-    """A located error about the command-line argument ``token``."""
-    args = list(argv) if argv is not None else sys.argv[1:]
-    index = args.index(token) if token in args else len(args)
-    if token not in args:
-        args.append(token)
-    related = register_note(target, reg) if target is not None and reg is not None else ()
-    return command_line_error(args, index, message, related)
 
 
 def parse_assignments(target: Target, texts: Sequence[str], round_values: bool = False) -> list[Assignment]:

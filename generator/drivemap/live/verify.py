@@ -17,12 +17,12 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from drivemap.live.connection import add_connection_arguments, explain
-from drivemap.live.errors import EXIT_DISAGREE, EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.connection import add_connection_arguments, explain
+from drivemap.device.errors import EXIT_DISAGREE, EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import load_target, project_of
 from drivemap.live.fmt import console
 from drivemap.live.pages import Cell, current_pages, on_shown_page, restore, selectors
 from drivemap.live.session import Session, session_for
-from drivemap.live.target import load_target, project_of
 from drivemap.live.verify_checks import Finding, Results, check_alone, check_batches, check_reserved
 from drivemap.live.verify_report import Header, report_paths, write_report
 from drivemap.live.verify_write import candidates, check_writes

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from drivemap.live.errors import EXIT_INPUT, LiveError
+from drivemap.device.errors import EXIT_INPUT, LiveError
 from drivemap.live.verify_checks import Finding, Results
 
 MARKER_MD = "<!-- written by drivemap verify -->"

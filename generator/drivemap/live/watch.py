@@ -23,13 +23,13 @@ from rich.console import Group
 from rich.live import Live
 from rich.text import Text
 
-from drivemap.live.connection import add_connection_arguments, explain, seconds
-from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.connection import add_connection_arguments, explain, seconds
+from drivemap.device.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import load_target, project_of
 from drivemap.live.fmt import Row, console, rows_of, table
 from drivemap.live.pages import Cell, current_pages, on_shown_page, selectors
 from drivemap.live.selection import add_selection_arguments, positionals, select_cells
 from drivemap.live.session import Session, describe_keys, keys_of, session_for
-from drivemap.live.target import load_target, project_of
 from drivemap.runtime.errors import DeviceException, TransportError
 
 

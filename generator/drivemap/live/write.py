@@ -16,14 +16,14 @@ from pymodbus.framer import FramerAscii, FramerRTU, FramerSocket
 from pymodbus.pdu import DecodePDU, ModbusPDU
 from rich.table import Table
 
+from drivemap.device.connection import Link, add_connection_arguments, resolve_link
+from drivemap.device.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import Target, load_target, locate_error, project_of
 from drivemap.diagnostics import CompileError, Diagnostic
-from drivemap.live.connection import Link, add_connection_arguments, resolve_link
-from drivemap.live.errors import EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
 from drivemap.live.fmt import console, rows_of
 from drivemap.live.selection import positionals
 from drivemap.live.session import Session, check_unit, session_for
-from drivemap.live.target import Target, load_target, project_of
-from drivemap.live.values import Assignment, locate_error, lookup, parse_assignments, to_text
+from drivemap.live.values import Assignment, lookup, parse_assignments, to_text
 from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Exchange
 from drivemap.runtime.client.sansio import Core, Deferred, Op

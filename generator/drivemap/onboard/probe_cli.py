@@ -26,11 +26,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from drivemap.device.connection import Link, add_connection_arguments, explain, open_bus, resolve_link
+from drivemap.device.errors import EXIT_INPUT, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.target import locate_error
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display, load_project
-from drivemap.live.connection import Link, add_connection_arguments, explain, open_bus, resolve_link
-from drivemap.live.errors import EXIT_INPUT, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
-from drivemap.live.values import locate_error
 from drivemap.onboard.importers.mapdoc import MapDoc, model_id, target_path, write_map
 from drivemap.onboard.probe import STANDARD_MAX, Block, ProbeGarbled, Prober, ProbeSilence, blocks_of, line_seconds
 from drivemap.onboard.probe_bisect import Bisector, Outcome
@@ -40,7 +40,7 @@ from drivemap.onboard.probe_sunspec import Chain, walk
 from drivemap.runtime.spec import READ_CODES, DeviceSpec
 
 if TYPE_CHECKING:
-    from drivemap.live.target import Target
+    from drivemap.device.target import Target
 
 __all__ = ["add_parser"]
 
@@ -105,7 +105,7 @@ def cmd_probe(args: argparse.Namespace) -> int:
     plan = _plan(args)
     target = None
     if args.like:
-        from drivemap.live.target import load_target
+        from drivemap.device.target import load_target
 
         target = load_target(args.like)
         plan.limits = map_limits(plan.limits, target.spec)

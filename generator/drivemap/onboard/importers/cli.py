@@ -50,7 +50,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from drivemap.onboard.importers.sunspec import SunSpecError
 
     if args.format not in FORMATS:
-        from drivemap.live.values import locate_error
+        from drivemap.device.target import locate_error
 
         raise locate_error(args.format, f"unknown format {args.format!r} (one of {', '.join(FORMATS)})")
     paths = [Path(f) for f in args.files]
@@ -64,7 +64,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     try:
         suggested = _run(args, doc, paths)
     except SunSpecError as exc:
-        from drivemap.live.values import locate_error
+        from drivemap.device.target import locate_error
 
         raise locate_error(args.files[0], str(exc)) from None
     except (ValueError, TypeError, KeyError, AttributeError, IndexError, OverflowError, RecursionError) as exc:

@@ -263,7 +263,7 @@ def validate_text(text: str, shown: str) -> None:
 def model_id(given: str | None, output: str | None, default: str) -> str:
     """The map's model id: ``--model``, else the ``-o`` file's name, else ``default`` (a located error if
     it is not a lower-case identifier or does not match the file name)."""
-    from drivemap.live.values import locate_error
+    from drivemap.device.target import locate_error
 
     model = given or (Path(output).stem if output else default)
     if snake(model) != model:

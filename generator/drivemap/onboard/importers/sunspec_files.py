@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+from drivemap.device.target import locate_error
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
-from drivemap.live.values import locate_error
 from drivemap.onboard.importers.mapdoc import MapDoc
 from drivemap.onboard.importers.sunspec import SunSpecError, add_models, load_model_def
 

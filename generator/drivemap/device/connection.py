@@ -19,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
-from drivemap.live.errors import (
+from drivemap.device.errors import (
     EXIT_CONNECT,
     EXIT_DEVICE_EXCEPTION,
     EXIT_GARBLED,
@@ -27,7 +27,7 @@ from drivemap.live.errors import (
     EXIT_NO_ANSWER,
     LiveError,
 )
-from drivemap.live.target import Target
+from drivemap.device.target import Target
 from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 

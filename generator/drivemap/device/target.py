@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import shlex
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -117,3 +118,14 @@ def register_note(target: Target, reg: Register) -> tuple[tuple[Location, str], 
     extra = f" ({', '.join(bounds)}{' ' + reg.unit if reg.unit and bounds else ''})" if bounds else ""
     loc = target.register_location(reg)
     return ((Location(loc.path, loc.line, 5), f"{reg.name} is defined here{extra}"),)
+
+
+def locate_error(token: str, message: str, target: Target | None = None, reg: Register | None = None,
+                 argv: Sequence[str] | None = None) -> CompileError:
+    """A located error about the command-line argument ``token``."""
+    args = list(argv) if argv is not None else sys.argv[1:]
+    index = args.index(token) if token in args else len(args)
+    if token not in args:
+        args.append(token)
+    related = register_note(target, reg) if target is not None and reg is not None else ()
+    return command_line_error(args, index, message, related)
