@@ -159,12 +159,12 @@ def test_wire_calls_are_counted_not_timed(monkeypatch: pytest.MonkeyPatch) -> No
     assert wirecalls.compare(first, second)[2:6] == wirecalls.compare(first, first)[2:6]
     assert all(first[row]["calls"] > 100 and first[row]["calls"] == second[row]["calls"] for row in wirecalls.ROWS)
     assert wirecalls.compare(first, second)[-1].endswith("the same in both trees.")
-    plain = busbase._BusBase._wait_s
+    plain = busbase.BusBase._wait_s
 
-    def one_more_call(self: busbase._BusBase) -> float:
+    def one_more_call(self: busbase.BusBase) -> float:
         return plain(self)
 
-    monkeypatch.setattr(busbase._BusBase, "_wait_s", one_more_call)
+    monkeypatch.setattr(busbase.BusBase, "_wait_s", one_more_call)
     monkeypatch.setattr(staleguard, "_MIN_SETTLE_S", 0.002)
     slower = wirecalls.measure(6)
     assert [slower[row]["calls"] - first[row]["calls"] for row in wirecalls.ROWS] == [1.0] * 4

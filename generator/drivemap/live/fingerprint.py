@@ -20,7 +20,7 @@ from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.client.exchange import Exchange
 from drivemap.runtime.client.identity import identity_keys, identity_mismatches
-from drivemap.runtime.client.sync_client import _run
+from drivemap.runtime.client.sansio import run
 from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout, TransportError
 
 #: Requests a fingerprint sends at most per map (the planner's first batches).
@@ -194,7 +194,7 @@ def identify(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | Non
     for req in client.plan(keys):
         fit.requests += 1
         try:
-            raws = _run(reads or bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))  # type: ignore[arg-type]
+            raws = run(reads or bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"identity: exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
             continue
@@ -221,7 +221,7 @@ def fingerprint(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | 
         fit.requests += 1
         keys = [key for key, _ in req.cells]
         try:
-            raws = _run(reads or bus, client._core.read_raw(keys, (req,), checked=True))  # type: ignore[arg-type]
+            raws = run(reads or bus, client._core.read_raw(keys, (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
             if reads is not None:

@@ -19,8 +19,8 @@ from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus, Exchange
 from drivemap.runtime.client.identity import Mismatch, identity_keys, identity_mismatches
 from drivemap.runtime.client.planner import Key, ReadRequest, read_function
-from drivemap.runtime.client.sansio import READ_REQUESTS
-from drivemap.runtime.client.sync_client import Core, _run
+from drivemap.runtime.client.sansio import READ_REQUESTS, Core
+from drivemap.runtime.client.sansio import run as run_program
 from drivemap.runtime.errors import DriveError
 from drivemap.runtime.spec import READ_CODES
 
@@ -85,7 +85,7 @@ class Session:
         """Raw values of one planned request, exactly as planned."""
         keys = [key for key, _ in request.cells]
         assert self.bus is not None
-        return _run(self.bus, self.core.read_raw(keys, (request,), checked=True))
+        return run_program(self.bus, self.core.read_raw(keys, (request,), checked=True))
 
     def read_words(self, address: int, count: int, table: str = "holding") -> list[int]:
         """``count`` words (bits) at ``address`` of ``table`` with its read function (no register

@@ -24,7 +24,7 @@ _ROW = re.compile(rf"^\s*(?:(?P<dec>\d{{3,5}})\s+)?(?P<addr>{_HEX_ADDR})(?![0-9A
 _LEAD_ROW = re.compile(rf"^\s*(?P<lead>[A-Za-z][A-Za-z/]{{0,11}})\s+(?P<addr>{_HEX_ADDR})(?![0-9A-Za-z])(?!\s*[:：=])(?P<rest>.*)$")
 _MODICON_ROW = re.compile(r"^\s*(?P<addr>[34]\d{4})(?![0-9A-Za-z.])(?!\s*[:：=~-])\s+(?P<rest>[^\W\d_].*)$")
 _PAREN_ROW = re.compile(rf"^\s*\((?P<addr>{_HEX_ADDR})\)\s*$")
-_HEADING = re.compile(r"^\s*(?:(?:\d+\.)+\d*|[A-Z]\.\d+|Appendix\b|#+)\s+[A-Za-z\u4e00-\u9fff(（]")
+HEADING = re.compile(r"^\s*(?:(?:\d+\.)+\d*|[A-Z]\.\d+|Appendix\b|#+)\s+[A-Za-z\u4e00-\u9fff(（]")
 _PARAM_ID = re.compile(r"^\s*([A-Za-z]{0,3}[-_.]?\d{1,3}(?:[-_.]\d{1,3})?)\s*$")
 HEADER_WINDOW = 12
 MAX_GAP = 60
@@ -39,7 +39,7 @@ def _header_at(lines: list[tuple[int, int, str]], i: int, used: set[int]) -> int
             break
         if not text:
             continue
-        if j == i and _HEADING.match(text):
+        if j == i and HEADING.match(text):
             return None  # a section heading is the table's heading, not its header
         texts += 1
         if texts > 10:
@@ -75,7 +75,7 @@ def _collect(lines: list[tuple[int, int, str]], start: int, used: set[int]) -> t
             last, paragraph = paragraph, []
         previous_page = page
         m = _row_match(text)
-        if m is None and (_HEADING.match(text) or _header_at(lines, i, used) is not None):
+        if m is None and (HEADING.match(text) or _header_at(lines, i, used) is not None):
             break
         if m is not None:
             rows.append(_row(m, page, number, paragraph or last, rows))

@@ -18,7 +18,7 @@ import re
 
 from drivemap.onboard.draft.cells import parse_address, parse_range
 from drivemap.onboard.draft.fields import Raw
-from drivemap.onboard.draft.loose import _HEADING
+from drivemap.onboard.draft.loose import HEADING
 from drivemap.onboard.draft.tables import Row, Skipped, Table
 from drivemap.onboard.draft.units import parse_scale, unit_after_range
 
@@ -63,7 +63,7 @@ def matrix_tables(lines: list[tuple[int, int, str]], used: set[int]) -> list[Tab
         names = _names(lines, i, width)
         if len(rows) >= 2 and names is not None:
             context = "\n".join(t for _, _, t in lines[max(0, i - 8):i] if t.strip())
-            start = next((k for k in range(i - 1, max(-1, i - _SECTION_BACK), -1) if _HEADING.match(lines[k][2])),
+            start = next((k for k in range(i - 1, max(-1, i - _SECTION_BACK), -1) if HEADING.match(lines[k][2])),
                          max(0, i - 40))
             above = "\n".join(t for _, _, t in lines[start:i] if t.strip())
             tables.append(Table(["No.", *names], rows, lines[i][0], lines[i][1], context, above=above,

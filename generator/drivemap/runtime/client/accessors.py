@@ -61,11 +61,11 @@ class SnapshotBase:
         return f"{type(self).__name__}({shown})"
 
     @overload
-    def __getitem__(self, accessor: _Element[T]) -> T: ...
+    def __getitem__(self, accessor: ElementBase[T]) -> T: ...
     @overload
-    def __getitem__(self, accessor: _Array[T, Any]) -> tuple[T, ...]: ...
-    def __getitem__(self, accessor: _Element[T] | _Array[T, Any]) -> T | tuple[T, ...]:
-        if isinstance(accessor, _Array):
+    def __getitem__(self, accessor: ArrayBase[T, Any]) -> tuple[T, ...]: ...
+    def __getitem__(self, accessor: ElementBase[T] | ArrayBase[T, Any]) -> T | tuple[T, ...]:
+        if isinstance(accessor, ArrayBase):
             return tuple(self._values[k] for k in accessor.keys)
         return self._values[accessor.key]  # type: ignore[no-any-return]
 
@@ -82,7 +82,7 @@ def _field_names(cls: type) -> frozenset[str]:
     return names
 
 
-class _Element(Generic[T]):
+class ElementBase(Generic[T]):
     """One register (or one array element) of one client."""
 
     #: The client's read program of this element (:mod:`.programs`), made on the first read.
@@ -125,7 +125,7 @@ class _Element(Generic[T]):
         return f"<{type(self).__name__} {self.name} @0x{self.address:04X}>"
 
 
-class ReadOnly(_Element[T]):
+class ReadOnly(ElementBase[T]):
     """A readable register: ``read()`` gives the engineering value, ``read_raw()`` the raw one."""
 
     def read(self) -> T:
@@ -138,7 +138,7 @@ class ReadOnly(_Element[T]):
         return self._owner._read_raw_keys(self._keys)[self._key]  # type: ignore[no-any-return]
 
 
-class WriteOnly(_Element[T]):
+class WriteOnly(ElementBase[T]):
     """A writable register; ``write`` checks type, range and access before sending."""
 
     def write(self, value: T) -> None:
@@ -178,13 +178,13 @@ def _command_value(spec: RegisterSpec) -> int:
     return spec.command_value
 
 
-E_co = TypeVar("E_co", bound=_Element[Any])
+E_co = TypeVar("E_co", bound=ElementBase[Any])
 
 
-class _Array(Generic[T, E_co]):
+class ArrayBase(Generic[T, E_co]):
     """An array register: indexable; ``read()``/``write()`` handle all elements at once."""
 
-    element_type: ClassVar[type[_Element[Any]]] = _Element
+    element_type: ClassVar[type[ElementBase[Any]]] = ElementBase
     #: The client's read program of the whole array (:mod:`.programs`), made on the first read.
     _program: Callable[[Any], Any] | None = None
 
@@ -242,7 +242,7 @@ class _Array(Generic[T, E_co]):
         return f"<{type(self).__name__} {self.name}[{len(self)}] @0x{self.spec.address:04X}>"
 
 
-class _ReadArrayMixin(_Array[T, E_co]):
+class _ReadArrayMixin(ArrayBase[T, E_co]):
     def read(self) -> tuple[T, ...]:
         program = self._program
         if program is None:
@@ -257,7 +257,7 @@ def _refuse_open(owner: Any, name: str, keys: Sequence[Key]) -> None:
         core.check_write(keys[0])
 
 
-class _WriteArrayMixin(_Array[T, E_co]):
+class _WriteArrayMixin(ArrayBase[T, E_co]):
     def write(self, values: Sequence[T]) -> None:
         """Write every element (one 10h request where the map allows it)."""
         if len(values) != len(self):
@@ -278,7 +278,7 @@ class ReadWriteArray(_ReadArrayMixin[T, ReadWrite[T]], _WriteArrayMixin[T, ReadW
     element_type = ReadWrite
 
 
-class AsyncReadOnly(_Element[T]):
+class AsyncReadOnly(ElementBase[T]):
     """Async form of :class:`ReadOnly`."""
 
     async def read(self) -> T:
@@ -291,7 +291,7 @@ class AsyncReadOnly(_Element[T]):
         return (await self._owner._read_raw_keys(self.keys))[self.key]  # type: ignore[no-any-return]
 
 
-class AsyncWriteOnly(_Element[T]):
+class AsyncWriteOnly(ElementBase[T]):
     """Async form of :class:`WriteOnly`."""
 
     async def write(self, value: T) -> None:
@@ -323,7 +323,7 @@ class AsyncReadWriteCommand(AsyncReadWrite[T], AsyncCommand[T]):
     """Async form of :class:`ReadWriteCommand`."""
 
 
-class _AsyncReadArrayMixin(_Array[T, E_co]):
+class _AsyncReadArrayMixin(ArrayBase[T, E_co]):
     async def read(self) -> tuple[T, ...]:
         program = self._program
         if program is None:
@@ -331,7 +331,7 @@ class _AsyncReadArrayMixin(_Array[T, E_co]):
         return await program(self._owner)  # type: ignore[no-any-return]
 
 
-class _AsyncWriteArrayMixin(_Array[T, E_co]):
+class _AsyncWriteArrayMixin(ArrayBase[T, E_co]):
     async def write(self, values: Sequence[T]) -> None:
         if len(values) != len(self):
             raise InvalidValue(f"{self.name}: expected {len(self)} values, got {len(values)}")
@@ -352,7 +352,7 @@ class AsyncReadWriteArray(_AsyncReadArrayMixin[T, AsyncReadWrite[T]], _AsyncWrit
     element_type = AsyncReadWrite
 
 
-Readable = _Element[Any] | _Array[Any, Any]
+Readable = ElementBase[Any] | ArrayBase[Any, Any]
 
 
 __all__ = [

@@ -10,6 +10,7 @@ from pymodbus.pdu import ModbusPDU
 
 from drivemap.runtime.client import rawio
 from drivemap.runtime.client.accessors import (
+    ArrayBase,
     AsyncCommand,
     AsyncReadOnly,
     AsyncReadOnlyArray,
@@ -19,10 +20,9 @@ from drivemap.runtime.client.accessors import (
     AsyncWriteOnly,
     AsyncWriteOnlyArray,
     Readable,
-    _Array,
     encode_for_write,
 )
-from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal
+from drivemap.runtime.client.base import ClientCommon, Program, S, broadcast_refusal
 from drivemap.runtime.client.bus import AsyncBus
 from drivemap.runtime.client.planner import Key, ReadRequest
 from drivemap.runtime.client.review import refuse_open
@@ -32,7 +32,7 @@ from drivemap.runtime.errors import ReadOnlyRegister
 T = TypeVar("T")
 
 
-class AsyncClientBase(_Common[S, AsyncBus]):
+class AsyncClientBase(ClientCommon[S, AsyncBus]):
     """Asyncio client of one unit on an :class:`AsyncBus` (same API, awaited)."""
 
     _ASYNC = True
@@ -115,7 +115,7 @@ class AsyncClientBase(_Common[S, AsyncBus]):
 
     async def write_by_name(self, name: str, value: Any) -> None:
         acc = self.accessor(name)
-        if isinstance(acc, _Array):
+        if isinstance(acc, ArrayBase):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
             self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at

@@ -1,4 +1,4 @@
-"""What the sync and async client bases share (:class:`_Common`): accessors by name, plans,
+"""What the sync and async client bases share (:class:`ClientCommon`): accessors by name, plans,
 snapshots, read programs (:mod:`drivemap.runtime.client.programs`) and the broadcast refusal.
 
 :mod:`drivemap.runtime.client.sync_client` (sync) and :mod:`drivemap.runtime.client.async_client` (asyncio) build on it.
@@ -11,10 +11,10 @@ import enum
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, ClassVar, Generic, Self, TypeVar
 
-from drivemap.runtime.client.accessors import Readable, SnapshotBase, _Array, _Element, encode_for_write
+from drivemap.runtime.client.accessors import ArrayBase, ElementBase, Readable, SnapshotBase, encode_for_write
 from drivemap.runtime.client.bus import Stats
 from drivemap.runtime.client.codec import Codec, EnumCodec, FieldsCodec, FlagCodec, unwrap
-from drivemap.runtime.client.declare import Reg
+from drivemap.runtime.client.descriptor import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
 from drivemap.runtime.client.quirks import accept as accept_reply_quirks
@@ -43,7 +43,7 @@ _MAX_PROGRAMS = 1024
 Program = Callable[..., Any]
 
 
-class _Common(Generic[S, B]):
+class ClientCommon(Generic[S, B]):
     """State, constructors and helpers shared by the sync and async client bases (written once for
     both, the bus class aside: ``_BUS``)."""
 
@@ -56,7 +56,7 @@ class _Common(Generic[S, B]):
     _table: ClassVar[dict[Key, tuple[Callable[[int], Any] | None, str | None, int]]]
     _defaults: ClassVar[dict[str, Any] | None]
 
-    #: The accessor class of each kind of register descriptor (:class:`~.declare.Reg`).
+    #: The accessor class of each kind of register descriptor (:class:`~.descriptor.Reg`).
     _ACCESSOR_CLASSES: ClassVar[Mapping[str, type[Any]]] = {}
     _register_names: ClassVar[frozenset[str]]
     _register_order: ClassVar[tuple[str, ...]]
@@ -202,7 +202,7 @@ class _Common(Generic[S, B]):
         acc = getattr(self, base)
         if rest:
             digits = rest[:-1]
-            if not isinstance(acc, _Array) or not rest.endswith("]") or not (digits.isascii() and digits.isdigit()):
+            if not isinstance(acc, ArrayBase) or not rest.endswith("]") or not (digits.isascii() and digits.isdigit()):
                 raise UnknownRegister(f"{name!r} is not an element of an array register")
             index = int(rest[:-1])
             if not 0 <= index < len(acc):
@@ -365,7 +365,7 @@ class _Common(Generic[S, B]):
         general, fallback = self._general(keys, plan, "read", _value_of(acc))
         if acc.codec is not self.CODECS.get(acc.spec.name):
             return general
-        kind, result = ("value", (acc.key,)) if isinstance(acc, _Element) else ("tuple", acc.keys)
+        kind, result = ("value", (acc.key,)) if isinstance(acc, ElementBase) else ("tuple", acc.keys)
         return self._bind(self._compiled(kind, keys, plan, result), general, fallback)
 
     def _element_writer(self, acc: Any) -> Callable[[Any, Any], Any]:
@@ -433,7 +433,7 @@ def _snapshot_of(client: Any, raw: dict[Key, int]) -> Any:
 
 def _value_of(acc: Any) -> Callable[[Any, dict[Key, int]], Any]:
     """What ``acc.read()`` returns from the raw values read (an element's value, an array's tuple)."""
-    if isinstance(acc, _Array):
+    if isinstance(acc, ArrayBase):
         return lambda client, raw: acc._decode_all(raw)
     codec, key, scale = acc.codec, acc.key, acc.codec.scale_key
     if scale is None:

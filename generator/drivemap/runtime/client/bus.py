@@ -65,9 +65,9 @@ from drivemap.runtime.client.busbase import (
     DEFAULT_BROADCAST_GAP_MS,
     DEFAULT_RESPONSE_TIMEOUT_S,
     DEFAULT_RETRIES,
-    _BusBase,
-    _monotonic,
-    _serial_kwargs,
+    BusBase,
+    clock,
+    serial_kwargs,
     sleep_until,
 )
 from drivemap.runtime.client.exchange import Exchange, Stats, reply_mismatch
@@ -80,7 +80,7 @@ from drivemap.runtime.spec import SerialSpec
 SPIN_S = 0.0002
 
 
-class Bus(_BusBase):
+class Bus(BusBase):
     """A synchronous line (serial port or TCP connection) shared by the clients on it."""
 
     def __init__(self, client: Any, *, serial: bool = False, baudrate: int | None = None, bits_per_char: int = 11,
@@ -123,7 +123,7 @@ class Bus(_BusBase):
         """A serial line; ``serial`` gives the map's defaults, ``overrides`` (mode, baudrate, parity,
         stopbits, bytesize) win over them. ``stale_guard``: drop replies that began before the request
         could be answered (None: when the port shows it carries real characters; see :mod:`.staleguard`)."""
-        kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
+        kwargs, mode, bits = serial_kwargs(serial or SerialSpec(), dict(overrides))
         bus = cls._make(ModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
                         timeout, retries, f"{mode}:{port}")
         # the receiver drops stale bytes through the guard as they arrive and listens the guard's
@@ -145,9 +145,9 @@ class Bus(_BusBase):
             if due and (left := self._wait_s()) > 0:
                 if left > SPIN_S:
                     time.sleep(left - SPIN_S)  # wakes up late by tens of microseconds or more ...
-                while _monotonic() < due:  # ... so the last of the quiet time is waited for by the clock
+                while clock() < due:  # ... so the last of the quiet time is waited for by the clock
                     pass
-            self._sent_at = _monotonic()
+            self._sent_at = clock()
             size: int = inner(request, addr=addr)
             return size
 
@@ -213,7 +213,7 @@ class Bus(_BusBase):
                 pdu.dev_id = ex.unit
                 if self._receiver is not None:
                     self._receiver.expect(pdu)
-                started = _monotonic()
+                started = clock()
                 try:
                     reply = client.execute(not ex.expect_reply, pdu)
                 except ConnectionException as exc:
@@ -249,7 +249,7 @@ class Bus(_BusBase):
         raise DriveTimeout(f"{self.name}: no valid reply from unit {ex.unit} after {attempts} attempt(s)")
 
 
-class AsyncBus(_BusBase):
+class AsyncBus(BusBase):
     """The asyncio twin of :class:`Bus`: one transaction at a time under an ``asyncio.Lock``."""
 
     def __init__(self, client: Any, *, serial: bool = False, baudrate: int | None = None, bits_per_char: int = 11,
@@ -277,7 +277,7 @@ class AsyncBus(_BusBase):
     def serial(cls, port: str, serial: SerialSpec | None = None, *, timeout: float | None = None,
                retries: int | None = None, stale_guard: bool | None = None, **overrides: Any) -> AsyncBus:
         """A serial line; see :meth:`Bus.serial`."""
-        kwargs, mode, bits = _serial_kwargs(serial or SerialSpec(), dict(overrides))
+        kwargs, mode, bits = serial_kwargs(serial or SerialSpec(), dict(overrides))
         bus = cls._make(AsyncModbusSerialClient, dict(port=port, **kwargs), True, kwargs["baudrate"], bits,
                         timeout, retries, f"{mode}:{port}")
         staleguard.guard_async_client(bus.client, bus._stale_guard(stale_guard))
@@ -338,7 +338,7 @@ class AsyncBus(_BusBase):
                 self._rx = b""
                 self._rx_at = 0.0
                 pdu.dev_id = ex.unit
-                started = _monotonic()
+                started = clock()
                 try:
                     reply = await client.execute(not ex.expect_reply, pdu)
                 except ConnectionException as exc:

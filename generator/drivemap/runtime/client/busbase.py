@@ -1,4 +1,4 @@
-"""What the sync and async buses share (:class:`_BusBase`): counters, frame logging, the timing
+"""What the sync and async buses share (:class:`BusBase`): counters, frame logging, the timing
 arithmetic per transaction shape, quiet times; the serial settings and the precise asyncio sleep.
 
 The rules it implements are described in :mod:`drivemap.runtime.client.bus`.
@@ -22,7 +22,7 @@ from drivemap.runtime.spec import SerialSpec, TimingSpec
 
 log = logging.getLogger("drivemap")
 _DEBUG = logging.DEBUG
-_monotonic = time.monotonic
+clock = time.monotonic
 
 #: Response timeout when the map gives none (seconds). Generous for slow drives at 9600 Bd.
 DEFAULT_RESPONSE_TIMEOUT_S = 1.0
@@ -52,7 +52,7 @@ class _Setting:
         obj._last_shape = (None, None)
 
 
-class _BusBase:
+class BusBase:
     """What the sync and async buses share: counters, frame logging, timing arithmetic."""
 
     serial_line: bool = _Setting()  # type: ignore[assignment]
@@ -93,7 +93,7 @@ class _BusBase:
                 log.debug("%s TX %s", self.name, data.hex(" "))
         else:
             self._rx = data
-            self._rx_at = _monotonic()
+            self._rx_at = clock()
         return data
 
     def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
@@ -227,7 +227,7 @@ async def sleep_until(due: float) -> None:
         await asyncio.sleep(0)
 
 
-def _serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[str, Any], str, int]:
+def serial_kwargs(serial: SerialSpec, overrides: dict[str, Any]) -> tuple[dict[str, Any], str, int]:
     mode = overrides.pop("mode", serial.mode)
     baudrate = overrides.pop("baudrate", serial.baudrate)
     if baudrate is None:

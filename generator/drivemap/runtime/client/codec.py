@@ -33,14 +33,14 @@ from drivemap.runtime.client.display import allowed_text, check_values, display_
 from drivemap.runtime.client.enums import DriveEnum
 from drivemap.runtime.client.steps import (
     STEP_TOLERANCE,
-    _fits,
-    _offset_text,
-    _short,
-    _unit,
     exact_f32,
     exact_raw,
+    fits_raw,
     number_text,
+    offset_text,
+    short_value,
     shortest_f32_text,
+    unit_suffix,
 )
 from drivemap.runtime.client.words import (
     TYPE_BOUNDS,
@@ -111,11 +111,11 @@ class Codec(Generic[T]):
         try:
             tol = _EPS * max(1.0, abs(value)) if math.isfinite(value) else 0.0
         except OverflowError:  # an int too large for a float (10**400): outside every range
-            raise ValueOutOfRange(f"{spec.name}: {_short(value)} is not representable") from None
+            raise ValueOutOfRange(f"{spec.name}: {short_value(value)} is not representable") from None
         if spec.min is not None and value < spec.min - tol:
-            raise ValueOutOfRange(f"{spec.name}: {value} is below the minimum {spec.min}{_unit(spec)}")
+            raise ValueOutOfRange(f"{spec.name}: {value} is below the minimum {spec.min}{unit_suffix(spec)}")
         if spec.max is not None and value > spec.max + tol:
-            raise ValueOutOfRange(f"{spec.name}: {value} is above the maximum {spec.max}{_unit(spec)}")
+            raise ValueOutOfRange(f"{spec.name}: {value} is above the maximum {spec.max}{unit_suffix(spec)}")
         check_values(spec, value)
 
 
@@ -150,8 +150,8 @@ class IntCodec(Codec[int]):
         scale, offset = int(self.spec.scale), int(self.spec.offset)
         raw, rest = divmod(value - offset, scale)
         if rest:  # between two steps: refused with the nearest values (exact integer arithmetic)
-            exact_raw(self.spec, value, scale, offset, 0, _offset_text(offset))
-        return _fits(self.spec, raw, value)
+            exact_raw(self.spec, value, scale, offset, 0, offset_text(offset))
+        return fits_raw(self.spec, raw, value)
 
 
 class FloatCodec(Codec[float]):
@@ -174,11 +174,11 @@ class FloatCodec(Codec[float]):
         except OverflowError:  # an int too large for a float
             finite = False
         if not finite:
-            raise ValueOutOfRange(f"{self.spec.name}: {_short(value)} is not finite")
+            raise ValueOutOfRange(f"{self.spec.name}: {short_value(value)} is not finite")
         self._check_range(float(value))
         raw = exact_raw(self.spec, float(value), self.spec.scale, self.spec.offset, self._digits,
-                        _offset_text(self.spec.offset))
-        return _fits(self.spec, raw, value)
+                        offset_text(self.spec.offset))
+        return fits_raw(self.spec, raw, value)
 
 
 def _number(spec: RegisterSpec, value: object) -> float:
@@ -220,7 +220,7 @@ class IeeeCodec(Codec[float]):
         try:
             words = ModbusClientMixin.convert_to_registers(number, self._datatype)
         except (OverflowError, struct.error) as exc:
-            raise ValueOutOfRange(f"{self.spec.name}: {value}{_unit(self.spec)} is not representable as "
+            raise ValueOutOfRange(f"{self.spec.name}: {value}{unit_suffix(self.spec)} is not representable as "
                                   f"{self.spec.type}") from exc
         raw = join_words(words)
         if self.spec.type == "f32":
@@ -314,7 +314,7 @@ class ScaledCodec(Codec[float]):
         digits = max(0, -exponent) + self._digits
         why = f" (scale {number_text(self.spec.scale)} x 10^{exponent}: {self.factor_spec.name} reads {exponent})"
         raw = exact_raw(self.spec, float(value), self.spec.scale * 10.0 ** exponent, self.spec.offset, digits, why)
-        return _fits(self.spec, raw, value)
+        return fits_raw(self.spec, raw, value)
 
 
 class OptionalCodec(Codec[T | None], Generic[T]):
@@ -379,7 +379,7 @@ class EnumCodec(Codec[E]):
             raise ValueOutOfRange(f"{self.spec.name}: {value!r} is not a value of {self.enum_type.__name__}")
         raw = int(value)
         self._check_range(raw)
-        return _fits(self.spec, raw, raw)
+        return fits_raw(self.spec, raw, raw)
 
 
 class FlagCodec(Codec[F]):
@@ -406,7 +406,7 @@ class FlagCodec(Codec[F]):
             raise InvalidValue(f"{self.spec.name}: expected {self.flag_type.__name__}, got {type(value).__name__}")
         raw = int(value)
         if not 0 <= raw < 1 << (16 * self.spec.words):
-            raise ValueOutOfRange(f"{self.spec.name}: {_short(raw)} does not fit the register")
+            raise ValueOutOfRange(f"{self.spec.name}: {short_value(raw)} does not fit the register")
         if raw & ~self.defined:
             raise ValueOutOfRange(f"{self.spec.name}: bit(s) {raw & ~self.defined:#x} are not defined by the map "
                                   f"({self.flag_type.__name__} defines {self.defined:#x})")

@@ -24,7 +24,7 @@ the instance, so later reads of ``drive.motor_speed`` are plain attribute lookup
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from typing import TYPE_CHECKING, Any, Generic, Self, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Self, TypeVar, overload
 
 from drivemap.runtime.client.codec import (
     BoolCodec,
@@ -40,6 +40,7 @@ from drivemap.runtime.client.codec import (
     ScaledCodec,
     StringCodec,
 )
+from drivemap.runtime.client.descriptor import Reg
 from drivemap.runtime.names import bit_attribute
 from drivemap.runtime.spec import FLOAT_TYPES, DeviceSpec, RegisterSpec
 
@@ -86,35 +87,6 @@ __all__ = [
 
 T = TypeVar("T")
 _INTEGER_TYPES = frozenset({"u16", "s16", "u32", "s32", "u64", "s64"})
-
-
-class Reg(Generic[T]):
-    """A register of a client class: makes (once per client) and returns its accessor.
-
-    ``kind`` names the accessor: ``r``, ``w``, ``rw``, ``cmd`` (write-only command), ``rwcmd``,
-    ``r[]``, ``w[]``, ``rw[]`` (arrays); broadcast clients use ``w``, ``cmd`` and ``w[]``.
-    """
-
-    kind: str = ""
-    name: str = ""
-
-    def __init__(self, doc: str | None = None) -> None:
-        if doc is not None:
-            self.__doc__ = doc
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-        if type(self).__doc__ is self.__doc__:  # no docstring of its own: point at the client's
-            self.__doc__ = f"{name} (see Client.{name})."
-
-    def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.name}>"
-
-    def _bind(self, client: Any) -> Any:
-        accessor = client._ACCESSOR_CLASSES[self.kind](client, client.CODECS[self.name])
-        accessor.__doc__ = self.__doc__
-        client.__dict__[self.name] = accessor  # later lookups find the accessor, not this descriptor
-        return accessor
 
 
 class ReadOnlyReg(Reg[T]):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from drivemap.runtime.client.steps import shortest_f32_text
+from drivemap.runtime.client.steps import short_value, shortest_f32_text, unit_suffix
 from drivemap.runtime.errors import NotAllowedValue
 from drivemap.runtime.spec import RegisterSpec
 
@@ -20,16 +20,6 @@ __all__ = ["allowed_text", "check_values", "display_text", "is_allowed", "regist
 
 #: Relative tolerance when comparing a number with a value of the set (binary floats such as 0.1).
 _EPS = 1e-9
-
-
-def _short(value: object) -> str:
-    if isinstance(value, int) and value.bit_length() > 96:
-        return f"an integer of {value.bit_length()} bits"
-    return repr(value)
-
-
-def _unit(spec: RegisterSpec) -> str:
-    return f" {spec.unit}" if spec.unit else ""
 
 
 def _same(value: object, allowed: float | str) -> bool:
@@ -62,8 +52,8 @@ def check_values(spec: RegisterSpec, value: object) -> None:
     """Refuse a value outside the register's value set (a register without one takes any value)."""
     if is_allowed(spec, value):
         return
-    shown = repr(value) if isinstance(value, str) else _short(_plain(value) if isinstance(value, float) else value)
-    raise NotAllowedValue(f"{spec.name}: {shown}{_unit(spec)} is not one of the allowed values {allowed_text(spec)}",
+    shown = repr(value) if isinstance(value, str) else short_value(_plain(value) if isinstance(value, float) else value)
+    raise NotAllowedValue(f"{spec.name}: {shown}{unit_suffix(spec)} is not one of the allowed values {allowed_text(spec)}",
                           tuple(v for v, _ in spec.values))
 
 

@@ -33,7 +33,7 @@ from drivemap.runtime.client.sansio import READ_REQUESTS
 from drivemap.runtime.client.tables import SpecTables
 from drivemap.runtime.client.words import words_to_raw
 
-#: Snapshot table entry per key (see ``_Common._snapshot_table``): decode, field, index in an array.
+#: Snapshot table entry per key (see ``ClientCommon._snapshot_table``): decode, field, index in an array.
 Entry = tuple["Callable[[int], Any] | None", "str | None", int]
 Maker = Callable[..., Callable[..., Any]]
 
@@ -146,7 +146,7 @@ def _exchange_lines(src: _Source, ind: int, plan: Sequence[ReadRequest], tables:
 def _snapshot_lines(src: _Source, ind: int, raws: dict[Key, str], codecs: Mapping[str, Codec[Any]],
                     table: Mapping[Key, Entry], shape: Mapping[str, int], snapshot: type,
                     defaults: Mapping[str, Any]) -> None:
-    """The snapshot ``_Common._snapshot`` builds from these raw values (same values, same fields)."""
+    """The snapshot ``ClientCommon._snapshot`` builds from these raw values (same values, same fields)."""
     values: list[str] = []
     fields: dict[str, str] = {}
     arrays: dict[str, list[str]] = {}

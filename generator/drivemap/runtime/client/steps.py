@@ -32,26 +32,26 @@ def _round_half_away(x: float) -> int:
     return int(math.floor(x + 0.5)) if x >= 0 else -int(math.floor(-x + 0.5))
 
 
-def _unit(spec: RegisterSpec) -> str:
+def unit_suffix(spec: RegisterSpec) -> str:
     return f" {spec.unit}" if spec.unit else ""
 
 
-def _short(value: object) -> str:
+def short_value(value: object) -> str:
     """``value`` for a message: a huge int (``10**400``) is named by its size, never converted to text."""
     if isinstance(value, int) and value.bit_length() > 96:
         return f"an integer of {value.bit_length()} bits"
     return repr(value)
 
 
-def _offset_text(offset: float) -> str:
+def offset_text(offset: float) -> str:
     return f" from the offset {number_text(offset)}" if offset else ""
 
 
-def _fits(spec: RegisterSpec, raw: int, value: float) -> int:
+def fits_raw(spec: RegisterSpec, raw: int, value: float) -> int:
     """``raw`` when it lies in the register type's bounds, else :class:`ValueOutOfRange`."""
     lo, hi = raw_bounds(spec)
     if not lo <= raw <= hi:
-        raise ValueOutOfRange(f"{spec.name}: {_short(value)}{_unit(spec)} is not representable ({spec.type} raw {_short(raw)})")
+        raise ValueOutOfRange(f"{spec.name}: {short_value(value)}{unit_suffix(spec)} is not representable ({spec.type} raw {short_value(raw)})")
     return raw
 
 
@@ -83,7 +83,7 @@ def exact_raw(spec: RegisterSpec, value: float, step: float, offset: float, digi
     allowed = [(r, v) for r, v in options if _in_range(spec, v, r)]
     pick = [(r, v) for r, v in allowed if r == raw] or allowed
     nearest = tuple(v for _, v in allowed)
-    unit = _unit(spec)
+    unit = unit_suffix(spec)
     shown = " or ".join(f"{number_text(v)}{unit}" for v in nearest) or "none within the register's range"
     raise InexactValue(
         f"{spec.name}: {number_text(value)}{unit} is not a whole number of steps of the register's resolution "
@@ -106,8 +106,8 @@ def exact_f32(spec: RegisterSpec, value: float, number: float, raw: int, back: f
         return  # the single itself (a value read back), or the decimal it prints as
     nearest = shortest_f32(back) if spec.scale == 1 and spec.offset == 0 else back
     raise InexactValue(
-        f"{spec.name}: {number_text(value)}{_unit(spec)} is not representable as f32 (a single holds about 7 "
-        f"significant digits); nearest representable: {number_text(nearest)}{_unit(spec)} (refused, not rounded)",
+        f"{spec.name}: {number_text(value)}{unit_suffix(spec)} is not representable as f32 (a single holds about 7 "
+        f"significant digits); nearest representable: {number_text(nearest)}{unit_suffix(spec)} (refused, not rounded)",
         (nearest,), nearest, raw)
 
 

@@ -23,6 +23,7 @@ from pymodbus.pdu import ModbusPDU
 
 from drivemap.runtime.client import rawio
 from drivemap.runtime.client.accessors import (
+    ArrayBase,
     AsyncCommand,
     AsyncReadOnly,
     AsyncReadOnlyArray,
@@ -41,11 +42,10 @@ from drivemap.runtime.client.accessors import (
     SnapshotBase,
     WriteOnly,
     WriteOnlyArray,
-    _Array,
     encode_for_write,
 )
 from drivemap.runtime.client.async_client import AsyncClientBase
-from drivemap.runtime.client.base import Program, S, _Common, broadcast_refusal, broadcast_unit
+from drivemap.runtime.client.base import ClientCommon, Program, S, broadcast_refusal, broadcast_unit
 from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
 from drivemap.runtime.client.planner import Key, ReadRequest
 from drivemap.runtime.client.review import refuse_open
@@ -56,7 +56,7 @@ T = TypeVar("T")
 _run = run
 
 
-class ClientBase(_Common[S, Bus]):
+class ClientBase(ClientCommon[S, Bus]):
     """Synchronous client of one unit on a :class:`Bus`."""
 
     _ACCESSOR_CLASSES = {
@@ -150,7 +150,7 @@ class ClientBase(_Common[S, Bus]):
     def write_by_name(self, name: str, value: Any) -> None:
         """``client.write_by_name("digital_speed[0]", 1000)``; ints are accepted for enums and flags."""
         acc = self.accessor(name)
-        if isinstance(acc, _Array):
+        if isinstance(acc, ArrayBase):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
             self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
