@@ -71,10 +71,10 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
         return "string"
     if rtype[1:] not in ("16",):
         if ctx.word_order is None:
-            missing.append("type")
-            notes.append(f"{rtype} stated but the document does not state the word order: type left out")
-            return "u16"
-        entry["word_order"] = ctx.word_order
+            missing.append("word_order")
+            notes.append(f"{rtype} stated but the document does not state the word order: word_order to review")
+        else:
+            entry["word_order"] = ctx.word_order
     entry["type"] = rtype
     return rtype
 
@@ -109,6 +109,14 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     if unit is None:
         rng = parse_range(raw.cells.get("range", "") or raw.text)
         unit = unit_after_range(rng[2]) if rng else None
+    if scale is None and listed is None and unit is not None and found is not None and found.unit == unit \
+            and unit_cell and not raw.cells.get("scale_header") and not found.note:
+        scale = 1.0  # a unit column that states the unit without a resolution: the value is in that unit
+        notes.append(f"scale 1: the unit column says {unit_cell!r} without a resolution")
+    elif scale is None and listed is None and found is None and not unit_cell and raw.cells.get("unit_header") \
+            and not raw.cells.get("scale_header") and rtype in ("u16", "s16", "u32", "s32", "u64", "s64"):
+        scale = 1.0  # the unit column is empty on this row and no column scales: the raw value is the value
+        notes.append("scale 1: no unit or resolution in the unit column")
     if scale is not None and rtype not in ("string",):
         entry["scale"] = scale
     elif rtype.startswith("f"):
@@ -272,4 +280,18 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
     _access_field(raw, entry, missing)
+    _review(entry, missing)
     return Drafted(entry, raw.where, missing, notes)
+
+
+#: Fields whose schema default would change the values read: an unstated one is written as ``review:``.
+REVIEWED = ("table", "type", "word_order", "scale")
+
+
+def _review(entry: dict[str, object], missing: list[str]) -> None:
+    """``review: [...]``: the fields the row leaves open whose default would stand in for a value (a
+    register of listed values or bits has no scale to state)."""
+    listed = bool(entry.get("enum") or entry.get("bits"))
+    items = [m for m in REVIEWED if m in missing and not (listed and m in ("scale", "type"))]
+    if items:
+        entry["review"] = items

@@ -49,6 +49,7 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
     for k, found in enumerate(page.find_tables(), 1):
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
         boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]
+        _split_boxes(page, found, texts, boxes)
         frame = (found.bbox[0], found.bbox[2])
         grid = grid_of(texts, boxes, frame)
         if grid is not None:
@@ -65,6 +66,44 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
         table = Table(None, rows, number, None, above, label=f"p.{number} table {k}")
         tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
+
+
+def _columns(boxes: list[list[Box | None]]) -> list[Box] | None:
+    """The column edges of the table's widest rows whose every cell is drawn."""
+    full = [r for r in boxes if r and all(b is not None for b in r)]
+    if not full:
+        return None
+    return [b for b in full[-1] if b is not None]
+
+
+def _split_boxes(page: Any, found: Any, texts: list[list[str]], boxes: list[list[Box | None]]) -> None:
+    """A ruled header box: a row whose one drawn cell spans the table's columns and holds every column's
+    heading (``Master Reg. Type Address Name ...``). Its words are put under the columns they stand
+    over, as a person reads them, so the header is found."""
+    columns = _columns(boxes)
+    if columns is None or len(columns) < 3:
+        return
+    for i, (row, cells) in enumerate(zip(found.rows, texts, strict=False)):
+        drawn = [b for b in boxes[i] if b is not None]
+        if len(drawn) != 1 or sum(1 for c in cells if c) != 1 or len(boxes[i]) != len(columns):
+            continue
+        left, right = drawn[0]
+        if left > columns[0][0] + 2 or right < columns[-1][1] - 2:
+            continue
+        try:
+            words = page.crop(row.bbox).extract_words()
+        except ValueError:
+            continue
+        split: list[list[tuple[float, float, str]]] = [[] for _ in columns]
+        for w in words:
+            middle = (w["x0"] + w["x1"]) / 2
+            k = next((j for j, (a, b) in enumerate(columns) if a - 1 <= middle <= b + 1), None)
+            if k is not None:
+                split[k].append((round(w["top"]), w["x0"], w["text"]))
+        if sum(1 for s in split if s) < 3:
+            continue
+        texts[i] = [" ".join(t for _, _, t in sorted(s)) for s in split]
+        boxes[i] = list(columns)
 
 
 class _Joiner:

@@ -26,7 +26,8 @@ from drivemap.onboard.draft.units import parse_scale
 RESERVED = re.compile(r"(?<![A-Za-z])(?:reserved|not used|unused|spare|n/a)(?![A-Za-z])|保留|预备|預備|未使用|備用|备用",
                       re.I)
 """Whole words only: "transparent" holds no "spare"."""
-_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code")
+_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code",
+               "table")
 
 
 def table_kind(text: str) -> str | None:
@@ -41,6 +42,16 @@ def table_kind(text: str) -> str | None:
     if re.search(r"discrete\s+input|\b0?2\s*[hH]\b.*discrete|離散|离散", text, re.I):
         found.add("discrete")
     return found.pop() if len(found) == 1 else None
+
+
+def _row_table(text: str) -> str | None:
+    """A register-type cell of the row itself (``Holding``, ``Input``, ``Coil``)."""
+    low = text.strip().lower()
+    for word, kind in (("holding", "holding"), ("input reg", "input"), ("input", "input"), ("coil", "coil"),
+                       ("discrete", "discrete")):
+        if low.startswith(word):
+            return kind
+    return table_kind(text)
 
 
 def table_access(text: str) -> str | None:
@@ -207,6 +218,7 @@ class GridReader:
         cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
         cells["length_header"] = self.layout.headers.get("length", "")
         cells["scale_header"] = self.layout.headers.get("scale", "")
+        cells["unit_header"] = self.layout.headers.get("unit", "")
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
@@ -216,7 +228,7 @@ class GridReader:
         if len([c for c in row.cells if c.strip()]) <= 1:
             self.skipped.append(Skipped(self.where(row), everything, "address without a name or description"))
             return
-        kind = table or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
+        kind = table or _row_table(cells["table"]) or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
             or self.kind
         raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
         if self.column.numbered:
