@@ -31,6 +31,10 @@ class Context:
     footnote: Callable[[str], bool]
     word_order: str | None = None
     """``high_first``/``low_first`` when the document states the word order of 32-bit values."""
+    word_order_source: str = ""
+    """Where the document states it (file, line and the words), recorded on each register it decides."""
+    base_one: str = ""
+    """Where the document says it numbers registers from 1 (empty when it does not)."""
 
 
 @dataclass
@@ -75,6 +79,8 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
             notes.append(f"{rtype} stated but the document does not state the word order: word_order to review")
         else:
             entry["word_order"] = ctx.word_order
+            if ctx.word_order_source:
+                notes.append(f"word_order {ctx.word_order}: {ctx.word_order_source}")
     entry["type"] = rtype
     return rtype
 
@@ -85,6 +91,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    bare = parse_number(unit_cell) if unit_cell and found is None else None
+    if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
+            and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
+        found = Scale(float(bare), None, unit_cell)
     factor = parse_number(raw.cells.get("scale", ""))
     if factor is not None and factor < 0:
         notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
@@ -175,7 +185,8 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
     hi = parse_number(raw.cells.get("max", ""))
     text = raw.cells.get("range", "")
     if lo is None and hi is None:
-        rng = parse_range(text) if text else parse_range(_range_text(raw.text))
+        # with a range column, an empty cell states no range: remarks and descriptions are not read for one
+        rng = parse_range(text) if text else None if raw.cells.get("range_header") else parse_range(_range_text(raw.text))
         if rng is not None:
             lo, hi = rng[0], rng[1]
     if lo is None or hi is None:

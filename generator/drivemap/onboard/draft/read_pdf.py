@@ -44,9 +44,28 @@ class _Found:
     frame: Box
 
 
+def _body(page: Any, found: Any) -> Any:
+    """A ruled header box over rows drawn without rules: the header and the text below it read as one
+    table, its columns the header's cell edges (pdfplumber's explicit vertical lines), its rows the
+    text's lines. None when that finds nothing more than the header."""
+    cells = [c for c in found.rows[0].cells if c is not None]
+    xs = sorted({round(c[0], 1) for c in cells} | {round(c[2], 1) for c in cells})
+    if len(found.rows) != 1 or len(cells) < 3:
+        return None
+    try:
+        region = page.crop((found.bbox[0], found.bbox[1], found.bbox[2], page.height))
+        tables = region.find_tables({"vertical_strategy": "explicit", "explicit_vertical_lines": xs,
+                                     "horizontal_strategy": "text"})
+    except ValueError:
+        return None
+    best = max(tables, key=lambda t: len(t.rows), default=None)
+    return best if best is not None and len(best.rows) > 1 else None
+
+
 def _page_tables(page: Any, number: int) -> list[_Found]:
     tables: list[_Found] = []
-    for k, found in enumerate(page.find_tables(), 1):
+    for k, ruled in enumerate(page.find_tables(), 1):
+        found = _body(page, ruled) or ruled
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
         boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]
         _split_boxes(page, found, texts, boxes)
@@ -122,7 +141,12 @@ class _Joiner:
         table = found.table
         prev = self.tables[-1] if self.tables else None
         headerless = not find_layouts([r.cells for r in table.rows])
-        if prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
+        if prev is not None and not headerless and self._next(self.last_page, table) and _same_header(prev, table):
+            # the header repeated on the next page: the table goes on, under the heading it began under (its
+            # rows keep their own page's columns, which may be drawn a little apart)
+            table.context, table.above = prev.context, prev.above
+            self.tables.append(table)
+        elif prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
             prev.rows.extend(table.rows)
             self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
         elif self.framed is not None and headerless and self._next(self.framed_page, table) \
@@ -141,6 +165,18 @@ class _Joiner:
     @staticmethod
     def _next(page: int | None, table: Table) -> bool:
         return page is not None and table.page == page + 1
+
+
+def _header_roles(table: Table) -> set[str]:
+    layouts = find_layouts([r.cells for r in table.rows])
+    return set(layouts[0].roles) if layouts else set()
+
+
+def _same_header(prev: Table, table: Table) -> bool:
+    """A table on the next page whose header names the same columns as the table before it (one column
+    more or less: a header cell cut at the page's edge) continues it."""
+    mine, theirs = _header_roles(table), _header_roles(prev)
+    return len(mine & theirs) >= 3 and len(mine ^ theirs) <= 1
 
 
 def _fits(prev: Table, table: Table) -> bool:

@@ -156,6 +156,14 @@ class GridReader:
     def _pair(self, text: str) -> tuple[int | None, str | None, str]:
         """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
         pair = parse_address_pair(text)
+        span = re.fullmatch(r"\s*(\d{1,6})\s*[-~–]\s*(\d{1,6})\s*", text)
+        if pair is None and span is not None:  # "5031 - 5032": one value over the registers of the span
+            first_a, last_a = parse_address(span.group(1)), parse_address(span.group(2))
+            if first_a is not None and last_a is not None:
+                (first, table), (last, other) = self.column.read(first_a), self.column.read(last_a)
+                if first is not None and last is not None and table == other and last - first + 1 in (2, 4):
+                    self.words = last - first + 1
+                    return first, table, text
         if pair is None:
             return None, None, text
         (first, table), (second, other) = self.column.read(pair[0]), self.column.read(pair[1])
@@ -219,6 +227,7 @@ class GridReader:
         cells["length_header"] = self.layout.headers.get("length", "")
         cells["scale_header"] = self.layout.headers.get("scale", "")
         cells["unit_header"] = self.layout.headers.get("unit", "")
+        cells["range_header"] = self.layout.headers.get("range", "")
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
