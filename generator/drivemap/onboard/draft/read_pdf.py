@@ -144,7 +144,7 @@ class _Joiner:
         if prev is not None and not headerless and self._next(self.last_page, table) and _same_header(prev, table):
             # the header repeated on the next page: the table goes on, under the heading it began under (its
             # rows keep their own page's columns, which may be drawn a little apart)
-            table.context, table.above = prev.context, prev.above
+            table.context, table.above = f"{prev.context}\n{table.context}", f"{prev.above}\n{table.above}"
             self.tables.append(table)
         elif prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
             prev.rows.extend(table.rows)
