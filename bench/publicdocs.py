@@ -45,7 +45,12 @@ LISTS = ("enums", "groups", "reserved", "known_issues", "examples")
 
 
 def docs_folder() -> Path:
-    return Path(os.environ.get("DRIVEMAP_PUBLIC_DOCS") or Path.home() / ".cache" / "drivemap" / "public-docs")
+    """$DRIVEMAP_PUBLIC_DOCS, else the shared folder's public-docs ($DRIVEMAP_SHARED or ../shared) when
+    present, else ~/.cache/drivemap/public-docs."""
+    if os.environ.get("DRIVEMAP_PUBLIC_DOCS"):
+        return Path(os.environ["DRIVEMAP_PUBLIC_DOCS"])
+    shared = Path(os.environ.get("DRIVEMAP_SHARED") or ROOT.parent / "shared") / "public-docs"
+    return shared if shared.is_dir() else Path.home() / ".cache" / "drivemap" / "public-docs"
 
 
 def load_manifest(path: Path = MANIFEST) -> list[dict[str, Any]]:
@@ -278,7 +283,7 @@ def _totals(section: Section, scored: list[Measured], with_map: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--docs", default=None, help="the documents' folder (default: $DRIVEMAP_PUBLIC_DOCS)")
+    ap.add_argument("--docs", default=None, help="the documents' folder (default: $DRIVEMAP_PUBLIC_DOCS, else ../shared/public-docs)")
     args = ap.parse_args(argv)
     return print_section(run(folder=Path(args.docs) if args.docs else None))
 

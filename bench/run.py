@@ -8,9 +8,9 @@ virtual serial line, (4) simulator throughput vs a plain pymodbus SimDevice serv
 scaling, (6) exports: entities and reads per poll cycle of the Home Assistant and ESPHome exports, (7)
 gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clients of 100 to 50k registers, (9) draft
 recovery (`drivemap draft` on the seed manuals against the proven maps), (10) draft recovery on public documents
-(bench/public_docs.json; the documents from $DRIVEMAP_PUBLIC_DOCS, default ~/.cache/drivemap/public-docs), (11) the
-SunSpec probe of the Fronius simulator against the proven map, (12) against the baseline: (2) and (8) for the tree
-before the runtime's layer refactor and this tree, side by side in the same run (bench/baseline.py). Every figure is
+(bench/public_docs.json; the documents from $DRIVEMAP_PUBLIC_DOCS, else ../shared/public-docs), (11) the draft
+corpus (shared/draft-corpus scored against its truth files), (12) the SunSpec probe of the Fronius simulator
+against the proven map, (13) against the baseline: (2) and (8) for the tree before the runtime's layer refactor and this tree, side by side in the same run (bench/baseline.py). Every figure is
 the median of several bounded rounds; only 127.0.0.1 and ptys are used.
 """
 
@@ -30,6 +30,7 @@ sys.path.insert(0, str(HERE))
 import baseline  # noqa: E402
 import compiler_scaling  # noqa: E402
 import draft as draft_bench  # noqa: E402
+import draftcorpus  # noqa: E402
 import exports  # noqa: E402
 import gateway as gateway_bench  # noqa: E402
 import imports  # noqa: E402
@@ -161,6 +162,15 @@ register fields written, changed or removed from draft to map (all but address, 
 notes, group). **Map-level edits**: top-level keys of `device` and `protocol` that differ, and the
 enums, groups, reserved ranges, known issues and examples that differ. Tool time is reading, drafting
 and the in-memory compile (the time from document to a validated map).""",
+    draftcorpus.TITLE: """\
+`bench/draftcorpus.py`: every document of `shared/draft-corpus/docs` ($DRIVEMAP_SHARED, else `../shared`) drafted
+in a child process (the verb's code, nothing written) and scored on the map as written against its truth file
+(`truth/<name>.json`, registers with 0-based addresses; see the corpus's SOURCES.md). **Exact**: a drafted
+register at the truth's address with its table, type, scale and unit (a field left out reads as the schema
+default; SI-prefix-equal (scale, unit) pairs are equal; any drafted unit is right where the truth has none).
+**Wrong**: a field stated (or defaulted without a `review:` item) that differs. **Open**: a field the draft
+lists in `review:`, or a unit it leaves out. **Dropped silently**: a truth register neither drafted nor in
+a row the draft lists as skipped. Time and peak RSS are the child's.""",
     "SunSpec probe recovery": """\
 `bench/sunspecprobe.py`: the generated Fronius Symo Hybrid simulator on 127.0.0.1, its SunSpec marker,
 model IDs and lengths preset (the shipped map gives them no value), and `drivemap probe --sunspec`
@@ -306,7 +316,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
                     choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
-                             "draft", "publicdocs", "sunspec", "probe", "scan", "baseline"],
+                             "draft", "publicdocs", "corpus", "sunspec", "probe", "scan", "baseline"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -324,6 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         ("imports", "Import time of a generated client", lambda: imports.run(args.quick)),
         ("draft", "Draft recovery (seed manuals vs proven maps)", lambda: draft_bench.run(args.quick)),
         ("publicdocs", publicdocs.TITLE, lambda: publicdocs.run(args.quick)),
+        ("corpus", draftcorpus.TITLE, lambda: draftcorpus.run(args.quick)),
         ("sunspec", sunspecprobe.TITLE, lambda: sunspecprobe.run(args.quick)),
         ("probe", probe_bench.TITLE, lambda: probe_bench.run(args.quick)),
         ("scan", scan_bench.TITLE, lambda: scan_bench.run(args.quick)),

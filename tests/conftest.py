@@ -49,7 +49,7 @@ SLOW_MODULES = frozenset({
 #: Every module of these families talks to real servers (the live verbs, the gateway, onboarding a device).
 SLOW_PREFIXES = ("test_live_", "test_gateway_", "test_probe", "test_draft", "test_import")
 #: ... except these, which check configurations and run in-process.
-FAST_MODULES = frozenset({"test_gateway_config"})
+FAST_MODULES = frozenset({"test_gateway_config", "test_draft_corpus_score"})
 
 
 def is_slow(module: str) -> bool:
@@ -58,7 +58,7 @@ def is_slow(module: str) -> bool:
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
-        if "tools" not in item.keywords and is_slow(Path(str(item.fspath)).stem):
+        if "tools" not in item.keywords and "corpus" not in item.keywords and is_slow(Path(str(item.fspath)).stem):
             item.add_marker(pytest.mark.slow)
 
 

@@ -229,7 +229,9 @@ def test_csv_hi_lo_byte_columns(tmp_path: Path) -> None:
     assert code == 0
     regs = registers(out)
     assert regs["motor_current"]["address"] == 0x1000 and regs["motor_current"]["scale"] == 0.1
-    assert regs["motor_speed"]["unit"] == "r/min" and "scale" not in regs["motor_speed"]
+    # a unit column that states the unit without a resolution states scale 1; the table stays open
+    assert regs["motor_speed"]["unit"] == "r/min" and regs["motor_speed"]["scale"] == 1.0
+    assert regs["motor_speed"]["review"] == ["table", "type"]
 
 
 def test_markdown_and_html_tables(tmp_path: Path) -> None:

@@ -107,10 +107,12 @@ def test_micro_amps_are_a_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str
         "# Sensor board\n\n### Input registers\n\n| Function | Address | Unit |\n| --- | --- | --- |\n"
         "| LOOP_CURRENT | 30001 | uA |\n| BRIDGE_VOLTAGE | 30002 | mV |\n| LEAK_CURRENT | 30003 | μA |\n"))
     facts, notes, _ = _drafted(tmp_path, doc, capsys)
-    assert facts == [("LOOP_CURRENT", "input", 0, None, None, "µA", None, None, None),
-                     ("BRIDGE_VOLTAGE", "input", 1, None, None, "mV", None, None, None),
-                     ("LEAK_CURRENT", "input", 2, None, None, "µA", None, None, None)]
-    assert notes == [f"{TO_FILL}type, scale, range"] * 3
+    # a unit column stating the unit without a resolution states scale 1
+    assert facts == [("LOOP_CURRENT", "input", 0, None, 1.0, "µA", None, None, None),
+                     ("BRIDGE_VOLTAGE", "input", 1, None, 1.0, "mV", None, None, None),
+                     ("LEAK_CURRENT", "input", 2, None, 1.0, "µA", None, None, None)]
+    assert notes == [f"scale 1: the unit column says {u!r} without a resolution; {TO_FILL}type, range"
+                     for u in ("uA", "mV", "μA")]
 
 
 # ------------------------------------------------------- a range printed in another unit than the register's
@@ -123,11 +125,12 @@ def test_a_range_printed_in_another_unit_is_left_out_and_noted(
         "| --- | --- | --- | --- |\n| TANK_LEVEL | 30001 | 0-10V Input | mV |\n"
         "| FLOW_LOOP | 30002 | 4-20mA Input | mA |\n| SUPPLY_RAIL | 30003 | 0-24V Input | V |\n"))
     facts, notes, _ = _drafted(tmp_path, doc, capsys)
-    assert facts == [("TANK_LEVEL", "input", 0, None, None, "mV", None, None, None),
-                     ("FLOW_LOOP", "input", 1, None, None, "mA", 4, 20, None),      # the register's own unit
-                     ("SUPPLY_RAIL", "input", 2, None, None, "V", 0, 24, None)]
-    assert notes == [f"range 0..10 printed in V, the register's unit is mV: left out; {TO_FILL}type, scale, range",
-                     f"{TO_FILL}type, scale", f"{TO_FILL}type, scale"]
+    assert facts == [("TANK_LEVEL", "input", 0, None, 1.0, "mV", None, None, None),
+                     ("FLOW_LOOP", "input", 1, None, 1.0, "mA", 4, 20, None),      # the register's own unit
+                     ("SUPPLY_RAIL", "input", 2, None, 1.0, "V", 0, 24, None)]
+    said = "scale 1: the unit column says {!r} without a resolution"
+    assert notes == [f"{said.format('mV')}; range 0..10 printed in V, the register's unit is mV: left out; "
+                     f"{TO_FILL}type, range", f"{said.format('mA')}; {TO_FILL}type", f"{said.format('V')}; {TO_FILL}type"]
 
 
 # ------------------------------------------------------- two address columns that disagree

@@ -30,17 +30,53 @@ class Draft:
     review: list[str] = field(default_factory=list)
 
 
-def document_context(source: Source) -> Context:
-    text = source.text
+_DOUBLE = r"(?:double[\s-]*words?|32[\s-]*bits?|two[\s-]*registers?|32[\s-]*位)"
+#: "subtracting 1 from the register address": the document numbers its registers from 1.
+_BASE_ONE = re.compile(r"subtract(?:ing|ed)?\s+1\s+from\s+the\s+(?:register\s+)?address|"
+                       r"(?:register\s+)?address(?:es)?\s+minus\s+1|protocol\s+address\s*=\s*register\s*(?:address)?\s*-\s*1|"
+                       r"addresses?\s+(?:start|begin)s?\s+(?:at|from)\s+1\b", re.I)
+
+
+def _word_order(text: str) -> tuple[str | None, str]:
+    """The word order of 32-bit values a statement of the document decides, and that statement."""
+    specific = re.search(rf"(little|big)[\s-]*endian\s+for\s+{_DOUBLE}|{_DOUBLE}[^.\n]{{0,40}}?(little|big)[\s-]*endian",
+                         text, re.I)
+    if specific:
+        kind = (specific.group(1) or specific.group(2)).lower()
+        return ("low_first" if kind == "little" else "high_first"), specific.group(0)
     high = re.search(r"(?:high|most significant|upper)\s+word\s+first|big[\s-]*endian|高字在前|高位字在前", text, re.I)
     low = re.search(r"(?:low|least significant|lower)\s+word\s+first|little[\s-]*endian|低字在前|低位字在前", text, re.I)
-    order = "high_first" if high and not low else "low_first" if low and not high else None
+    if high and not low:
+        return "high_first", high.group(0)
+    if low and not high:
+        return "low_first", low.group(0)
+    return None, ""
+
+
+def _statement_where(source: Source, said: str) -> str:
+    """``p.5 line 12`` (PDF pages are the text's form feeds) or ``line 12`` of the statement ``said``."""
+    at = source.text.find(said)
+    if at < 0:
+        return ""
+    before = source.text[:at]
+    return f"line {before.count(chr(10)) + 1}"
+
+
+def document_context(source: Source) -> Context:
+    text = source.text
+    order, said = _word_order(text)
     lines = [ln.strip() for ln in text.splitlines()]
 
     def footnote(n: str) -> bool:
         return any(re.match(rf"\*\s*{n}(?!\d)\s*\S", ln) for ln in lines)
 
-    return Context(source.name, footnote, order)
+    ctx = Context(source.name, footnote, order)
+    if order is not None:
+        ctx.word_order_source = f"{source.name} {_statement_where(source, said)}: {said.strip()!r}"
+    base = _BASE_ONE.search(text)
+    if base is not None:
+        ctx.base_one = f"{source.name} {_statement_where(source, base.group(0))}: {base.group(0).strip()!r}"
+    return ctx
 
 
 def _heading(table: Table) -> str:
@@ -109,6 +145,9 @@ def draft(source: Source, model: str) -> Draft:
             group = unique(snake(plain, f"table_{len(groups) + 1}")[:40].rstrip("_"), {g["name"] for g in groups})
         direction = factor_direction(raws)
         drafts = [draft_fields(r, ctx, direction) for r in raws]
+        if ctx.base_one:
+            for d in drafts:
+                _numbered_from_one(d, ctx.base_one)
         for d in drafts:
             d.entry["group"] = group
             d.table_label = table.label
@@ -127,6 +166,18 @@ def draft(source: Source, model: str) -> Draft:
     if any("as printed under" in n for d in registers for n in d.notes):
         review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
     return Draft(data, registers, skipped, found, review)
+
+
+def _numbered_from_one(d: Drafted, said: str) -> None:
+    """A register number printed as is, in a document that says it numbers registers from 1: the protocol
+    address is one less (the note the row reader wrote becomes the statement that decides it)."""
+    printed = [n for n in d.notes if "as printed under" in n]
+    if not printed:
+        return
+    address = int(str(d.entry["address"]))
+    d.entry["address"] = address - 1
+    d.notes = [n for n in d.notes if n not in printed]
+    d.notes.append(f"address {address} printed; the protocol address is {address - 1}: {said}")
 
 
 def _group_title(heading: str, label: str, groups: list[dict[str, Any]]) -> str:

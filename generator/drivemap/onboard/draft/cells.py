@@ -42,8 +42,8 @@ def parse_address(text: str) -> Address | None:
 
 
 def parse_address_pair(text: str) -> tuple[Address, Address] | None:
-    """``1001, 1002``: the two addresses of one two-register row (consecutive or not: the caller checks)."""
-    m = re.fullmatch(r"\s*([^,;/&\s]+)\s*[,;/&]\s*([^,;/&\s]+)\s*", text)
+    """``1001, 1002`` (or ``1001+1002``): the two addresses of one two-register row (consecutive or not: the caller checks)."""
+    m = re.fullmatch(r"\s*([^,;/&+\s]+)\s*[,;/&+]\s*([^,;/&+\s]+)\s*", text)
     if not m:
         return None
     first, second = parse_address(m.group(1)), parse_address(m.group(2))
@@ -98,9 +98,11 @@ _WIDTH = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, 
 
 def parse_type(text: str, words: int | None = None) -> str | None:
     """A data-type cell (with the register count if a length column gives one) -> schema type."""
-    low = text.strip().lower()
+    low = re.sub(r"\s+", " ", text.strip().lower())
     if not low:
         return None
+    # a type token broken over two lines or spaced: "UINT 16", "Int1 6", "U 32"
+    low = re.sub(r"\b(u?int|float|real|[us])\s?(\d)\s?(\d)\b", r"\1\2\3", low)
     for pattern, rtype in _TYPE_WORDS:
         if re.search(pattern, low):
             if words is not None and rtype in _WIDTH and _WIDTH[rtype] != words and rtype != "bool":

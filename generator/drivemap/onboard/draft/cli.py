@@ -74,7 +74,8 @@ def _header(name: str, sha: str, target: Path) -> str:
             f"# Drafted by `drivemap draft` from {name}\n"
             f"# document sha256: {sha}\n"
             "# Every register names its source (page and line or row). Fields the document does not state are\n"
-            "# left out (the schema's default applies) and listed in each register's notes: review them.\n")
+            "# left out and listed in each register's notes; those whose default would change the values read\n"
+            "# (table, type, word order, scale) are in its `review:` list: state them, then delete the item.\n")
 
 
 def _write(target: Path, text: str, force: bool) -> None:

@@ -18,6 +18,7 @@ _ROLES: tuple[tuple[str, str], ...] = (
     ("length", r"length|size|words|quantity|no\.?\s*of\s*reg|number\s*of\s*reg|reg(ister)?s?\s*count|"
                r"长度|長度|字数|字數|bytes"),
     ("function_code", r"function\s*code|func\.?\s*code|^fc$|功能码|功能碼"),
+    ("table", r"^reg(ister)?\.?\s*type$|^register\s*kind$|^object\s*type$|^寄存器类型$|^寄存器類型$"),
     ("type", r"data\s*type|type|format|数据类型|資料型態|资料类型|类型|類型|格式"),
     ("scale", r"^scal|scale\s*factor|^factor|multiplier|^gain|倍率|系数|係數"),
     ("unit", r"unit|resolution|单位|單位|分辨率"),

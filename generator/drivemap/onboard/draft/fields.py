@@ -31,6 +31,10 @@ class Context:
     footnote: Callable[[str], bool]
     word_order: str | None = None
     """``high_first``/``low_first`` when the document states the word order of 32-bit values."""
+    word_order_source: str = ""
+    """Where the document states it (file, line and the words), recorded on each register it decides."""
+    base_one: str = ""
+    """Where the document says it numbers registers from 1 (empty when it does not)."""
 
 
 @dataclass
@@ -71,10 +75,12 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
         return "string"
     if rtype[1:] not in ("16",):
         if ctx.word_order is None:
-            missing.append("type")
-            notes.append(f"{rtype} stated but the document does not state the word order: type left out")
-            return "u16"
-        entry["word_order"] = ctx.word_order
+            missing.append("word_order")
+            notes.append(f"{rtype} stated but the document does not state the word order: word_order to review")
+        else:
+            entry["word_order"] = ctx.word_order
+            if ctx.word_order_source:
+                notes.append(f"word_order {ctx.word_order}: {ctx.word_order_source}")
     entry["type"] = rtype
     return rtype
 
@@ -85,6 +91,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
     unit_cell = raw.cells.get("unit", "")
     found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    bare = parse_number(unit_cell) if unit_cell and found is None else None
+    if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
+            and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
+        found = Scale(float(bare), None, unit_cell)
     factor = parse_number(raw.cells.get("scale", ""))
     if factor is not None and factor < 0:
         notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
@@ -109,6 +119,14 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     if unit is None:
         rng = parse_range(raw.cells.get("range", "") or raw.text)
         unit = unit_after_range(rng[2]) if rng else None
+    if scale is None and listed is None and unit is not None and found is not None and found.unit == unit \
+            and unit_cell and not raw.cells.get("scale_header") and not found.note:
+        scale = 1.0  # a unit column that states the unit without a resolution: the value is in that unit
+        notes.append(f"scale 1: the unit column says {unit_cell!r} without a resolution")
+    elif scale is None and listed is None and found is None and not unit_cell and raw.cells.get("unit_header") \
+            and not raw.cells.get("scale_header") and rtype in ("u16", "s16", "u32", "s32", "u64", "s64"):
+        scale = 1.0  # the unit column is empty on this row and no column scales: the raw value is the value
+        notes.append("scale 1: no unit or resolution in the unit column")
     if scale is not None and rtype not in ("string",):
         entry["scale"] = scale
     elif rtype.startswith("f"):
@@ -167,7 +185,8 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
     hi = parse_number(raw.cells.get("max", ""))
     text = raw.cells.get("range", "")
     if lo is None and hi is None:
-        rng = parse_range(text) if text else parse_range(_range_text(raw.text))
+        # with a range column, an empty cell states no range: remarks and descriptions are not read for one
+        rng = parse_range(text) if text else None if raw.cells.get("range_header") else parse_range(_range_text(raw.text))
         if rng is not None:
             lo, hi = rng[0], rng[1]
     if lo is None or hi is None:
@@ -272,4 +291,18 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
     _access_field(raw, entry, missing)
+    _review(entry, missing)
     return Drafted(entry, raw.where, missing, notes)
+
+
+#: Fields whose schema default would change the values read: an unstated one is written as ``review:``.
+REVIEWED = ("table", "type", "word_order", "scale")
+
+
+def _review(entry: dict[str, object], missing: list[str]) -> None:
+    """``review: [...]``: the fields the row leaves open whose default would stand in for a value (a
+    register of listed values or bits has no scale to state)."""
+    listed = bool(entry.get("enum") or entry.get("bits"))
+    items = [m for m in REVIEWED if m in missing and not (listed and m in ("scale", "type"))]
+    if items:
+        entry["review"] = items

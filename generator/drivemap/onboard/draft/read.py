@@ -140,10 +140,31 @@ def read_docx(path: Path) -> tuple[list[Table], str]:
             n = len(tables) + 1
             rows = [Row([cell.text.strip() for cell in row.cells], None, i, table=f"table {n}")
                     for i, row in enumerate(table.rows, 1)]
-            tables.append(Table(None, rows, None, None, "\n".join(recent), label=f"table {n}"))
+            headed = _continued(tables, rows, recent)
+            if headed is not None:  # a table without a header right after one with it, as wide: it goes on
+                headed.rows.extend(rows)
+                tables.append(Table(None, [], None, None, "", label=f"table {n}"))
+            else:
+                tables.append(Table(None, rows, None, None, "\n".join(recent), label=f"table {n}"))
             texts.extend(" ".join(r.cells) for r in rows)
             recent = []
     return tables, "\n".join(texts)
+
+
+def _continued(tables: list[Table], rows: list[Row], recent: list[str]) -> Table | None:
+    """The table a headerless DOCX table goes on from: the last table with a header, when no text stands
+    between them and its rows are as wide (a table broken where the document's pages break)."""
+    from drivemap.onboard.draft.columns import find_layouts
+
+    if recent or not rows or not tables or find_layouts([r.cells for r in rows]):
+        return None
+    for prev in reversed(tables):
+        if not prev.rows:
+            continue  # a table already joined to the one before it
+        if find_layouts([r.cells for r in prev.rows]) and {len(r.cells) for r in rows} <= {len(r.cells) for r in prev.rows}:
+            return prev
+        return None
+    return None
 
 
 def read_document(path: Path, pages: tuple[int, int] | None = None, max_pages: int = 400,

@@ -44,11 +44,31 @@ class _Found:
     frame: Box
 
 
+def _body(page: Any, found: Any) -> Any:
+    """A ruled header box over rows drawn without rules: the header and the text below it read as one
+    table, its columns the header's cell edges (pdfplumber's explicit vertical lines), its rows the
+    text's lines. None when that finds nothing more than the header."""
+    cells = [c for c in found.rows[0].cells if c is not None]
+    xs = sorted({round(c[0], 1) for c in cells} | {round(c[2], 1) for c in cells})
+    if len(found.rows) != 1 or len(cells) < 3:
+        return None
+    try:
+        region = page.crop((found.bbox[0], found.bbox[1], found.bbox[2], page.height))
+        tables = region.find_tables({"vertical_strategy": "explicit", "explicit_vertical_lines": xs,
+                                     "horizontal_strategy": "text"})
+    except ValueError:
+        return None
+    best = max(tables, key=lambda t: len(t.rows), default=None)
+    return best if best is not None and len(best.rows) > 1 else None
+
+
 def _page_tables(page: Any, number: int) -> list[_Found]:
     tables: list[_Found] = []
-    for k, found in enumerate(page.find_tables(), 1):
+    for k, ruled in enumerate(page.find_tables(), 1):
+        found = _body(page, ruled) or ruled
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
         boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]
+        _split_boxes(page, found, texts, boxes)
         frame = (found.bbox[0], found.bbox[2])
         grid = grid_of(texts, boxes, frame)
         if grid is not None:
@@ -67,6 +87,44 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
     return tables
 
 
+def _columns(boxes: list[list[Box | None]]) -> list[Box] | None:
+    """The column edges of the table's widest rows whose every cell is drawn."""
+    full = [r for r in boxes if r and all(b is not None for b in r)]
+    if not full:
+        return None
+    return [b for b in full[-1] if b is not None]
+
+
+def _split_boxes(page: Any, found: Any, texts: list[list[str]], boxes: list[list[Box | None]]) -> None:
+    """A ruled header box: a row whose one drawn cell spans the table's columns and holds every column's
+    heading (``Master Reg. Type Address Name ...``). Its words are put under the columns they stand
+    over, as a person reads them, so the header is found."""
+    columns = _columns(boxes)
+    if columns is None or len(columns) < 3:
+        return
+    for i, (row, cells) in enumerate(zip(found.rows, texts, strict=False)):
+        drawn = [b for b in boxes[i] if b is not None]
+        if len(drawn) != 1 or sum(1 for c in cells if c) != 1 or len(boxes[i]) != len(columns):
+            continue
+        left, right = drawn[0]
+        if left > columns[0][0] + 2 or right < columns[-1][1] - 2:
+            continue
+        try:
+            words = page.crop(row.bbox).extract_words()
+        except ValueError:
+            continue
+        split: list[list[tuple[float, float, str]]] = [[] for _ in columns]
+        for w in words:
+            middle = (w["x0"] + w["x1"]) / 2
+            k = next((j for j, (a, b) in enumerate(columns) if a - 1 <= middle <= b + 1), None)
+            if k is not None:
+                split[k].append((round(w["top"]), w["x0"], w["text"]))
+        if sum(1 for s in split if s) < 3:
+            continue
+        texts[i] = [" ".join(t for _, _, t in sorted(s)) for s in split]
+        boxes[i] = list(columns)
+
+
 class _Joiner:
     """The tables read so far; a headerless table on the next page is joined to the table it goes on from:
     the last one if its rows are as wide, else the last one with a header if it stands in its frame
@@ -83,7 +141,12 @@ class _Joiner:
         table = found.table
         prev = self.tables[-1] if self.tables else None
         headerless = not find_layouts([r.cells for r in table.rows])
-        if prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
+        if prev is not None and not headerless and self._next(self.last_page, table) and _same_header(prev, table):
+            # the header repeated on the next page: the table goes on, under the heading it began under (its
+            # rows keep their own page's columns, which may be drawn a little apart)
+            table.context, table.above = f"{prev.context}\n{table.context}", f"{prev.above}\n{table.above}"
+            self.tables.append(table)
+        elif prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
             prev.rows.extend(table.rows)
             self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
         elif self.framed is not None and headerless and self._next(self.framed_page, table) \
@@ -102,6 +165,18 @@ class _Joiner:
     @staticmethod
     def _next(page: int | None, table: Table) -> bool:
         return page is not None and table.page == page + 1
+
+
+def _header_roles(table: Table) -> set[str]:
+    layouts = find_layouts([r.cells for r in table.rows])
+    return set(layouts[0].roles) if layouts else set()
+
+
+def _same_header(prev: Table, table: Table) -> bool:
+    """A table on the next page whose header names the same columns as the table before it (one column
+    more or less: a header cell cut at the page's edge) continues it."""
+    mine, theirs = _header_roles(table), _header_roles(prev)
+    return len(mine & theirs) >= 3 and len(mine ^ theirs) <= 1
 
 
 def _fits(prev: Table, table: Table) -> bool:

@@ -26,7 +26,8 @@ from drivemap.onboard.draft.units import parse_scale
 RESERVED = re.compile(r"(?<![A-Za-z])(?:reserved|not used|unused|spare|n/a)(?![A-Za-z])|保留|预备|預備|未使用|備用|备用",
                       re.I)
 """Whole words only: "transparent" holds no "spare"."""
-_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code")
+_CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code",
+               "table")
 
 
 def table_kind(text: str) -> str | None:
@@ -41,6 +42,16 @@ def table_kind(text: str) -> str | None:
     if re.search(r"discrete\s+input|\b0?2\s*[hH]\b.*discrete|離散|离散", text, re.I):
         found.add("discrete")
     return found.pop() if len(found) == 1 else None
+
+
+def _row_table(text: str) -> str | None:
+    """A register-type cell of the row itself (``Holding``, ``Input``, ``Coil``)."""
+    low = text.strip().lower()
+    for word, kind in (("holding", "holding"), ("input reg", "input"), ("input", "input"), ("coil", "coil"),
+                       ("discrete", "discrete")):
+        if low.startswith(word):
+            return kind
+    return table_kind(text)
 
 
 def table_access(text: str) -> str | None:
@@ -145,6 +156,14 @@ class GridReader:
     def _pair(self, text: str) -> tuple[int | None, str | None, str]:
         """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
         pair = parse_address_pair(text)
+        span = re.fullmatch(r"\s*(\d{1,6})\s*[-~–]\s*(\d{1,6})\s*", text)
+        if pair is None and span is not None:  # "5031 - 5032": one value over the registers of the span
+            first_a, last_a = parse_address(span.group(1)), parse_address(span.group(2))
+            if first_a is not None and last_a is not None:
+                (first, table), (last, other) = self.column.read(first_a), self.column.read(last_a)
+                if first is not None and last is not None and table == other and last - first + 1 in (2, 4):
+                    self.words = last - first + 1
+                    return first, table, text
         if pair is None:
             return None, None, text
         (first, table), (second, other) = self.column.read(pair[0]), self.column.read(pair[1])
@@ -207,6 +226,8 @@ class GridReader:
         cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
         cells["length_header"] = self.layout.headers.get("length", "")
         cells["scale_header"] = self.layout.headers.get("scale", "")
+        cells["unit_header"] = self.layout.headers.get("unit", "")
+        cells["range_header"] = self.layout.headers.get("range", "")
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
@@ -216,7 +237,7 @@ class GridReader:
         if len([c for c in row.cells if c.strip()]) <= 1:
             self.skipped.append(Skipped(self.where(row), everything, "address without a name or description"))
             return
-        kind = table or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
+        kind = table or _row_table(cells["table"]) or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
             or self.kind
         raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
         if self.column.numbered:

@@ -58,7 +58,8 @@ def print_summary(console: Console, source: Source, draft: Draft, target: str, m
     missing = Counter(m for d in draft.registers for m in dict.fromkeys(d.missing))
     if missing:
         console.print("Fields not stated (registers): " + ", ".join(f"{k} {v}" for k, v in missing.most_common())
-                      + " — left out (the schema's default applies) and to be filled from the manual.")
+                      + " — left out and to be filled from the manual; table, type, word order and scale are "
+                      "written as each register's `review:` items.")
     if draft.skipped:
         skipped = RichTable(title=f"Rows skipped: {len(draft.skipped)}")
         for col in ("where", "reason", "row"):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 _UNITS = (
     r"[Vv]olts?|[Aa]mps?|[Ww]atts?|[Hh]ertz|[Hh]ours?|[Ss]econds?|[Mm]inutes?|"
-    r"kvarh|kVArh|kvar|kVAr|kVAh|kVA|kWh|MWh|Wh|kW|MW|VAr|var|VA|W|"
+    r"kvarh|kVArh|kVarh|kvar|kVAr|kVar|kVAh|kVA|kWh|MWh|Wh|kW|MW|VArh|Varh|varh|VAr|Var|var|VA|W|"
     r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|µA|μA|uA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
     r"ms|min|s|sec|h|hr|hours|"

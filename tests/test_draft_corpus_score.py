@@ -1,0 +1,51 @@
+"""The corpus scorer itself (bench/draftcorpus.py), on registers written here: exact as written, SI-prefix
+equal pairs, a null truth unit, open fields, wrong fields, and rows listed as skipped against dropped."""
+
+from __future__ import annotations
+
+import sys
+
+from tests.shared_data import ROOT
+
+sys.path.insert(0, str(ROOT / "bench"))
+
+import draftcorpus  # noqa: E402
+
+
+def truth(name: str, address: int, table: str = "holding", type: str = "u16", scale: float = 1,
+          unit: str | None = None) -> dict[str, object]:
+    return {"name": name, "address": address, "table": table, "type": type, "scale": scale, "unit": unit}
+
+
+def test_exact_wrong_open_and_dropped() -> None:
+    t = [truth("energy", 10, "input", "u32", 1, "Wh"), truth("mode", 12), truth("volt", 13, scale=0.1),
+         truth("amps", 14, type="s16", scale=0.01, unit="A"), truth("gone", 20), truth("listed", 30),
+         truth("elem", 41, unit=None)]
+    drafted = [
+        {"name": "energy", "address": 10, "table": "input", "type": "u32", "scale": 0.001, "unit": "kWh"},
+        {"name": "mode", "address": 12, "unit": "rpm"},  # the truth's unit is null: a drafted unit is not wrong
+        {"name": "volt", "address": 13, "review": ["scale"], "unit": "V"},  # open, not wrong
+        {"name": "amps", "address": 14, "type": "u16", "scale": 0.01, "unit": "A"},  # u16 stated: wrong
+        {"name": "arr", "address": 40, "count": 2, "table": "holding"},
+    ]
+    s = draftcorpus.score_draft("doc", t, drafted, ["p.3 row 7 0x001F Listed reg: type unknown"])
+    assert (s.found, s.exact, s.open, s.listed) == (5, 3, 1, 1)
+    assert s.wrong == ["amps@14.type: drafted 'u16', truth 's16'"]
+    assert s.dropped == ["gone@20"]
+    assert s.not_exact == ["volt@13", "amps@14"]
+
+
+def test_a_default_standing_in_is_stated() -> None:
+    s = draftcorpus.score_draft("doc", [truth("t", 5, "input")], [{"name": "t", "address": 5}], [])
+    assert s.wrong == ["t@5.table: drafted 'holding', truth 'input'"] and s.exact == 0
+    s = draftcorpus.score_draft("doc", [truth("t", 5, "input")], [{"name": "t", "address": 5, "review": ["table"]}], [])
+    assert not s.wrong and s.open == 1 and s.exact == 0
+
+
+def test_si_prefix_and_unit_differences() -> None:
+    assert draftcorpus._si(1, "kW") == (1000.0, "w")
+    s = draftcorpus.score_draft("doc", [truth("p", 1, scale=1, unit="W")],
+                                [{"name": "p", "address": 1, "scale": 1, "unit": "kW"}], [])
+    assert s.wrong == ["p@1.unit: drafted 'kW', truth 'W'"]  # same scale, another prefix
+    s = draftcorpus.score_draft("doc", [truth("p", 1, unit="A")], [{"name": "p", "address": 1, "unit": "V"}], [])
+    assert s.wrong == ["p@1.unit: drafted 'V', truth 'A'"]
