@@ -30,6 +30,7 @@ from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, 
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
+from drivemap.backends.views.common import provenance, review_lines
 from drivemap.backends.views.esphome import Item, align
 from drivemap.model.nodes import Model, Register
 from drivemap.model.spec import spec_from_model
@@ -116,6 +117,7 @@ class EsphomeExporter(Exporter):
             if entries:
                 doc[platform] = entries
         lines = [generated_header(model, options), f"{model.device.title} - ESPHome (esphome config FILE)",
+                 *provenance(model), *review_lines(model),
                  f"reads per update: drivemap plans {len(build.layout.requests)}, "
                  f"this file makes ESPHome send {build.layout.esphome_requests}", *build.notes, *build.layout.notes]
         return {f"{model.name}.esphome.yaml": header(lines) + dump(doc)}
