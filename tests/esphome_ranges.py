@@ -2,7 +2,8 @@
 
 Port of ``ModbusController::create_register_ranges_()`` and ``SensorItemsComparator`` of ESPHome
 2026.6 (esphome/components/modbus_controller/modbus_controller.{h,cpp}) and of the register counts
-the platforms' ``to_code`` compute. Given a device YAML (as loaded), it returns the read ranges the
+the platforms' ``to_code`` compute (:func:`ranges`), and of 2026.10's ``RangeBuilder``, which joins by
+``reuse_previous_range`` (:func:`ranges_reuse`; 2026.9 replaced register_count/force_new_range by it). Given a device YAML (as loaded), it returns the read ranges the
 controller sends every update, and where each entity finds its value. The one liberty: items that
 ESPHome orders by pointer are taken in file order here.
 """
@@ -33,6 +34,8 @@ class SensorItem:
     skip_updates: int
     seq: int
     word: int = 0          # the word the entity decodes from, as written
+    reuse: str | bool = "auto"  # reuse_previous_range (2026.9 and later)
+    controller: str = "device"
 
     def register_size(self) -> int:
         if self.register_type in ("coil", "discrete_input"):
@@ -54,7 +57,7 @@ def _count(platform: str, cfg: dict[str, Any]) -> tuple[int, int]:
     value_type = cfg.get("value_type", "U_WORD")
     if platform == "text_sensor":
         size = int(cfg.get("response_size", 2))
-        return int(cfg.get("register_count", 0)) or size // 2, size
+        return int(cfg.get("register_count", 0)) or (size + 1) // 2, size
     if platform in ("sensor", "select"):
         return int(cfg.get("register_count", 0)) or TYPE_REGISTERS[value_type], 0
     if platform == "number":
@@ -79,7 +82,8 @@ def items_of(doc: dict[str, Any]) -> list[SensorItem]:
             out.append(SensorItem(str(cfg.get("name") or cfg.get("id")), platform,
                                   register_type, address, offset, count, size,
                                   bool(cfg.get("force_new_range", False)), int(cfg.get("skip_updates", 0)),
-                                  len(out), address + (offset if bits else offset // 2)))
+                                  len(out), address + (offset if bits else offset // 2),
+                                  cfg.get("reuse_previous_range", "auto"), str(cfg.get("modbus_controller_id"))))
     return out
 
 
@@ -128,4 +132,78 @@ def ranges(items: list[SensorItem]) -> list[Range]:
         prev = curr
     if r is not None and r.register_count > 0:
         out.append(r)
+    return out
+
+
+_REUSE_ORDER = {"auto": 0, True: 1, False: 2}  # RangeReuse: AUTO, ALWAYS, NEVER
+
+
+def ranges_reuse(items: list[SensorItem]) -> list[Range]:
+    """2026.10's ``create_polling_commands_()`` for one controller's items: each sensor's ``start_address``
+    and ``offset`` become its range's start and its resolved offset (bytes; bits for coils)."""
+    sensors = sorted(items, key=lambda i: (_TYPE_ORDER[i.register_type], i.start_address, _REUSE_ORDER[i.reuse],
+                                           i.offset, i.seq))
+    out: list[Range] = []
+    r: Range | None = None
+    prev: SensorItem | None = None
+    nbytes, custom, forced, shared = 0, False, False, False
+    resolved: dict[int, tuple[int, int]] = {}  # seq -> (range start, offset)
+
+    def bits(i: SensorItem) -> bool:
+        return i.register_type in ("coil", "discrete_input")
+
+    def is_custom(i: SensorItem) -> bool:
+        return i.register_size() != i.register_count * 2 and not bits(i)
+
+    for curr in sensors:
+        joined = False
+        if r is not None and curr.reuse is not False and r.register_type == curr.register_type:
+            end = r.start_address + r.register_count
+            assert prev is not None
+            if (curr.start_address == end - prev.register_count and prev.start_address + prev.register_count == end
+                    and curr.register_count == prev.register_count and curr.register_size() == prev.register_size()
+                    and resolved[prev.seq][1] + curr.offset <= 255):
+                resolved[curr.seq] = (r.start_address, resolved[prev.seq][1] + curr.offset)
+                joined = True
+            else:
+                reach = (curr.start_address >= end if curr.reuse is True
+                         else curr.start_address == end and (bits(curr) or not custom))
+                gap = curr.start_address - end
+                limit = 2000 if bits(curr) else 125
+                where = ((curr.start_address - r.start_address) if bits(curr) else nbytes + gap * 2) + curr.offset
+                if reach and r.register_count + gap + curr.register_count <= limit and where <= 255:
+                    if not bits(curr):
+                        nbytes += gap * 2
+                    nbytes += curr.register_size()
+                    custom = custom or is_custom(curr)
+                    r.register_count += gap + curr.register_count
+                    resolved[curr.seq] = (r.start_address, where)
+                    joined = True
+                elif (shared and not forced and r.start_address <= curr.start_address
+                      and curr.start_address + curr.register_count <= end and not custom and not is_custom(curr)):
+                    delta = curr.start_address - r.start_address
+                    resolved[curr.seq] = (r.start_address, (delta if bits(curr) else delta * 2) + curr.offset)
+                    joined = True
+        if not joined and r is not None and r.register_type == curr.register_type \
+                and r.start_address == curr.start_address:
+            resolved[curr.seq] = (r.start_address, curr.offset)
+            r.register_count = max(r.register_count, curr.register_count)
+            nbytes = max(nbytes, curr.register_size())
+            custom = custom or is_custom(curr)
+            shared = True
+            forced = forced or curr.reuse is False
+            joined = True
+        if not joined:
+            if r is not None:
+                out.append(r)
+            r = Range(curr.start_address, curr.register_type, curr.register_count, 0, [])
+            nbytes, custom, forced, shared = curr.register_size(), is_custom(curr), curr.reuse is False, False
+            resolved[curr.seq] = (curr.start_address, curr.offset)
+        assert r is not None
+        r.sensors.append(curr)
+        prev = curr
+    if r is not None:
+        out.append(r)
+    for item in sensors:
+        item.start_address, item.offset = resolved[item.seq]
     return out
