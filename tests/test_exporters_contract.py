@@ -41,7 +41,8 @@ def test_json_keeps_unknown_broadcast_unknown() -> None:
 def test_json_review_and_provenance_only_where_stated(tmp_path: Path) -> None:
     plain = export(load("ev"))
     assert plain["evidence"] == "manual" and plain["kind"] == "drive" and "origin" not in plain
-    assert all("review" not in r for r in plain["registers"])
+    assert [r["review"] for r in plain["registers"] if r["name"] == "servo_on_mode"] == [["type"]]
+    assert "review" not in next(r for r in plain["registers"] if r["name"] == "motor_state")
     assert list(plain)[:5] == ["model", "title", "evidence", "kind", "protocol"]
 
     def edit(data: dict[str, Any]) -> None:
@@ -54,34 +55,35 @@ def test_json_review_and_provenance_only_where_stated(tmp_path: Path) -> None:
     assert doc["origin"] == {"project": "someone/defs", "path": "ev.yaml", "commit": "abc123", "licence": "MIT",
                              "format": None}
     reviewed = [r for r in doc["registers"] if "review" in r]
-    assert [(r["name"], r["review"]) for r in reviewed] == [("servo_on_mode", ["type", "unit"])]
+    assert ("servo_on_mode", ["type", "unit"]) in [(r["name"], r["review"]) for r in reviewed]
+    assert len(reviewed) == sum(r.count for r in load("ev").registers if r.review)
 
 
 def test_open_fields_warn_in_every_export_and_keep_writes_out(tmp_path: Path) -> None:
     model = load("ev")
     before = {fmt: render(model, fmt) for fmt in FORMATS}
-    assert all("servo_on_mode: type open" not in text for text in before.values())
-    assert "ev servo_on_mode" in [e["name"] for e in parse("esphome", before["esphome"])["number"]]
+    assert all("digital_speed: type open" not in text for text in before.values())
+    assert "ev digital_speed_0" in [e["name"] for e in parse("esphome", before["esphome"])["number"]]
 
     def edit(data: dict[str, Any]) -> None:
-        _register(data, "servo_on_mode")["review"] = ["type"]
+        _register(data, "digital_speed")["review"] = ["type"]
         _register(data, "sc_cc_mode")["review"] = ["unit"]  # not write-deciding: the control stays
 
     reviewed = compile_map(_map(tmp_path, "ev", edit))
     after = {fmt: render(reviewed, fmt) for fmt in FORMATS}
-    warning = "servo_on_mode: type open in the map's source (no write: it decides what a write sends)"
+    warning = "digital_speed: type open in the map's source (no write: it decides what a write sends)"
     for fmt in ("homeassistant", "esphome"):
         assert f"# review: {warning}\n" in after[fmt], fmt
         assert "# review: sc_cc_mode: unit open in the map's source\n" in after[fmt], fmt
     esphome = parse("esphome", after["esphome"])
-    assert "ev servo_on_mode" not in [e["name"] for e in esphome["number"]]
+    assert "ev digital_speed_0" not in [e["name"] for e in esphome["number"]]
     assert "ev sc_cc_mode" in [e["name"] for e in esphome["select"]]
-    assert "ev servo_on_mode" in [e.get("name") for e in esphome["sensor"]]  # still read
+    assert "ev digital_speed_0" in [e.get("name") for e in esphome["sensor"]]  # still read
     rows = {r["name"]: r for r in parse("csv", after["csv"])}
-    assert rows["servo_on_mode"]["review"] == warning and rows["motor_state"]["review"] == ""
+    assert rows["digital_speed[0]"]["review"] == warning and rows["motor_state"]["review"] == ""
     sim = json.loads(after["pymodbus-sim"])["drivemap"]
-    assert sorted(sim["review"]) == ["review: sc_cc_mode: unit open in the map's source", f"review: {warning}"]
-    assert "review" not in json.loads(before["pymodbus-sim"])["drivemap"]
+    added = {"review: sc_cc_mode: unit open in the map's source", f"review: {warning}"}
+    assert added <= set(sim["review"]) and not added & set(json.loads(before["pymodbus-sim"])["drivemap"]["review"])
     assert "- " + warning.replace("_", "\\_") + "\n" in after["docs"]
 
 

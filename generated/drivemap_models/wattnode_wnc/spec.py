@@ -450,7 +450,6 @@ SPEC = DeviceSpec(
             defaults=(120,),
             source='WNC V18 sheet Main List row 171',
             values=((0, None), (60, None), (90, None), (120, None), (180, None)),
-            review=('type',),
         ),
         RegisterSpec(
             name='zeroenergy',
@@ -480,7 +479,6 @@ SPEC = DeviceSpec(
             enum='Iopinmode',
             enum_values=(0, 1, 2, 3, 4, 5, 6, 7, 8),
             source='WNC V18 sheet Main List row 175',
-            review=('type',),
         ),
         RegisterSpec(
             name='applycomconfig',
@@ -503,7 +501,6 @@ SPEC = DeviceSpec(
             enum='Baudrate',
             enum_values=(0, 4, 5, 6),
             source='WNC V18 sheet Main List row 181',
-            review=('type',),
         ),
         RegisterSpec(
             name='paritymode',
@@ -512,7 +509,6 @@ SPEC = DeviceSpec(
             enum='Paritymode',
             enum_values=(0, 1),
             source='WNC V18 sheet Main List row 182',
-            review=('type',),
         ),
         RegisterSpec(
             name='modbusmode',
@@ -521,7 +517,6 @@ SPEC = DeviceSpec(
             enum='Modbusmode',
             enum_values=(0, 1),
             source='WNC V18 sheet Main List row 183',
-            review=('type',),
         ),
         RegisterSpec(
             name='replydelay',
@@ -531,7 +526,6 @@ SPEC = DeviceSpec(
             max=180,
             defaults=(5,),
             source='WNC V18 sheet Main List row 184',
-            review=('type',),
         ),
         RegisterSpec(
             name='model_reg',
