@@ -138,72 +138,98 @@ def ranges(items: list[SensorItem]) -> list[Range]:
 _REUSE_ORDER = {"auto": 0, True: 1, False: 2}  # RangeReuse: AUTO, ALWAYS, NEVER
 
 
+def _bits(item: SensorItem) -> bool:
+    return item.register_type in ("coil", "discrete_input")
+
+
+def _custom(item: SensorItem) -> bool:
+    return item.register_size() != item.register_count * 2 and not _bits(item)
+
+
+class _Builder:
+    """2026.10's ``RangeBuilder``: each method is its C++ namesake (offsets bounded by one byte)."""
+
+    def __init__(self) -> None:
+        self.out: list[Range] = []
+        self.r: Range | None = None
+        self.prev: SensorItem | None = None
+        self.nbytes, self.custom, self.forced, self.shared = 0, False, False, False
+        self.resolved: dict[int, tuple[int, int]] = {}  # seq -> (range start, offset)
+
+    def join(self, curr: SensorItem) -> bool:
+        r = self.r
+        if r is None or curr.reuse is False or r.register_type != curr.register_type:
+            return False
+        return self.reuse(curr, r) or self.extend(curr, r) or self.cover(curr, r)
+
+    def reuse(self, curr: SensorItem, r: Range) -> bool:
+        prev, end = self.prev, r.start_address + r.register_count
+        assert prev is not None
+        offset = self.resolved[prev.seq][1] + curr.offset
+        if (curr.start_address != end - prev.register_count or prev.start_address + prev.register_count != end
+                or curr.register_count != prev.register_count or curr.register_size() != prev.register_size()
+                or offset > 255):
+            return False
+        self.resolved[curr.seq] = (r.start_address, offset)
+        return True
+
+    def extend(self, curr: SensorItem, r: Range) -> bool:
+        end = r.start_address + r.register_count
+        reach = curr.start_address >= end if curr.reuse is True else (
+            curr.start_address == end and (_bits(curr) or not self.custom))
+        gap = curr.start_address - end
+        where = ((curr.start_address - r.start_address) if _bits(curr) else self.nbytes + gap * 2) + curr.offset
+        if not reach or r.register_count + gap + curr.register_count > (2000 if _bits(curr) else 125) or where > 255:
+            return False
+        self.nbytes += (0 if _bits(curr) else gap * 2) + curr.register_size()
+        self.custom = self.custom or _custom(curr)
+        r.register_count += gap + curr.register_count
+        self.resolved[curr.seq] = (r.start_address, where)
+        return True
+
+    def cover(self, curr: SensorItem, r: Range) -> bool:
+        if (not self.shared or self.forced or curr.start_address < r.start_address
+                or curr.start_address + curr.register_count > r.start_address + r.register_count
+                or self.custom or _custom(curr)):
+            return False
+        delta = curr.start_address - r.start_address
+        self.resolved[curr.seq] = (r.start_address, (delta if _bits(curr) else delta * 2) + curr.offset)
+        return True
+
+    def share(self, curr: SensorItem) -> bool:
+        r = self.r
+        if r is None or r.register_type != curr.register_type or r.start_address != curr.start_address:
+            return False
+        self.resolved[curr.seq] = (r.start_address, curr.offset)
+        r.register_count = max(r.register_count, curr.register_count)
+        self.nbytes = max(self.nbytes, curr.register_size())
+        self.custom = self.custom or _custom(curr)
+        self.shared, self.forced = True, self.forced or curr.reuse is False
+        return True
+
+    def open(self, curr: SensorItem) -> None:
+        if self.r is not None:
+            self.out.append(self.r)
+        self.r = Range(curr.start_address, curr.register_type, curr.register_count, 0, [])
+        self.nbytes, self.custom, self.forced, self.shared = (curr.register_size(), _custom(curr),
+                                                              curr.reuse is False, False)
+        self.resolved[curr.seq] = (curr.start_address, curr.offset)
+
+
 def ranges_reuse(items: list[SensorItem]) -> list[Range]:
     """2026.10's ``create_polling_commands_()`` for one controller's items: each sensor's ``start_address``
     and ``offset`` become its range's start and its resolved offset (bytes; bits for coils)."""
     sensors = sorted(items, key=lambda i: (_TYPE_ORDER[i.register_type], i.start_address, _REUSE_ORDER[i.reuse],
                                            i.offset, i.seq))
-    out: list[Range] = []
-    r: Range | None = None
-    prev: SensorItem | None = None
-    nbytes, custom, forced, shared = 0, False, False, False
-    resolved: dict[int, tuple[int, int]] = {}  # seq -> (range start, offset)
-
-    def bits(i: SensorItem) -> bool:
-        return i.register_type in ("coil", "discrete_input")
-
-    def is_custom(i: SensorItem) -> bool:
-        return i.register_size() != i.register_count * 2 and not bits(i)
-
+    b = _Builder()
     for curr in sensors:
-        joined = False
-        if r is not None and curr.reuse is not False and r.register_type == curr.register_type:
-            end = r.start_address + r.register_count
-            assert prev is not None
-            if (curr.start_address == end - prev.register_count and prev.start_address + prev.register_count == end
-                    and curr.register_count == prev.register_count and curr.register_size() == prev.register_size()
-                    and resolved[prev.seq][1] + curr.offset <= 255):
-                resolved[curr.seq] = (r.start_address, resolved[prev.seq][1] + curr.offset)
-                joined = True
-            else:
-                reach = (curr.start_address >= end if curr.reuse is True
-                         else curr.start_address == end and (bits(curr) or not custom))
-                gap = curr.start_address - end
-                limit = 2000 if bits(curr) else 125
-                where = ((curr.start_address - r.start_address) if bits(curr) else nbytes + gap * 2) + curr.offset
-                if reach and r.register_count + gap + curr.register_count <= limit and where <= 255:
-                    if not bits(curr):
-                        nbytes += gap * 2
-                    nbytes += curr.register_size()
-                    custom = custom or is_custom(curr)
-                    r.register_count += gap + curr.register_count
-                    resolved[curr.seq] = (r.start_address, where)
-                    joined = True
-                elif (shared and not forced and r.start_address <= curr.start_address
-                      and curr.start_address + curr.register_count <= end and not custom and not is_custom(curr)):
-                    delta = curr.start_address - r.start_address
-                    resolved[curr.seq] = (r.start_address, (delta if bits(curr) else delta * 2) + curr.offset)
-                    joined = True
-        if not joined and r is not None and r.register_type == curr.register_type \
-                and r.start_address == curr.start_address:
-            resolved[curr.seq] = (r.start_address, curr.offset)
-            r.register_count = max(r.register_count, curr.register_count)
-            nbytes = max(nbytes, curr.register_size())
-            custom = custom or is_custom(curr)
-            shared = True
-            forced = forced or curr.reuse is False
-            joined = True
-        if not joined:
-            if r is not None:
-                out.append(r)
-            r = Range(curr.start_address, curr.register_type, curr.register_count, 0, [])
-            nbytes, custom, forced, shared = curr.register_size(), is_custom(curr), curr.reuse is False, False
-            resolved[curr.seq] = (curr.start_address, curr.offset)
-        assert r is not None
-        r.sensors.append(curr)
-        prev = curr
-    if r is not None:
-        out.append(r)
+        if not (b.join(curr) or b.share(curr)):
+            b.open(curr)
+        assert b.r is not None
+        b.r.sensors.append(curr)
+        b.prev = curr
+    if b.r is not None:
+        b.out.append(b.r)
     for item in sensors:
-        item.start_address, item.offset = resolved[item.seq]
-    return out
+        item.start_address, item.offset = b.resolved[item.seq]
+    return b.out
