@@ -2,7 +2,8 @@
 
 Port of ``ModbusController::create_register_ranges_()`` and ``SensorItemsComparator`` of ESPHome
 2026.6 (esphome/components/modbus_controller/modbus_controller.{h,cpp}) and of the register counts
-the platforms' ``to_code`` compute. Given a device YAML (as loaded), it returns the read ranges the
+the platforms' ``to_code`` compute (:func:`ranges`), and of 2026.10's ``RangeBuilder``, which joins by
+``reuse_previous_range`` (:func:`ranges_reuse`; 2026.9 replaced register_count/force_new_range by it). Given a device YAML (as loaded), it returns the read ranges the
 controller sends every update, and where each entity finds its value. The one liberty: items that
 ESPHome orders by pointer are taken in file order here.
 """
@@ -33,6 +34,8 @@ class SensorItem:
     skip_updates: int
     seq: int
     word: int = 0          # the word the entity decodes from, as written
+    reuse: str | bool = "auto"  # reuse_previous_range (2026.9 and later)
+    controller: str = "device"
 
     def register_size(self) -> int:
         if self.register_type in ("coil", "discrete_input"):
@@ -54,7 +57,7 @@ def _count(platform: str, cfg: dict[str, Any]) -> tuple[int, int]:
     value_type = cfg.get("value_type", "U_WORD")
     if platform == "text_sensor":
         size = int(cfg.get("response_size", 2))
-        return int(cfg.get("register_count", 0)) or size // 2, size
+        return int(cfg.get("register_count", 0)) or (size + 1) // 2, size
     if platform in ("sensor", "select"):
         return int(cfg.get("register_count", 0)) or TYPE_REGISTERS[value_type], 0
     if platform == "number":
@@ -79,7 +82,8 @@ def items_of(doc: dict[str, Any]) -> list[SensorItem]:
             out.append(SensorItem(str(cfg.get("name") or cfg.get("id")), platform,
                                   register_type, address, offset, count, size,
                                   bool(cfg.get("force_new_range", False)), int(cfg.get("skip_updates", 0)),
-                                  len(out), address + (offset if bits else offset // 2)))
+                                  len(out), address + (offset if bits else offset // 2),
+                                  cfg.get("reuse_previous_range", "auto"), str(cfg.get("modbus_controller_id"))))
     return out
 
 
@@ -129,3 +133,103 @@ def ranges(items: list[SensorItem]) -> list[Range]:
     if r is not None and r.register_count > 0:
         out.append(r)
     return out
+
+
+_REUSE_ORDER = {"auto": 0, True: 1, False: 2}  # RangeReuse: AUTO, ALWAYS, NEVER
+
+
+def _bits(item: SensorItem) -> bool:
+    return item.register_type in ("coil", "discrete_input")
+
+
+def _custom(item: SensorItem) -> bool:
+    return item.register_size() != item.register_count * 2 and not _bits(item)
+
+
+class _Builder:
+    """2026.10's ``RangeBuilder``: each method is its C++ namesake (offsets bounded by one byte)."""
+
+    def __init__(self) -> None:
+        self.out: list[Range] = []
+        self.r: Range | None = None
+        self.prev: SensorItem | None = None
+        self.nbytes, self.custom, self.forced, self.shared = 0, False, False, False
+        self.resolved: dict[int, tuple[int, int]] = {}  # seq -> (range start, offset)
+
+    def join(self, curr: SensorItem) -> bool:
+        r = self.r
+        if r is None or curr.reuse is False or r.register_type != curr.register_type:
+            return False
+        return self.reuse(curr, r) or self.extend(curr, r) or self.cover(curr, r)
+
+    def reuse(self, curr: SensorItem, r: Range) -> bool:
+        prev, end = self.prev, r.start_address + r.register_count
+        assert prev is not None
+        offset = self.resolved[prev.seq][1] + curr.offset
+        if (curr.start_address != end - prev.register_count or prev.start_address + prev.register_count != end
+                or curr.register_count != prev.register_count or curr.register_size() != prev.register_size()
+                or offset > 255):
+            return False
+        self.resolved[curr.seq] = (r.start_address, offset)
+        return True
+
+    def extend(self, curr: SensorItem, r: Range) -> bool:
+        end = r.start_address + r.register_count
+        reach = curr.start_address >= end if curr.reuse is True else (
+            curr.start_address == end and (_bits(curr) or not self.custom))
+        gap = curr.start_address - end
+        where = ((curr.start_address - r.start_address) if _bits(curr) else self.nbytes + gap * 2) + curr.offset
+        if not reach or r.register_count + gap + curr.register_count > (2000 if _bits(curr) else 125) or where > 255:
+            return False
+        self.nbytes += (0 if _bits(curr) else gap * 2) + curr.register_size()
+        self.custom = self.custom or _custom(curr)
+        r.register_count += gap + curr.register_count
+        self.resolved[curr.seq] = (r.start_address, where)
+        return True
+
+    def cover(self, curr: SensorItem, r: Range) -> bool:
+        if (not self.shared or self.forced or curr.start_address < r.start_address
+                or curr.start_address + curr.register_count > r.start_address + r.register_count
+                or self.custom or _custom(curr)):
+            return False
+        delta = curr.start_address - r.start_address
+        self.resolved[curr.seq] = (r.start_address, (delta if _bits(curr) else delta * 2) + curr.offset)
+        return True
+
+    def share(self, curr: SensorItem) -> bool:
+        r = self.r
+        if r is None or r.register_type != curr.register_type or r.start_address != curr.start_address:
+            return False
+        self.resolved[curr.seq] = (r.start_address, curr.offset)
+        r.register_count = max(r.register_count, curr.register_count)
+        self.nbytes = max(self.nbytes, curr.register_size())
+        self.custom = self.custom or _custom(curr)
+        self.shared, self.forced = True, self.forced or curr.reuse is False
+        return True
+
+    def open(self, curr: SensorItem) -> None:
+        if self.r is not None:
+            self.out.append(self.r)
+        self.r = Range(curr.start_address, curr.register_type, curr.register_count, 0, [])
+        self.nbytes, self.custom, self.forced, self.shared = (curr.register_size(), _custom(curr),
+                                                              curr.reuse is False, False)
+        self.resolved[curr.seq] = (curr.start_address, curr.offset)
+
+
+def ranges_reuse(items: list[SensorItem]) -> list[Range]:
+    """2026.10's ``create_polling_commands_()`` for one controller's items: each sensor's ``start_address``
+    and ``offset`` become its range's start and its resolved offset (bytes; bits for coils)."""
+    sensors = sorted(items, key=lambda i: (_TYPE_ORDER[i.register_type], i.start_address, _REUSE_ORDER[i.reuse],
+                                           i.offset, i.seq))
+    b = _Builder()
+    for curr in sensors:
+        if not (b.join(curr) or b.share(curr)):
+            b.open(curr)
+        assert b.r is not None
+        b.r.sensors.append(curr)
+        b.prev = curr
+    if b.r is not None:
+        b.out.append(b.r)
+    for item in sensors:
+        item.start_address, item.offset = b.resolved[item.seq]
+    return b.out

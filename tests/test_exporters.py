@@ -11,6 +11,7 @@ import contextlib
 import functools
 import io
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -156,15 +157,27 @@ def test_option_errors_are_usage_errors(argv: list[str], message: str) -> None:
     assert message.lower() in err.lower() and "Traceback" not in err
 
 
-@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
-def test_esphome_ranges_match_drivemap_plan(model: str) -> None:
-    """ESPHome's range builder (ported) on the export: every entity decodes its own word, no range
-    exceeds the device's limit, and the ranges are drivemap's plan (plus what the header reports)."""
-    m = load(model)
-    text = render(m, "esphome")
-    doc = parse("esphome", text)
+def _esphome_ranges(doc: dict[str, Any], version: str) -> list[esp.Range]:
     items = esp.items_of(doc)
-    got = esp.ranges(items)
+    if version == "2026.6":
+        return esp.ranges(items)
+    assert not any(k in str(doc) for k in ("register_count", "force_new_range", "skip_updates", "command_throttle"))
+    by_controller: dict[str, list[esp.SensorItem]] = {}
+    for item in items:
+        by_controller.setdefault(item.controller, []).append(item)
+    return [r for group in by_controller.values() for r in esp.ranges_reuse(group)]
+
+
+@pytest.mark.parametrize("version", ["2026.6", "2026.10"])
+@pytest.mark.parametrize("model", [*MAPS, "allkinds"])
+def test_esphome_ranges_match_drivemap_plan(model: str, version: str) -> None:
+    """ESPHome's range builder (ported, before and since 2026.9) on the export: every entity decodes its
+    own word, no range exceeds the device's limit, and the ranges are drivemap's plan (plus what the
+    header reports)."""
+    m = load(model)
+    text = render(m, "esphome", esphome_version=version)
+    doc = parse("esphome", text)
+    got = _esphome_ranges(doc, version)
     spec = spec_from_model(m)
     for r in got:
         for item in r.sensors:
@@ -193,12 +206,37 @@ def _polled_cells(model: Any, doc: dict[str, Any]) -> set[str]:
 
 
 def test_esphome_ev_is_drivemaps_plan_exactly() -> None:
-    text = render(load_model("ev"), "esphome")
+    text = render(load_model("ev"), "esphome", esphome_version="2026.6")
     assert "drivemap plans 19, this file makes ESPHome send 19" in text
     doc = parse("esphome", text)
     gaps = [s for s in doc["sensor"] if str(s.get("id", "")).startswith("gap_")]
     assert gaps and all(s["internal"] for s in gaps)  # reserved words inside a planned read
     assert doc["modbus_controller"][0]["command_throttle"] == "20ms"  # EEPROM write delay of the map
+
+
+def test_esphome_newest_release_reads_the_plan_without_removed_keys() -> None:
+    """2026.9 and later (the default): no register_count, force_new_range, skip_updates or
+    command_throttle; holes are read across (reuse_previous_range: true), slower groups get a
+    controller of their own, the write delay spaces commands on the hub."""
+    text = render(load_model("ev"), "esphome")
+    assert "ESPHome 2026.10 (esphome config FILE)" in text
+    assert "drivemap plans 19, this file makes ESPHome send 19" in text
+    doc = parse("esphome", text)
+    assert not [s for s in doc["sensor"] if str(s.get("id", "")).startswith("gap_")]
+    assert any(s.get("reuse_previous_range") is True for s in doc["sensor"])
+    assert doc["modbus"][0]["turnaround_time"] == "20ms"
+    controllers = {c["id"]: c["update_interval"] for c in doc["modbus_controller"]}
+    assert controllers == {"device": "15s", "device_20x": "300s"}  # the settings groups: every 300 s
+    assert all("command_throttle" not in c for c in doc["modbus_controller"])
+
+
+@pytest.mark.parametrize(("value", "message"), [("2026.5", "older than the oldest supported release (2026.6)"),
+                                                ("next", "is not a release")])
+def test_esphome_version_refuses_what_it_cannot_write(value: str, message: str) -> None:
+    from drivemap.backends.exporters.base import OptionError
+
+    with pytest.raises(OptionError, match=re.escape(message)):
+        render(load_model("ev"), "esphome", esphome_version=value)
 
 
 @pytest.mark.slow  # a pymodbus server on TCP for every map

@@ -1,7 +1,8 @@
 """The exports checked by the tools that consume them (marker ``tools``: ``pytest -m tools``).
 
 Each tool runs from its own virtualenv (tests/toolenv.py), so its pins never meet drivemap's:
-ESPHome's ``esphome config``, Home Assistant's ``hass --script check_config`` (2024.3, the last
+ESPHome's ``esphome config`` on the newest release (Python 3.12) and on the oldest the exporter
+supports (``--esphome-version 2026.6``), Home Assistant's ``hass --script check_config`` (2024.3, the last
 release for Python 3.11; it exits 0 even on "Invalid config", so its output is read), and the
 ``pymodbus.simulator`` command serving the pymodbus-sim export to the generated client.
 """
@@ -18,37 +19,47 @@ import pytest
 
 from drivemap.compiler import load_model
 from tests.exporter_helpers import MAPS, compile_hostile, load, parse, render
-from tests.toolenv import require
+from tests.toolenv import TOOLS, require
 
 pytestmark = pytest.mark.tools
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
-def _esphome_config(folder: Path, name: str, text: str) -> str:
-    tool = require("esphome")
+#: (tool, --esphome-version): the newest release and the oldest one the exporter supports
+ESPHOME_RELEASES = [("esphome", None), ("esphome-oldest", "2026.6")]
+
+
+def _esphome_config(folder: Path, name: str, text: str, tool_name: str = "esphome") -> str:
+    tool = require(tool_name)
     (folder / name).write_text(text, encoding="utf-8")
     (folder / "secrets.yaml").write_text('wifi_ssid: "drivemap-test"\nwifi_password: "not-a-secret"\n', encoding="utf-8")
     done = subprocess.run([str(tool.exe("esphome")), "config", name], cwd=folder, capture_output=True, text=True,
                           timeout=300, env=dict(os.environ, ESPHOME_NOGITEXTENSION="1"))
     output = done.stdout + done.stderr
     assert done.returncode == 0 and "Failed config" not in output, output[-4000:]
+    # nothing the release ignores or migrates: every key written does what the export means
+    warnings = [line for line in output.splitlines() if line.startswith("WARNING") and "modbus" in line.lower()]
+    assert not warnings, warnings
     return output
 
 
+@pytest.mark.parametrize(("tool", "version"), ESPHOME_RELEASES)
 @pytest.mark.parametrize("model", [*MAPS, "allkinds"])
-def test_esphome_config_accepts_the_export(model: str, tmp_path: Path) -> None:
-    text = render(load(model), "esphome")
-    output = _esphome_config(tmp_path, f"{model}.yaml", text)
+def test_esphome_config_accepts_the_export(model: str, tool: str, version: str | None, tmp_path: Path) -> None:
+    text = render(load(model), "esphome", **({"esphome_version": version} if version else {}))
+    output = _esphome_config(tmp_path, f"{model}.yaml", text, tool)
+    assert f"INFO ESPHome {TOOLS[tool].split('==')[1]}" in output  # the release the tier means to run
     for entity in parse("esphome", text).get("sensor", [])[:5]:
         if "name" in entity:
             assert entity["name"] in output
 
 
-def test_esphome_config_accepts_hostile_text(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("tool", "version"), ESPHOME_RELEASES)
+def test_esphome_config_accepts_hostile_text(tool: str, version: str | None, tmp_path: Path) -> None:
     (tmp_path / "map").mkdir()
-    text = render(compile_hostile(tmp_path / "map"), "esphome")
-    output = _esphome_config(tmp_path, "ev.yaml", text)
+    text = render(compile_hostile(tmp_path / "map"), "esphome", **({"esphome_version": version} if version else {}))
+    output = _esphome_config(tmp_path, "ev.yaml", text, tool)
     assert "${unit}" in output and "$name" in output  # kept as written: no substitution ran on map text
 
 

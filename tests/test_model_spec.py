@@ -175,7 +175,10 @@ def test_a_spec_py_written_by_an_earlier_release_still_imports_and_equals_todays
     module = importlib.util.module_from_spec(loader)
     with pytest.warns(DeprecationWarning, match="earlier release"):
         loader.loader.exec_module(module)
-    assert module.SPEC == spec_from_model(compile_map(ROOT / "maps" / f"{model}.yaml"))
+    today = spec_from_model(compile_map(ROOT / "maps" / f"{model}.yaml"))
+    # review: (what the map's source leaves open) came later: the earlier release printed none
+    today = dataclasses.replace(today, registers=tuple(dataclasses.replace(r, review=()) for r in today.registers))
+    assert module.SPEC == today
 
 
 def test_the_json_export_says_what_the_map_says_of_the_protocol_not_the_runtimes_derived_facts() -> None:

@@ -33,7 +33,10 @@ from pathlib import Path
 #: A tool is one requirement or several (the first names the tool; the folder name carries a hash
 #: of the others, so a changed list gets a fresh virtualenv).
 TOOLS: dict[str, str | tuple[str, ...]] = {
-    "esphome": "esphome==2026.6.5",
+    # the newest ESPHome release (needs Python 3.12+: TOOL_PYTHON) and the oldest one the exporter supports
+    # (--esphome-version; drivemap.backends.exporters.esphome NEWEST / OLDEST)
+    "esphome": "esphome==2026.10.0",
+    "esphome-oldest": "esphome==2026.6.5",
     # check_config (tests/test_exporters_tools.py) and a Home Assistant that *runs* (`hass -c CFG
     # --skip-pip`, tests/test_ha_live.py): with what HA would otherwise pip-install at start for its
     # core, recorder, frontend, http, modbus and mqtt (a frontend that fails to set up sends HA into
@@ -47,6 +50,11 @@ TOOLS: dict[str, str | tuple[str, ...]] = {
     # pymodbus's own simulator CLI (pymodbus.simulator needs the aiohttp extra; same pymodbus as ours)
     "pymodbus-simulator": "pymodbus[simulator]==3.16.1",
 }
+
+#: tools that need another Python than the one running the tests: the interpreter's X.Y. It is looked up on
+#: PATH (pythonX.Y) and under pyenv's versions ($PYENV_ROOT or ~/.pyenv); where none is found the test FAILS
+#: saying which interpreter to install (.ci/run checks for it before the tools tier).
+TOOL_PYTHON: dict[str, str] = {"esphome": "3.12"}
 
 #: npm packages, each in a folder of its own (package.json + node_modules) under the same cache.
 NPM_TOOLS: dict[str, tuple[str, ...]] = {
@@ -94,18 +102,43 @@ def _requirements(requirement: str | tuple[str, ...]) -> list[str]:
     return [requirement] if isinstance(requirement, str) else list(requirement)
 
 
-def _folder(requirement: str | tuple[str, ...]) -> Path:
+def interpreter(version: str) -> Path:
+    """A Python X.Y interpreter that runs: the newest pyenv X.Y.*, else ``pythonX.Y`` on PATH (a pyenv shim
+    of a version not selected does not run); :class:`ToolUnavailable` if none."""
+    root = Path(os.environ.get("PYENV_ROOT") or Path.home() / ".pyenv")
+    candidates = sorted((root / "versions").glob(f"{version}.*/bin/python{version}"),
+                        key=lambda p: [int(x) for x in re.findall(r"\d+", p.parent.parent.name)])
+    found = shutil.which(f"python{version}")
+    for candidate in [*reversed(candidates), *([Path(found)] if found else [])]:
+        ran = subprocess.run([str(candidate), "-c", "import sys, venv; print(sys.version_info[:2])"],
+                             capture_output=True, text=True, check=False)
+        if ran.returncode == 0 and ran.stdout.strip() == str(tuple(int(x) for x in version.split("."))):
+            return candidate
+    raise ToolUnavailable(f"Python {version} is needed and was not found (neither python{version} on PATH nor "
+                          f"{root}/versions/{version}.*): install it, e.g. `pyenv install {version}`")
+
+
+def _python_of(name: str) -> tuple[str, Path | None]:
+    """The X.Y a tool's virtualenv runs and its interpreter (None: the one running the tests)."""
+    version = TOOL_PYTHON.get(name)
+    if version is None:
+        return f"{sys.version_info.major}.{sys.version_info.minor}", None
+    return version, interpreter(version)
+
+
+def _folder(requirement: str | tuple[str, ...], python: str | None = None) -> Path:
     wanted = _requirements(requirement)
     tag = re.sub(r"[^A-Za-z0-9.]+", "-", wanted[0]).strip("-")
     if len(wanted) > 1:
         tag += "-" + hashlib.sha256("\n".join(wanted).encode()).hexdigest()[:8]
-    return cache_root() / f"{tag}-py{sys.version_info.major}.{sys.version_info.minor}"
+    return cache_root() / f"{tag}-py{python or f'{sys.version_info.major}.{sys.version_info.minor}'}"
 
 
 def ensure(name: str) -> Tool:
     """The tool's virtualenv, created and installed on first use; :class:`ToolUnavailable` if pip fails."""
     requirement = TOOLS[name]
-    folder = _folder(requirement)
+    version, base = _python_of(name)
+    folder = _folder(requirement, version)
     tool = Tool(name, requirement, folder)
     marker = folder / ".drivemap-ready"
     if marker.is_file():
@@ -114,7 +147,13 @@ def ensure(name: str) -> Tool:
         if marker.is_file():
             return tool
         shutil.rmtree(folder, ignore_errors=True)
-        venv.EnvBuilder(with_pip=True, clear=True).create(folder)
+        if base is None:
+            venv.EnvBuilder(with_pip=True, clear=True).create(folder)
+        else:
+            made = subprocess.run([str(base), "-m", "venv", "--clear", str(folder)], capture_output=True, text=True,
+                                  check=False)
+            if made.returncode != 0:
+                raise ToolUnavailable(f"{base} -m venv {folder} failed: {(made.stderr or made.stdout).strip()[-500:]}")
         python = folder / "bin" / "python"
         wanted = _requirements(requirement)
         command = [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wanted]

@@ -50,12 +50,14 @@ SPEC = DeviceSpec(
             address=0x2102,
             access='r',
             source='VFD-EL-W p.4-84 line 10',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_frequency',
             address=0x2103,
             access='r',
             source='VFD-EL-W p.4-84 line 11',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_current',
@@ -64,6 +66,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='A',
             source='VFD-EL-W p.4-84 line 12',
+            review=('type',),
         ),
         RegisterSpec(
             name='dc_bus_voltage',
@@ -72,6 +75,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-EL-W p.4-84 line 16',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_voltage',
@@ -80,18 +84,21 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-EL-W p.4-84 line 17',
+            review=('type',),
         ),
         RegisterSpec(
             name='igbt_temperature',
             address=0x210A,
             access='r',
             source='VFD-EL-W p.4-84 line 18',
+            review=('type',),
         ),
         RegisterSpec(
             name='user_defined_low',
             address=0x2116,
             access='r',
             source='VFD-EL-W p.4-84 line 19',
+            review=('type',),
         ),
         RegisterSpec(
             name='user_defined_high',

@@ -49,12 +49,14 @@ SPEC = DeviceSpec(
             address=0x2102,
             access='r',
             source='VFD-F p.5-58 line 5',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_frequency',
             address=0x2103,
             access='r',
             source='VFD-F p.5-58 line 6',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_current',
@@ -63,6 +65,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='A',
             source='VFD-F p.5-58 line 7',
+            review=('type',),
         ),
         RegisterSpec(
             name='dc_bus_voltage',
@@ -71,6 +74,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-F p.5-58 line 8',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_voltage',
@@ -79,12 +83,14 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-F p.5-58 line 9',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_power_factor',
             address=0x2107,
             access='r',
             source='VFD-F p.5-58 line 10',
+            review=('type',),
         ),
         RegisterSpec(
             name='output_power',
@@ -93,12 +99,14 @@ SPEC = DeviceSpec(
             scale=0.01,
             unit='kW',
             source='VFD-F p.5-58 line 11',
+            review=('type',),
         ),
         RegisterSpec(
             name='feedback_signal_actual_value',
             address=0x2109,
             access='r',
             source='VFD-F p.5-58 line 12',
+            review=('type',),
         ),
         RegisterSpec(
             name='feedback_signal',
@@ -107,6 +115,7 @@ SPEC = DeviceSpec(
             scale=0.01,
             unit='%',
             source='VFD-F p.5-58 line 13',
+            review=('type',),
         ),
         RegisterSpec(
             name='estimated_torque_ratio',
@@ -114,6 +123,7 @@ SPEC = DeviceSpec(
             access='r',
             scale=0.1,
             source='VFD-F p.5-58 line 14',
+            review=('type',),
         ),
         RegisterSpec(
             name='user_target_value_ul',
@@ -137,6 +147,7 @@ SPEC = DeviceSpec(
             address=0x210E,
             access='r',
             source='VFD-F p.5-58 line 17',
+            review=('type',),
         ),
     ),
     reserved=(

@@ -274,6 +274,7 @@ SPEC = DeviceSpec(
             access='r',
             page=PageSpec('watch_data_select', 0),
             source='001 §4.3',
+            review=('type',),
         ),
         RegisterSpec(
             name='bus_voltage',
@@ -314,6 +315,7 @@ SPEC = DeviceSpec(
             access='r',
             page=PageSpec('watch_data_select', 1),
             source='001 §4.3',
+            review=('type',),
         ),
         RegisterSpec(
             name='accel_time_monitor',
@@ -566,6 +568,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='01-01',
             source='001 §2.2 例外應答範例',
+            review=('type',),
         ),
         RegisterSpec(
             name='operation_data_source',
@@ -573,6 +576,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='02-03',
             source='001 Appendix I 範例 2, RS-485 多台廣播控制',
+            review=('type',),
         ),
         RegisterSpec(
             name='servo_on_mode',
@@ -580,6 +584,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='02-14',
             source='001 §4.3',
+            review=('type',),
         ),
         RegisterSpec(
             name='always_on_input_1',
@@ -587,6 +592,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='06-07',
             source='001 Appendix I RS-485 多台廣播控制',
+            review=('type',),
         ),
         RegisterSpec(
             name='param_08_01',
@@ -594,6 +600,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='08-01',
             source='001 §4.3',
+            review=('type',),
         ),
         RegisterSpec(
             name='stop_holding_force',

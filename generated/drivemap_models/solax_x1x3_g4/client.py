@@ -76,13 +76,15 @@ class BmsConnectState(DriveEnum):
 
 
 class BdcStatus(DriveEnum):
-    """BdcStatus (V3.21 p.20).
+    """BdcStatus (V3.21 p.20 row 0x0019 (0: discharge 1: charge) and p.21, first line (2: stop: the cell continues after the page break)).
     """
 
     DISCHARGE = 0
     """discharge"""
     CHARGE = 1
     """charge"""
+    STOP = 2
+    """stop"""
 
 
 class Abnormal01Error(DeviceException):
@@ -298,7 +300,7 @@ class _Registers:
     bdcstatus: ReadOnlyReg[BdcStatus] = ReadOnlyReg("""BDCStatus
 
         Input register 0x0019 (Modicon 30026); u16, access r.
-        Manual: V3.21 p.20 Read Input Register table row 29.""")
+        Manual: V3.21 p.20-21 Read Input Register table row 29 (its value list ends on p.21).""")
     mgr_fault_message: ReadOnlyReg[int] = ReadOnlyReg("""Mgr FaultMessage
 
         Input register 0x0043 (Modicon 30068); u16, access r.

@@ -186,6 +186,87 @@ class Snapshot(SnapshotBase):
     packeterrorcount: int | None = None
     overruncount: int | None = None
     error_status: tuple[int | None, ...] | None = None
+    energysum_float: float | None = None
+    energypossum_float: float | None = None
+    energysumnr_float: float | None = None
+    energypossumnr_float: float | None = None
+    powersum_float: float | None = None
+    powera_float: float | None = None
+    powerb_float: float | None = None
+    powerc_float: float | None = None
+    voltavgln_float: float | None = None
+    volta_float: float | None = None
+    voltb_float: float | None = None
+    voltc_float: float | None = None
+    voltavgll_float: float | None = None
+    voltab_float: float | None = None
+    voltbc_float: float | None = None
+    voltac_float: float | None = None
+    freq_float: float | None = None
+    energysum_int: float | None = None
+    energypossum_int: float | None = None
+    energysumnr_int: float | None = None
+    energypossumnr_int: float | None = None
+    energya_float: float | None = None
+    enerygb_float: float | None = None
+    energyc_float: float | None = None
+    energyposa_float: float | None = None
+    energyposb_float: float | None = None
+    energyposc_float: float | None = None
+    energynegsum_float: float | None = None
+    energynegsumnr_float: float | None = None
+    energynega_float: float | None = None
+    energynegb_float: float | None = None
+    energynegc_float: float | None = None
+    energyreacsum_float: float | None = None
+    energyreaca_float: float | None = None
+    energyreacb_float: float | None = None
+    energyreacc_float: float | None = None
+    energyappsum_float: float | None = None
+    energyappa_float: float | None = None
+    energyappb_float: float | None = None
+    energyappc_float: float | None = None
+    powerfactoravg_float: float | None = None
+    powerfactora_float: float | None = None
+    powerfactorb_float: float | None = None
+    powerfactorc_float: float | None = None
+    powerreacsum_float: float | None = None
+    powerreaca_float: float | None = None
+    powerreacb_float: float | None = None
+    powerreacc_float: float | None = None
+    powerappsum_float: float | None = None
+    powerappa_float: float | None = None
+    powerappb_float: float | None = None
+    powerappc_float: float | None = None
+    currenta_float: float | None = None
+    currentb_float: float | None = None
+    currentc_float: float | None = None
+    demand_float: float | None = None
+    demandmin_float: float | None = None
+    demandmax_float: float | None = None
+    demandapp_float: float | None = None
+    demanda_float: float | None = None
+    demandb_float: float | None = None
+    demandc_float: float | None = None
+    energya_int: float | None = None
+    enerygb_int: float | None = None
+    energyc_int: float | None = None
+    energyposa_int: float | None = None
+    energyposb_int: float | None = None
+    energyposc_int: float | None = None
+    energynegsum_int: float | None = None
+    energynegsumnr_int: float | None = None
+    energynega_int: float | None = None
+    energynegb_int: float | None = None
+    energynegc_int: float | None = None
+    energyreacsum_int: float | None = None
+    energyreaca_int: float | None = None
+    energyreacb_int: float | None = None
+    energyreacc_int: float | None = None
+    energyappsum_int: float | None = None
+    energyappa_int: float | None = None
+    energyappb_int: float | None = None
+    energyappc_int: float | None = None
 
 
 class _Registers:
@@ -193,20 +274,20 @@ class _Registers:
 
     powersum: ReadOnlyReg[int] = ReadOnlyReg("""PowerSum
 
-        Address 0x04B8 (Modicon 41209); u16, access r.
-        Manual: WNC V18 sheet Main List row 36.""")
+        Address 0x04B8 (Modicon 41209); s16, access r.
+        Manual: WNC V18 sheet Main List row 36; WattNode operating instructions p.33.""")
     powera: ReadOnlyReg[int] = ReadOnlyReg("""PowerA
 
-        Address 0x04B9 (Modicon 41210); u16, access r.
-        Manual: WNC V18 sheet Main List row 37.""")
+        Address 0x04B9 (Modicon 41210); s16, access r.
+        Manual: WNC V18 sheet Main List row 37; WattNode operating instructions p.33.""")
     powerb: ReadOnlyReg[int] = ReadOnlyReg("""PowerB
 
-        Address 0x04BA (Modicon 41211); u16, access r.
-        Manual: WNC V18 sheet Main List row 38.""")
+        Address 0x04BA (Modicon 41211); s16, access r.
+        Manual: WNC V18 sheet Main List row 38; WattNode operating instructions p.33.""")
     powerc: ReadOnlyReg[int] = ReadOnlyReg("""PowerC
 
-        Address 0x04BB (Modicon 41212); u16, access r.
-        Manual: WNC V18 sheet Main List row 39.""")
+        Address 0x04BB (Modicon 41212); s16, access r.
+        Manual: WNC V18 sheet Main List row 39; WattNode operating instructions p.33.""")
     voltavgln: ReadOnlyReg[float] = ReadOnlyReg("""VoltAvgLN
 
         Address 0x04BC (Modicon 41213); u16, access r.
@@ -254,40 +335,40 @@ class _Registers:
         Manual: WNC V18 sheet Main List row 50.""")
     powerfactoravg: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorAvg
 
-        Address 0x053A (Modicon 41339); u16, access r.
+        Address 0x053A (Modicon 41339); s16, access r.
         Scale 0.01.
-        Manual: WNC V18 sheet Main List row 124.""")
+        Manual: WNC V18 sheet Main List row 124; WattNode operating instructions p.33.""")
     powerfactora: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorA
 
-        Address 0x053B (Modicon 41340); u16, access r.
+        Address 0x053B (Modicon 41340); s16, access r.
         Scale 0.01.
-        Manual: WNC V18 sheet Main List row 125.""")
+        Manual: WNC V18 sheet Main List row 125; WattNode operating instructions p.33.""")
     powerfactorb: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorB
 
-        Address 0x053C (Modicon 41341); u16, access r.
+        Address 0x053C (Modicon 41341); s16, access r.
         Scale 0.01.
-        Manual: WNC V18 sheet Main List row 126.""")
+        Manual: WNC V18 sheet Main List row 126; WattNode operating instructions p.33.""")
     powerfactorc: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorC
 
-        Address 0x053D (Modicon 41342); u16, access r.
+        Address 0x053D (Modicon 41342); s16, access r.
         Scale 0.01.
-        Manual: WNC V18 sheet Main List row 127.""")
+        Manual: WNC V18 sheet Main List row 127; WattNode operating instructions p.33.""")
     powerreacsum: ReadOnlyReg[int] = ReadOnlyReg("""PowerReacSum
 
-        Address 0x053E (Modicon 41343); u16, access r.
-        Manual: WNC V18 sheet Main List row 129.""")
+        Address 0x053E (Modicon 41343); s16, access r.
+        Manual: WNC V18 sheet Main List row 129; WattNode operating instructions p.33.""")
     powerreaca: ReadOnlyReg[int] = ReadOnlyReg("""PowerReacA
 
-        Address 0x053F (Modicon 41344); u16, access r.
-        Manual: WNC V18 sheet Main List row 130.""")
+        Address 0x053F (Modicon 41344); s16, access r.
+        Manual: WNC V18 sheet Main List row 130; WattNode operating instructions p.33.""")
     powerreacb: ReadOnlyReg[int] = ReadOnlyReg("""PowerReacB
 
-        Address 0x0540 (Modicon 41345); u16, access r.
-        Manual: WNC V18 sheet Main List row 131.""")
+        Address 0x0540 (Modicon 41345); s16, access r.
+        Manual: WNC V18 sheet Main List row 131; WattNode operating instructions p.33.""")
     powerreacc: ReadOnlyReg[int] = ReadOnlyReg("""PowerReacC
 
-        Address 0x0541 (Modicon 41346); u16, access r.
-        Manual: WNC V18 sheet Main List row 132.""")
+        Address 0x0541 (Modicon 41346); s16, access r.
+        Manual: WNC V18 sheet Main List row 132; WattNode operating instructions p.33.""")
     powerappsum: ReadOnlyReg[int] = ReadOnlyReg("""PowerAppSum
 
         Address 0x0542 (Modicon 41347); u16, access r.
@@ -318,32 +399,32 @@ class _Registers:
         Manual: WNC V18 sheet Main List row 140.""")
     demand: ReadOnlyReg[int] = ReadOnlyReg("""Demand
 
-        Address 0x0549 (Modicon 41354); u16, access r.
-        Manual: WNC V18 sheet Main List row 142.""")
+        Address 0x0549 (Modicon 41354); s16, access r.
+        Manual: WNC V18 sheet Main List row 142; WattNode operating instructions p.33.""")
     demandmin: ReadOnlyReg[int] = ReadOnlyReg("""DemandMin
 
-        Address 0x054A (Modicon 41355); u16, access r.
-        Manual: WNC V18 sheet Main List row 143.""")
+        Address 0x054A (Modicon 41355); s16, access r.
+        Manual: WNC V18 sheet Main List row 143; WattNode operating instructions p.33.""")
     demandmax: ReadOnlyReg[int] = ReadOnlyReg("""DemandMax
 
-        Address 0x054B (Modicon 41356); u16, access r.
-        Manual: WNC V18 sheet Main List row 144.""")
+        Address 0x054B (Modicon 41356); s16, access r.
+        Manual: WNC V18 sheet Main List row 144; WattNode operating instructions p.33.""")
     demandapp: ReadOnlyReg[int] = ReadOnlyReg("""DemandApp
 
         Address 0x054C (Modicon 41357); u16, access r.
         Manual: WNC V18 sheet Main List row 145.""")
     demanda: ReadOnlyReg[int] = ReadOnlyReg("""DemandA
 
-        Address 0x054D (Modicon 41358); u16, access r.
-        Manual: WNC V18 sheet Main List row 146.""")
+        Address 0x054D (Modicon 41358); s16, access r.
+        Manual: WNC V18 sheet Main List row 146; WattNode operating instructions p.33.""")
     demandb: ReadOnlyReg[int] = ReadOnlyReg("""DemandB
 
-        Address 0x054E (Modicon 41359); u16, access r.
-        Manual: WNC V18 sheet Main List row 147.""")
+        Address 0x054E (Modicon 41359); s16, access r.
+        Manual: WNC V18 sheet Main List row 147; WattNode operating instructions p.33.""")
     demandc: ReadOnlyReg[int] = ReadOnlyReg("""DemandC
 
-        Address 0x054F (Modicon 41360); u16, access r.
-        Manual: WNC V18 sheet Main List row 148.""")
+        Address 0x054F (Modicon 41360); s16, access r.
+        Manual: WNC V18 sheet Main List row 148; WattNode operating instructions p.33.""")
     iopinstate: ReadWriteReg[int] = ReadWriteReg("""IoPinState
 
         Address 0x0550 (Modicon 41361); u16, access rw.
@@ -548,6 +629,447 @@ class _Registers:
         Address 0x06B3 (Modicon 41716), 8 elements, stride 1; u16, access rw.
         Reflect: unknown; storage: unknown.
         Manual: WNC V18 sheet Main List row 201 .. sheet Main List row 208.""")
+    energysum_float: ReadWriteReg[float] = ReadWriteReg("""EnergySum (float)
+
+        Address 0x03E8 (Modicon 41001); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 7; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energypossum_float: ReadWriteReg[float] = ReadWriteReg("""EnergyPosSum (float)
+
+        Address 0x03EA (Modicon 41003); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 8; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energysumnr_float: ReadOnlyReg[float] = ReadOnlyReg("""EnergySumNR (float)
+
+        Address 0x03EC (Modicon 41005); f32 (bytes on the wire: CD AB), access r.
+        Unit: kWh.
+        Manual: WNC V18 sheet Main List row 9; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energypossumnr_float: ReadOnlyReg[float] = ReadOnlyReg("""EnergyPosSumNR (float)
+
+        Address 0x03EE (Modicon 41007); f32 (bytes on the wire: CD AB), access r.
+        Unit: kWh.
+        Manual: WNC V18 sheet Main List row 10; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powersum_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerSum (float)
+
+        Address 0x03F0 (Modicon 41009); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 12; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powera_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerA (float)
+
+        Address 0x03F2 (Modicon 41011); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 13; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerb_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerB (float)
+
+        Address 0x03F4 (Modicon 41013); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 14; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerc_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerC (float)
+
+        Address 0x03F6 (Modicon 41015); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 15; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltavgln_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltAvgLN (float)
+
+        Address 0x03F8 (Modicon 41017); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 17; vendor note 'Floating point register details for WattNode Modbus'.""")
+    volta_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltA (float)
+
+        Address 0x03FA (Modicon 41019); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 18; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltb_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltB (float)
+
+        Address 0x03FC (Modicon 41021); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 19; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltc_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltC (float)
+
+        Address 0x03FE (Modicon 41023); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 20; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltavgll_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltAvgLL (float)
+
+        Address 0x0400 (Modicon 41025); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 21; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltab_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltAB (float)
+
+        Address 0x0402 (Modicon 41027); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 22; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltbc_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltBC (float)
+
+        Address 0x0404 (Modicon 41029); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 23; vendor note 'Floating point register details for WattNode Modbus'.""")
+    voltac_float: ReadOnlyReg[float] = ReadOnlyReg("""VoltAC (float)
+
+        Address 0x0406 (Modicon 41031); f32 (bytes on the wire: CD AB), access r.
+        Unit: V.
+        Manual: WNC V18 sheet Main List row 24; vendor note 'Floating point register details for WattNode Modbus'.""")
+    freq_float: ReadOnlyReg[float] = ReadOnlyReg("""Freq (float)
+
+        Address 0x0408 (Modicon 41033); f32 (bytes on the wire: CD AB), access r.
+        Unit: Hz.
+        Manual: WNC V18 sheet Main List row 26; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energysum_int: ReadWriteReg[float] = ReadWriteReg("""EnergySum (32-bit integer)
+
+        Address 0x04B0 (Modicon 41201); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 31; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energypossum_int: ReadWriteReg[float] = ReadWriteReg("""EnergyPosSum (32-bit integer)
+
+        Address 0x04B2 (Modicon 41203); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 32; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energysumnr_int: ReadOnlyReg[float] = ReadOnlyReg("""EnergySumNR (32-bit integer)
+
+        Address 0x04B4 (Modicon 41205); s32 (bytes on the wire: CD AB), access r.
+        Unit: kWh; scale 0.1.
+        Manual: WNC V18 sheet Main List row 33; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energypossumnr_int: ReadOnlyReg[float] = ReadOnlyReg("""EnergyPosSumNR (32-bit integer)
+
+        Address 0x04B6 (Modicon 41207); s32 (bytes on the wire: CD AB), access r.
+        Unit: kWh; scale 0.1.
+        Manual: WNC V18 sheet Main List row 34; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energya_float: ReadWriteReg[float] = ReadWriteReg("""EnergyA (float)
+
+        Address 0x044C (Modicon 41101); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 55; vendor note 'Floating point register details for WattNode Modbus'.""")
+    enerygb_float: ReadWriteReg[float] = ReadWriteReg("""EnerygB (float)
+
+        Address 0x044E (Modicon 41103); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 56; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyc_float: ReadWriteReg[float] = ReadWriteReg("""EnergyC (float)
+
+        Address 0x0450 (Modicon 41105); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 57; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyposa_float: ReadWriteReg[float] = ReadWriteReg("""EnergyPosA (float)
+
+        Address 0x0452 (Modicon 41107); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 58; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyposb_float: ReadWriteReg[float] = ReadWriteReg("""EnergyPosB (float)
+
+        Address 0x0454 (Modicon 41109); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 59; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyposc_float: ReadWriteReg[float] = ReadWriteReg("""EnergyPosC (float)
+
+        Address 0x0456 (Modicon 41111); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 60; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energynegsum_float: ReadWriteReg[float] = ReadWriteReg("""EnergyNegSum (float)
+
+        Address 0x0458 (Modicon 41113); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 61; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energynegsumnr_float: ReadOnlyReg[float] = ReadOnlyReg("""EnergyNegSumNR (float)
+
+        Address 0x045A (Modicon 41115); f32 (bytes on the wire: CD AB), access r.
+        Unit: kWh.
+        Manual: WNC V18 sheet Main List row 62; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energynega_float: ReadWriteReg[float] = ReadWriteReg("""EnergyNegA (float)
+
+        Address 0x045C (Modicon 41117); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 63; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energynegb_float: ReadWriteReg[float] = ReadWriteReg("""EnergyNegB (float)
+
+        Address 0x045E (Modicon 41119); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 64; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energynegc_float: ReadWriteReg[float] = ReadWriteReg("""EnergyNegC (float)
+
+        Address 0x0460 (Modicon 41121); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 65; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyreacsum_float: ReadWriteReg[float] = ReadWriteReg("""EnergyReacSum (float)
+
+        Address 0x0462 (Modicon 41123); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 66; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyreaca_float: ReadWriteReg[float] = ReadWriteReg("""EnergyReacA (float)
+
+        Address 0x0464 (Modicon 41125); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 67; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyreacb_float: ReadWriteReg[float] = ReadWriteReg("""EnergyReacB (float)
+
+        Address 0x0466 (Modicon 41127); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 68; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyreacc_float: ReadWriteReg[float] = ReadWriteReg("""EnergyReacC (float)
+
+        Address 0x0468 (Modicon 41129); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 69; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyappsum_float: ReadWriteReg[float] = ReadWriteReg("""EnergyAppSum (float)
+
+        Address 0x046A (Modicon 41131); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 70; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyappa_float: ReadWriteReg[float] = ReadWriteReg("""EnergyAppA (float)
+
+        Address 0x046C (Modicon 41133); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 71; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyappb_float: ReadWriteReg[float] = ReadWriteReg("""EnergyAppB (float)
+
+        Address 0x046E (Modicon 41135); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 72; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energyappc_float: ReadWriteReg[float] = ReadWriteReg("""EnergyAppC (float)
+
+        Address 0x0470 (Modicon 41137); f32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 73; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerfactoravg_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorAvg (float)
+
+        Address 0x0472 (Modicon 41139); f32 (bytes on the wire: CD AB), access r.
+        Manual: WNC V18 sheet Main List row 75; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerfactora_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorA (float)
+
+        Address 0x0474 (Modicon 41141); f32 (bytes on the wire: CD AB), access r.
+        Manual: WNC V18 sheet Main List row 76; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerfactorb_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorB (float)
+
+        Address 0x0476 (Modicon 41143); f32 (bytes on the wire: CD AB), access r.
+        Manual: WNC V18 sheet Main List row 77; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerfactorc_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerFactorC (float)
+
+        Address 0x0478 (Modicon 41145); f32 (bytes on the wire: CD AB), access r.
+        Manual: WNC V18 sheet Main List row 78; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerreacsum_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerReacSum (float)
+
+        Address 0x047A (Modicon 41147); f32 (bytes on the wire: CD AB), access r.
+        Unit: var.
+        Manual: WNC V18 sheet Main List row 80; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerreaca_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerReacA (float)
+
+        Address 0x047C (Modicon 41149); f32 (bytes on the wire: CD AB), access r.
+        Unit: var.
+        Manual: WNC V18 sheet Main List row 81; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerreacb_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerReacB (float)
+
+        Address 0x047E (Modicon 41151); f32 (bytes on the wire: CD AB), access r.
+        Unit: var.
+        Manual: WNC V18 sheet Main List row 82; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerreacc_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerReacC (float)
+
+        Address 0x0480 (Modicon 41153); f32 (bytes on the wire: CD AB), access r.
+        Unit: var.
+        Manual: WNC V18 sheet Main List row 83; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerappsum_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerAppSum (float)
+
+        Address 0x0482 (Modicon 41155); f32 (bytes on the wire: CD AB), access r.
+        Unit: VA.
+        Manual: WNC V18 sheet Main List row 84; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerappa_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerAppA (float)
+
+        Address 0x0484 (Modicon 41157); f32 (bytes on the wire: CD AB), access r.
+        Unit: VA.
+        Manual: WNC V18 sheet Main List row 85; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerappb_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerAppB (float)
+
+        Address 0x0486 (Modicon 41159); f32 (bytes on the wire: CD AB), access r.
+        Unit: VA.
+        Manual: WNC V18 sheet Main List row 86; vendor note 'Floating point register details for WattNode Modbus'.""")
+    powerappc_float: ReadOnlyReg[float] = ReadOnlyReg("""PowerAppC (float)
+
+        Address 0x0488 (Modicon 41161); f32 (bytes on the wire: CD AB), access r.
+        Unit: VA.
+        Manual: WNC V18 sheet Main List row 87; vendor note 'Floating point register details for WattNode Modbus'.""")
+    currenta_float: ReadOnlyReg[float] = ReadOnlyReg("""CurrentA (float)
+
+        Address 0x048A (Modicon 41163); f32 (bytes on the wire: CD AB), access r.
+        Unit: A.
+        Manual: WNC V18 sheet Main List row 89; vendor note 'Floating point register details for WattNode Modbus'.""")
+    currentb_float: ReadOnlyReg[float] = ReadOnlyReg("""CurrentB (float)
+
+        Address 0x048C (Modicon 41165); f32 (bytes on the wire: CD AB), access r.
+        Unit: A.
+        Manual: WNC V18 sheet Main List row 90; vendor note 'Floating point register details for WattNode Modbus'.""")
+    currentc_float: ReadOnlyReg[float] = ReadOnlyReg("""CurrentC (float)
+
+        Address 0x048E (Modicon 41167); f32 (bytes on the wire: CD AB), access r.
+        Unit: A.
+        Manual: WNC V18 sheet Main List row 91; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demand_float: ReadOnlyReg[float] = ReadOnlyReg("""Demand (float)
+
+        Address 0x0490 (Modicon 41169); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 93; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demandmin_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandMin (float)
+
+        Address 0x0492 (Modicon 41171); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 94; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demandmax_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandMax (float)
+
+        Address 0x0494 (Modicon 41173); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 95; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demandapp_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandApp (float)
+
+        Address 0x0496 (Modicon 41175); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 96; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demanda_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandA (float)
+
+        Address 0x0498 (Modicon 41177); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 97; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demandb_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandB (float)
+
+        Address 0x049A (Modicon 41179); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 98; vendor note 'Floating point register details for WattNode Modbus'.""")
+    demandc_float: ReadOnlyReg[float] = ReadOnlyReg("""DemandC (float)
+
+        Address 0x049C (Modicon 41181); f32 (bytes on the wire: CD AB), access r.
+        Unit: W.
+        Manual: WNC V18 sheet Main List row 99; vendor note 'Floating point register details for WattNode Modbus'.""")
+    energya_int: ReadWriteReg[float] = ReadWriteReg("""EnergyA (32-bit integer)
+
+        Address 0x0514 (Modicon 41301); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 104; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    enerygb_int: ReadWriteReg[float] = ReadWriteReg("""EnerygB (32-bit integer)
+
+        Address 0x0516 (Modicon 41303); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 105; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyc_int: ReadWriteReg[float] = ReadWriteReg("""EnergyC (32-bit integer)
+
+        Address 0x0518 (Modicon 41305); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 106; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyposa_int: ReadWriteReg[float] = ReadWriteReg("""EnergyPosA (32-bit integer)
+
+        Address 0x051A (Modicon 41307); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 107; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyposb_int: ReadWriteReg[float] = ReadWriteReg("""EnergyPosB (32-bit integer)
+
+        Address 0x051C (Modicon 41309); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 108; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyposc_int: ReadWriteReg[float] = ReadWriteReg("""EnergyPosC (32-bit integer)
+
+        Address 0x051E (Modicon 41311); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 109; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energynegsum_int: ReadWriteReg[float] = ReadWriteReg("""EnergyNegSum (32-bit integer)
+
+        Address 0x0520 (Modicon 41313); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 110; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energynegsumnr_int: ReadOnlyReg[float] = ReadOnlyReg("""EnergyNegSumNR (32-bit integer)
+
+        Address 0x0522 (Modicon 41315); s32 (bytes on the wire: CD AB), access r.
+        Unit: kWh; scale 0.1.
+        Manual: WNC V18 sheet Main List row 111; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energynega_int: ReadWriteReg[float] = ReadWriteReg("""EnergyNegA (32-bit integer)
+
+        Address 0x0524 (Modicon 41317); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 112; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energynegb_int: ReadWriteReg[float] = ReadWriteReg("""EnergyNegB (32-bit integer)
+
+        Address 0x0526 (Modicon 41319); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 113; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energynegc_int: ReadWriteReg[float] = ReadWriteReg("""EnergyNegC (32-bit integer)
+
+        Address 0x0528 (Modicon 41321); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kWh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 114; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyreacsum_int: ReadWriteReg[float] = ReadWriteReg("""EnergyReacSum (32-bit integer)
+
+        Address 0x052A (Modicon 41323); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 115; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyreaca_int: ReadWriteReg[float] = ReadWriteReg("""EnergyReacA (32-bit integer)
+
+        Address 0x052C (Modicon 41325); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 116; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyreacb_int: ReadWriteReg[float] = ReadWriteReg("""EnergyReacB (32-bit integer)
+
+        Address 0x052E (Modicon 41327); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 117; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyreacc_int: ReadWriteReg[float] = ReadWriteReg("""EnergyReacC (32-bit integer)
+
+        Address 0x0530 (Modicon 41329); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kvarh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 118; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyappsum_int: ReadWriteReg[float] = ReadWriteReg("""EnergyAppSum (32-bit integer)
+
+        Address 0x0532 (Modicon 41331); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 119; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyappa_int: ReadWriteReg[float] = ReadWriteReg("""EnergyAppA (32-bit integer)
+
+        Address 0x0534 (Modicon 41333); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 120; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyappb_int: ReadWriteReg[float] = ReadWriteReg("""EnergyAppB (32-bit integer)
+
+        Address 0x0536 (Modicon 41335); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 121; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
+    energyappc_int: ReadWriteReg[float] = ReadWriteReg("""EnergyAppC (32-bit integer)
+
+        Address 0x0538 (Modicon 41337); s32 (bytes on the wire: CD AB), access rw.
+        Unit: kVAh; scale 0.1.
+        Reflect: unknown; storage: unknown.
+        Manual: WNC V18 sheet Main List row 122; operating instructions p.33; vendor note '32-bit energy register details for the Modbus WattNode'.""")
 
 
 class Client(_Registers, ClientBase[Snapshot]):

@@ -32,7 +32,7 @@ def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
                 "default": reg.default_at(i),
                 "reflect": None if reg.reflect == "unknown" else reg.reflect,
                 "storage": None if reg.storage == "unknown" else reg.storage,
-                "broadcast": reg.broadcast,
+                "broadcast": _broadcast(model, reg),
                 "enum": enum,
                 "bits": bits,
                 "page": {"selector": reg.page.selector, "value": reg.page.value} if reg.page else None,
@@ -43,9 +43,22 @@ def _register_entries(model: Model, reg: Register) -> list[dict[str, Any]]:
                 "encoding": reg.encoding if reg.type == "string" else None,
                 "scale_register": reg.scale_register,
                 "not_available": list(reg.not_available) or None,
+                # present only where the map states what its source leaves open
+                **({"review": list(reg.review)} if reg.review else {}),
             }
         )
     return out
+
+
+def _broadcast(model: Model, reg: Register) -> bool | None:
+    """Whether a register may be written by broadcast: the model's answer, but unknown (None) where it
+    derives ``false`` though the map leaves a function that writes it open (``broadcast: null``)."""
+    if reg.broadcast or not reg.writable or reg.scale_register:
+        return reg.broadcast
+    single, multiple = (0x05, 0x0F) if reg.table == "coil" else (0x06, 0x10)
+    deciding = [fc.broadcast for fc in model.protocol.function_codes
+                if fc.code == multiple or (fc.code == single and reg.words == 1)]
+    return None if any(b is None for b in deciding) else reg.broadcast
 
 
 def _plain(value: Any) -> Any:
@@ -79,11 +92,25 @@ def _protocol(model: Model) -> dict[str, Any]:
             for key in PROTOCOL_KEYS}
 
 
+def _device_extras(model: Model) -> dict[str, Any]:
+    dev = model.device
+    out: dict[str, Any] = {}
+    if dev.evidence is not None:
+        out["evidence"] = dev.evidence
+    if dev.origin is not None:
+        out["origin"] = _plain(dev.origin)
+    if dev.kind is not None:
+        out["kind"] = dev.kind
+    return out
+
+
 def export(model: Model) -> dict[str, Any]:
     """The export contract of one compiled model."""
     return {
         "model": model.device.model,
         "title": model.device.title,
+        # the evidence level, origin and kind: present only where the map states them
+        **_device_extras(model),
         "protocol": _protocol(model),
         "registers": [entry for reg in model.registers for entry in _register_entries(model, reg)],
         "reserved": [

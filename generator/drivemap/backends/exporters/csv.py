@@ -18,6 +18,7 @@ import io
 from typing import Any
 
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.views.common import review_text
 from drivemap.backends.views.integrations import comment_safe
 from drivemap.model.nodes import Cell, Model
 
@@ -26,7 +27,7 @@ __all__ = ["COLUMNS", "MODICON", "CsvExporter"]
 COLUMNS = (
     "table", "address_hex", "address", "modicon", "name", "param", "group", "label", "type", "words", "word_order",
     "byte_order", "length", "encoding", "scale", "scale_register", "offset", "not_available", "unit", "access", "min", "max", "default", "reflect", "storage", "page", "enum", "enum_labels",
-    "bits", "command", "description", "source", "values", "precision", "display_name",
+    "bits", "command", "description", "source", "values", "precision", "display_name", "review",
 )
 
 #: table -> (Modicon prefix, function code that reads it).
@@ -107,6 +108,7 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
         "values": _text(" | ".join(v.text() for v in reg.value_set)),
         "precision": "" if reg.precision is None else str(reg.precision),
         "display_name": _text(reg.display_name(cell.index) if reg.first_index else cell.name),
+        "review": _text(review_text(reg)) if reg.review else "",
     }
 
 

@@ -30,6 +30,7 @@ from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, 
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
+from drivemap.backends.views.common import provenance, review_lines
 from drivemap.backends.views.esphome import Item, align
 from drivemap.model.nodes import Model, Register
 from drivemap.model.spec import spec_from_model
@@ -53,6 +54,14 @@ VALUE_TYPES: dict[tuple[str, str | None], str] = {
     ("s64", "high_first"): "S_QWORD",
     ("s64", "low_first"): "S_QWORD_R",
 }
+#: The ESPHome releases --esphome-version knows: the newest (the default) and the oldest the export supports.
+NEWEST = (2026, 10)
+OLDEST = (2026, 6)
+#: From this release on, register_count is refused unless it is the width ESPHome derives, force_new_range
+#: and skip_updates are replaced (reuse_previous_range; a controller per interval) and command_throttle
+#: does nothing (the modbus hub's turnaround_time spaces commands): esphome/esphome#18085, #18652.
+REUSE_RANGES = (2026, 9)
+
 #: drivemap register table -> register_type.
 REGISTER_TYPES = {"holding": "holding", "input": "read", "coil": "coil", "discrete": "discrete_input"}
 
@@ -87,6 +96,9 @@ class EsphomeExporter(Exporter):
         parser.add_argument("--flow-control-pin", default=None, metavar="PIN", help="RS-485 DE/RE pin")
         parser.add_argument("--no-network", action="store_true",
                             help="leave out wifi:, api: and ota: (which read !secret wifi_ssid / wifi_password)")
+        parser.add_argument("--esphome-version", default=None, metavar="YYYY.M",
+                            help=f"write only what this ESPHome release accepts (default: {NEWEST[0]}.{NEWEST[1]}, "
+                                 f"the newest known; oldest supported: {OLDEST[0]}.{OLDEST[1]})")
         iv.add_selection_arguments(parser)
         iv.add_serial_arguments(parser, modes=("rtu",))
 
@@ -97,7 +109,8 @@ class EsphomeExporter(Exporter):
             raise OptionError(f"--name: {node!r} must be lower-case letters, digits and '-' (at most 31)")
         sel = iv.select(model, values)
         line = iv.serial_settings(model, values, modes=("rtu",))
-        build = _Build(model, sel)
+        version = esphome_version(values.get("esphome_version"))
+        build = _Build(model, sel, version >= REUSE_RANGES)
         doc: dict[str, Any] = {
             "esphome": {"name": node},
             "esp32": {"board": str(values.get("board") or "esp32dev"), "framework": {"type": "esp-idf"}},
@@ -109,33 +122,50 @@ class EsphomeExporter(Exporter):
         doc["uart"] = [{"id": "modbus_uart", "tx_pin": str(values.get("tx_pin") or "GPIO17"),
                         "rx_pin": str(values.get("rx_pin") or "GPIO16"), "baud_rate": line.baudrate,
                         "data_bits": line.data_bits, "parity": _PARITY[line.parity], "stop_bits": line.stop_bits}]
-        doc["modbus"] = [self._modbus(model, values)]
-        doc["modbus_controller"] = [build.controller()]
+        doc["modbus"] = [self._modbus(model, values, build)]
+        doc["modbus_controller"] = build.controllers()
         for platform in _PLATFORMS:
             entries = [i.config for i in build.items if i.platform == platform]
             if entries:
                 doc[platform] = entries
-        lines = [generated_header(model, options), f"{model.device.title} - ESPHome (esphome config FILE)",
+        lines = [generated_header(model, options),
+                 f"{model.device.title} - ESPHome {version[0]}.{version[1]} (esphome config FILE)",
+                 *provenance(model), *review_lines(model),
                  f"reads per update: drivemap plans {len(build.layout.requests)}, "
                  f"this file makes ESPHome send {build.layout.esphome_requests}", *build.notes, *build.layout.notes]
         return {f"{model.name}.esphome.yaml": header(lines) + dump(doc)}
 
     @staticmethod
-    def _modbus(model: Model, values: Mapping[str, Any]) -> dict[str, Any]:
+    def _modbus(model: Model, values: Mapping[str, Any], build: _Build) -> dict[str, Any]:
         t = model.protocol.timing
         bus: dict[str, Any] = {"id": "modbus_bus", "uart_id": "modbus_uart"}
         if values.get("flow_control_pin"):
             bus["flow_control_pin"] = str(values["flow_control_pin"])
         if t.response_timeout_ms is not None:
             bus["send_wait_time"] = f"{iv.timing_ms(t.response_timeout_ms)}ms"
-        if t.inter_frame_gap_ms is not None:
-            bus["turnaround_time"] = f"{iv.timing_ms(t.inter_frame_gap_ms)}ms"
+        gap = build.throttle() if build.reuse else t.inter_frame_gap_ms
+        if gap is not None:
+            bus["turnaround_time"] = f"{iv.timing_ms(gap)}ms"
         return bus
 
 
+def esphome_version(text: Any) -> tuple[int, int]:
+    """``--esphome-version`` as (year, month): NEWEST when not given; OptionError if older than OLDEST."""
+    if text is None:
+        return NEWEST
+    match = re.fullmatch(r"(\d{4})\.(\d{1,2})(?:\.\d+)?", str(text).strip())
+    if not match:
+        raise OptionError(f"--esphome-version: {text!r} is not a release (YYYY.M, e.g. {NEWEST[0]}.{NEWEST[1]})")
+    version = (int(match.group(1)), int(match.group(2)))
+    if version < OLDEST:
+        raise OptionError(f"--esphome-version: {text} is older than the oldest supported release "
+                          f"({OLDEST[0]}.{OLDEST[1]})")
+    return version
+
+
 class _Build:
-    def __init__(self, model: Model, sel: iv.Selection) -> None:
-        self.model, self.sel = model, sel
+    def __init__(self, model: Model, sel: iv.Selection, reuse: bool = True) -> None:
+        self.model, self.sel, self.reuse = model, sel, reuse
         self.items: list[Item] = []
         self.notes: list[str] = sel.omitted_lines()
         self.raw: list[str] = []
@@ -157,19 +187,29 @@ class _Build:
         if self.factors:
             self.notes.append("scale registers: each scaled sensor multiplies by 10^(the last value of its factor "
                               "sensor, id sf_<register>) in a lambda filter")
-        self.layout = align(self.items, plan, skips, self._filler)
+        self.layout = align(self.items, plan, skips, self._filler, reuse=self.reuse)
+        if self.reuse and self.layout.skips:
+            self.notes.append("slower polling intervals: a controller each (device_<n>x polls every n-th "
+                              f"{self.base}s; ESPHome 2026.9 and later have no skip_updates)")
 
-    def controller(self) -> dict[str, Any]:
+    def throttle(self) -> float | None:
+        """The spacing of commands: the map's inter-frame gap or its longest write delay."""
+        t = self.model.protocol.timing
+        delays = [p.reg.write_delay_ms for p in self.sel.points if p.writable and p.reg.write_delay_ms is not None]
+        return max([v for v in (t.inter_frame_gap_ms, *delays) if v is not None], default=None)
+
+    def controllers(self) -> list[dict[str, Any]]:
         t = self.model.protocol.timing
         ctl: dict[str, Any] = {"id": "device", "modbus_id": "modbus_bus", "address": Hex(self.sel.unit),
                                "update_interval": f"{self.base}s"}
-        delays = [p.reg.write_delay_ms for p in self.sel.points if p.writable and p.reg.write_delay_ms is not None]
-        throttle = max([v for v in (t.inter_frame_gap_ms, *delays) if v is not None], default=None)
-        if throttle is not None:
+        throttle = self.throttle()
+        if throttle is not None and not self.reuse:
             ctl["command_throttle"] = f"{iv.timing_ms(throttle)}ms"
         if t.retries is not None:
             ctl["max_cmd_retries"] = t.retries
-        return ctl
+        slow = [{**ctl, "id": f"device_{skip + 1}x", "update_interval": f"{self.base * (skip + 1)}s"}
+                for skip in sorted(self.layout.skips)]
+        return [ctl, *slow]
 
     # ---------------------------------------------------------------- items of one element
 
@@ -210,7 +250,7 @@ class _Build:
             self.notes.append(f"not exported: {point.cell.name} is write-only")
             return
         text_string = reg.type == "string" and reg.byte_order == "high_first"
-        self._add("text_sensor", point, {**self._base(point, name), "register_count": reg.words,
+        self._add("text_sensor", point, {**self._base(point, name), **self._count(reg.words),
                                          "response_size": 2 * reg.words,
                                          "raw_encode": "ANSI" if text_string else "HEXBYTES"})
         if not text_string:
@@ -239,7 +279,7 @@ class _Build:
             return
         self._add("sensor", point, self._sensor(point, name, value_type))
         if reg.enum:
-            self._add("text_sensor", point, {**self._base(point, f"{name} label"), "register_count": reg.words,
+            self._add("text_sensor", point, {**self._base(point, f"{name} label"), **self._count(reg.words),
                                              "response_size": 2 * reg.words, "raw_encode": "HEXBYTES",
                                              "filters": [{"map": _hex_map(reg, self.sel.enum_labels(point))}]})
         for bit in reg.bits:
@@ -328,6 +368,10 @@ class _Build:
             # assumed state: never polled; both on and off write the command value (never an undocumented 0)
             self._add("switch", point, {**self._base(point, label), "assumed_state": True, "bitmask": Hex(value),
                                         "write_lambda": "return true;"}, polled=False)
+
+    def _count(self, words: int) -> dict[str, int]:
+        """A text_sensor's register_count: before 2026.9 only (since then derived from response_size)."""
+        return {} if self.reuse else {"register_count": words}
 
     def _filler(self, table: str, address: int, words: int) -> Item:
         prefix = "" if table == "holding" else f"{table}_"

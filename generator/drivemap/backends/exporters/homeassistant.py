@@ -34,7 +34,9 @@ from drivemap.backends.exporters._yaml import Hex, dump, header
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
+from drivemap.backends.views.common import provenance, review_lines
 from drivemap.model.nodes import READ_CODES, Model, Register
+from drivemap.runtime.client.codec import raw_to_words
 from drivemap.runtime.client.planner import MODBUS_MAX_READ
 
 __all__ = ["DATA_TYPES", "KEYS", "HomeAssistantExporter"]
@@ -162,6 +164,8 @@ class HomeAssistantExporter(Exporter):
             f"{model.device.title} - Home Assistant {version[0]}.{version[1]} key names",
             "A package: put it in packages/ (homeassistant: packages: !include_dir_named packages)",
             "or paste its modbus: and template: keys into configuration.yaml.",
+            *provenance(model),
+            *review_lines(model),
             *build.notes,
         ]
         return {f"{model.name}.homeassistant.yaml": header(lines) + dump(doc)}
@@ -366,9 +370,15 @@ class _Build:
         reg = point.reg
         kind = write_type(self.model, reg)
         if kind is None or reg.words > 1:
+            how = "use the modbus.write_register action"
+            if reg.words > 1 and point.is_command:
+                spec, _ = iv.wire_raw(reg, 0)
+                words = raw_to_words(spec, int(reg.command_value or 0) & ((1 << (16 * reg.words)) - 1))
+                how += (f" with value: {words}, the {reg.words}-word list, sent as 10h; "
+                        "a single number goes out as 06h to one register")
             self.notes.append(f"not exported as a switch: {point.cell.name} ("
                               + ("a switch writes one register" if reg.words > 1 else "the map lists no register write")
-                              + "; use the modbus.write_register action)")
+                              + f"; {how})")
             return
         if point.is_command:
             self.switches.append(self._switch(point, point.key, reg.command_value or 0, kind))

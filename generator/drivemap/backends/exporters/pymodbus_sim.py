@@ -29,6 +29,7 @@ from typing import Any
 from drivemap.backends.exporters.base import Exporter, Options
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
+from drivemap.backends.views.common import provenance, review_lines
 from drivemap.model.nodes import Model, Register
 from drivemap.model.spec import spec_from_model
 from drivemap.runtime.sim.simulator import Simulator
@@ -99,6 +100,8 @@ class PymodbusSimExporter(Exporter):
                 "note": generated_header(model, options),
                 "model": model.name,
                 "title": model.device.title,
+                "provenance": provenance(model),
+                **({"review": review_lines(model)} if any(r.review for r in model.registers) else {}),
                 "unit": sel.unit,
                 "pages": pages,
                 "not_served": [f"{name}: {why}" for name, why in sel.omitted],

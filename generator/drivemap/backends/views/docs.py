@@ -16,7 +16,7 @@ from typing import Any
 
 from drivemap.backends.exporters.base import Options
 from drivemap.backends.views.annotate import FrameView, annotate, describe_value, exception_short
-from drivemap.backends.views.common import header
+from drivemap.backends.views.common import header, provenance, review_text
 from drivemap.backends.views.format import enum_anchor, example_anchor, hex2, hex4, num, slug, with_unit
 from drivemap.backends.views.registers import addressing, groups, reserved_rows, shown_value
 from drivemap.backends.views.usage import SNIPPET_HOST, SNIPPET_PORT, usage
@@ -450,6 +450,8 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         "examples": _examples(model),
         "counts": counts,
         "known_issues": _known_issues(model),
+        "provenance": provenance(model),
+        "review": [review_text(r) for r in model.registers if r.review],
         "usage": usage(model, options.package),
         **_family(model),
     }
@@ -489,6 +491,9 @@ def index_context(models: Sequence[Model], options: Options) -> dict[str, Any]:
             "verified": counts["verified"],
             "erratum": counts["erratum"],
             "illegible": counts["illegible"],
+            "evidence": m.device.evidence or "not stated",
+            "origin": (f"{m.device.origin.project} ({m.device.origin.licence})" if m.device.origin else "the map's manual"),
+            "review": sum(len(r.review) for r in m.registers),
             "links": [(label, href) for label, href in _links(m, options) if href != "index.md"],
         })
     return {"rows": rows}

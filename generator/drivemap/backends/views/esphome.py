@@ -57,14 +57,19 @@ class Layout:
     requests: list[ReadRequest] = field(default_factory=list)
     esphome_requests: int = 0
     notes: list[str] = field(default_factory=list)
+    #: skip counts that got a controller of their own (ESPHome 2026.9 and later)
+    skips: set[int] = field(default_factory=set)
 
 
 def align(items: list[Item], plan: tuple[ReadRequest, ...], skips: dict[tuple[str, int], int],
-          make_filler: Any) -> Layout:
+          make_filler: Any, reuse: bool = False) -> Layout:
     """Set address/offset/register_count/force_new_range/skip_updates so ESPHome reads ``plan``.
 
     ``skips``: (table, word address) -> skip_updates of the element there; ``make_filler(table,
-    address, words)`` returns a filler :class:`Item` (appended to ``items``)."""
+    address, words)`` returns a filler :class:`Item` (appended to ``items``). ``reuse``: the
+    ranges of ESPHome 2026.9 and later (:func:`align_reuse`)."""
+    if reuse:
+        return align_reuse(items, plan, skips)
     layout = Layout(list(plan))
     requests = sorted(plan, key=lambda r: (TABLE_ORDER.get(r.table, 9), r.address))
     previous_end: tuple[str, int] | None = None
@@ -119,3 +124,36 @@ def _holes(req: ReadRequest, inside: list[Item]) -> list[tuple[int, int]]:
             holes.append((word, 1))
     return holes
 
+
+
+def align_reuse(items: list[Item], plan: tuple[ReadRequest, ...], skips: dict[tuple[str, int], int]) -> Layout:
+    """ESPHome 2026.9 and later: ranges are steered by ``reuse_previous_range`` alone (``register_count``,
+    ``force_new_range`` and ``skip_updates`` were removed or do nothing). Each planned request is one
+    range: its first item does not join an adjacent request before it (``reuse_previous_range: false``),
+    an item after a hole inside the request joins across it (``true``: the hole is read, no filler).
+    A slower interval gets its own controller (``Item.config['modbus_controller_id']`` is set to
+    ``device_<n>x``: n update intervals), as ESPHome advises in place of skip_updates; ``Layout.skips``
+    lists them."""
+    layout = Layout(list(plan))
+    requests = sorted(plan, key=lambda r: (TABLE_ORDER.get(r.table, 9), r.address))
+    previous_end: dict[int, tuple[str, int]] = {}
+    for req in requests:
+        inside = sorted((i for i in items if i.polled and i.table == req.table
+                         and req.address <= i.address < req.address + req.count), key=lambda i: i.address)
+        skip = min((skips[(i.table, i.address)] for i in inside if (i.table, i.address) in skips), default=0)
+        if skip:
+            layout.skips.add(skip)
+            for item in inside:
+                item.config["modbus_controller_id"] = f"device_{skip + 1}x"
+        layout.esphome_requests += 1
+        if previous_end.get(skip) == (req.table, req.address):
+            for item in inside:
+                if item.address == req.address:
+                    item.config["reuse_previous_range"] = False
+        previous_end[skip] = (req.table, req.address + req.count)
+        end = req.address
+        for item in inside:
+            if item.address > end:
+                item.config["reuse_previous_range"] = True  # across the hole [end, item.address)
+            end = max(end, item.address + item.words)
+    return layout

@@ -178,7 +178,8 @@ class Point:
 
     @property
     def writable(self) -> bool:
-        return self.reg.writable and not self.selector
+        """Offered as a control: writable, not a page selector, no write-deciding field open (``review:``)."""
+        return self.reg.writable and not self.selector and not self.reg.open_for_writes
 
     @property
     def is_command(self) -> bool:

@@ -136,8 +136,9 @@ def _register(path: Path, doc: MapDoc, elements: list[Any], where: str, name: st
     reg.update(_numbers(path, first, where))
     reg.update(_defaults(path, elements, where))
     reg.update(_kinds(path, doc, first, where, name))
-    if "w" in access or field(path, first, "broadcast", "bool", where, default=False):
-        reg["broadcast"] = field(path, first, "broadcast", "bool", where)
+    broadcast = field(path, first, "broadcast", "bool", where, default=False, nullable=True)
+    if broadcast is not None and ("w" in access or broadcast):  # null: unknown, the map derives it
+        reg["broadcast"] = broadcast
     return reg
 
 
