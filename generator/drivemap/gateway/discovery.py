@@ -34,12 +34,12 @@ from decimal import Decimal
 from typing import Any
 
 from drivemap import __version__
-from drivemap.backends.views import integrations as iv
-from drivemap.backends.views.integrations import decimals
 from drivemap.gateway.device import PRESS, Device
 from drivemap.gateway.valuesets import value_options
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.types import TYPE_BOUNDS
+from drivemap.vocab import units as iv
+from drivemap.vocab.units import decimals
 
 
 def precision(reg: Register) -> int | None:
@@ -59,7 +59,7 @@ def precision(reg: Register) -> int | None:
 #: tools tier runs): without ``mqtt.ha_version`` discovery uses only device classes it accepts, so no
 #: supported release drops an entity (HA before 2025.6 refuses ``reactive_energy``: kvarh sensors
 #: get no device class). Device classes and the release that brought them:
-#: :data:`drivemap.backends.views.integrations.DEVICE_CLASS_SINCE` (read, shared with the HA export).
+#: :data:`drivemap.vocab.units.DEVICE_CLASS_SINCE` (read, shared with the HA export).
 OLDEST_HA: tuple[int, int] = (2024, 3)
 
 

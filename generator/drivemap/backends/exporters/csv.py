@@ -21,14 +21,10 @@ from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views.common import review_text
 from drivemap.backends.views.integrations import comment_safe
 from drivemap.model.nodes import Cell, Model
+from drivemap.vocab.csv_columns import COLUMNS
 
 __all__ = ["COLUMNS", "MODICON", "CsvExporter"]
 
-COLUMNS = (
-    "table", "address_hex", "address", "modicon", "name", "param", "group", "label", "type", "words", "word_order",
-    "byte_order", "length", "encoding", "scale", "scale_register", "offset", "not_available", "unit", "access", "min", "max", "default", "reflect", "storage", "page", "enum", "enum_labels",
-    "bits", "command", "description", "source", "values", "precision", "display_name", "review",
-)
 
 #: table -> (Modicon prefix, function code that reads it).
 MODICON: dict[str, tuple[int, int]] = {"coil": (0, 0x01), "discrete": (1, 0x02), "input": (3, 0x04),

@@ -13,13 +13,20 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from decimal import Decimal
 from typing import Any
 
 from drivemap.backends.exporters.base import OptionError
 from drivemap.model.nodes import AllowedValue, Cell, Model, Port, Register
 from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
 from drivemap.runtime.spec import RegisterSpec
+from drivemap.vocab.units import (
+    DEVICE_CLASS_SINCE,
+    DEVICE_CLASSES,
+    UNIT_SPELLING,
+    decimals,
+    device_class_known,
+    unit_for,
+)
 
 __all__ = [
     "device_class_known",
@@ -38,53 +45,6 @@ __all__ = [
     "unit_for",
 ]
 
-#: Device classes and the first Home Assistant release that has them (older ones reject the entity).
-DEVICE_CLASS_SINCE: dict[str, tuple[int, int]] = {"reactive_energy": (2025, 6)}
-
-
-def device_class_known(device_class: str, version: tuple[int, int] | None) -> bool:
-    """Whether Home Assistant ``version`` (None: the current release) has ``device_class``."""
-    return version is None or version >= DEVICE_CLASS_SINCE.get(device_class, (0, 0))
-
-
-#: unit -> (device_class, state_class) where the unit says it (Home Assistant and ESPHome share the names).
-DEVICE_CLASSES: dict[str, tuple[str | None, str | None]] = {
-    "V": ("voltage", "measurement"),
-    "mV": ("voltage", "measurement"),
-    "A": ("current", "measurement"),
-    "mA": ("current", "measurement"),
-    "W": ("power", "measurement"),
-    "kW": ("power", "measurement"),
-    "VA": ("apparent_power", "measurement"),
-    "kVA": ("apparent_power", "measurement"),
-    "var": ("reactive_power", "measurement"),
-    "kvar": ("reactive_power", "measurement"),
-    "varh": ("reactive_energy", "total_increasing"),
-    "kvarh": ("reactive_energy", "total_increasing"),
-    "VAh": (None, "total_increasing"),  # no apparent-energy device class (Home Assistant, ESPHome)
-    "kVAh": (None, "total_increasing"),
-    "rpm": (None, "measurement"),
-    "Wh": ("energy", "total_increasing"),
-    "kWh": ("energy", "total_increasing"),
-    "Hz": ("frequency", "measurement"),
-    "°C": ("temperature", "measurement"),
-    "%": (None, "measurement"),
-    "s": ("duration", "measurement"),
-    "ms": ("duration", "measurement"),
-    "min": ("duration", "measurement"),
-    "h": ("duration", "measurement"),
-}
-
-#: A map's unit -> the spelling Home Assistant and ESPHome use (their device classes accept only it).
-UNIT_SPELLING: dict[str, str] = {"r/min": "rpm", "RPM": "rpm", "VAr": "var", "kVAr": "kvar", "VAr h": "varh",
-                                 "VArh": "varh", "kVArh": "kvarh", "℃": "°C", "degC": "°C"}
-
-
-def unit_for(unit: str) -> str:
-    """The unit as Home Assistant and ESPHome spell it (``r/min`` -> ``rpm``, ``VAr`` -> ``var``)."""
-    return UNIT_SPELLING.get(unit, unit)
-
-
 DEFAULT_SCAN_S = 15
 DEFAULT_SETTINGS_S = 300
 _LINE_BREAKS = re.compile(r"[\x00-\x1f\x7f\x85\u2028\u2029]+")
@@ -93,16 +53,6 @@ _LINE_BREAKS = re.compile(r"[\x00-\x1f\x7f\x85\u2028\u2029]+")
 def comment_safe(text: str) -> str:
     """Map text fit for one comment line: every line break and control character becomes a space."""
     return " ".join(_LINE_BREAKS.sub(" ", text).split())
-
-
-def decimals(*numbers: float) -> int:
-    """Decimal places needed to show values of ``raw * scale + offset`` (0.01 -> 2)."""
-    places = 0
-    for n in numbers:
-        exponent = Decimal(repr(float(n))).normalize().as_tuple().exponent
-        if isinstance(exponent, int) and exponent < 0:
-            places = max(places, -exponent)
-    return places
 
 
 def display_decimals(reg: Register) -> int | None:

@@ -1,6 +1,6 @@
 """``drivemap import csv``: drivemap's own CSV export, or a vendor register sheet with recognisable columns.
 
-drivemap's CSV (every column of :data:`drivemap.backends.exporters.csv.COLUMNS`) carries nearly every register
+drivemap's CSV (every column of :data:`drivemap.vocab.csv_columns.COLUMNS`) carries nearly every register
 fact: its rows come back as registers, ``name[i]`` rows as arrays (stride from the addresses, one
 default or one per element, ``param`` per element), ``enum_labels`` as enums, ``bits`` as bit fields, ``values`` as value sets, ``precision``, and
 ``display_name`` of an array's first element as ``first_index``.
@@ -18,11 +18,11 @@ import re
 from pathlib import Path
 from typing import Any
 
-from drivemap.backends.exporters.csv import COLUMNS
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 from drivemap.onboard.importers.mapdoc import MapDoc, snake
 from drivemap.onboard.importers.vendor import vendor_rows
+from drivemap.vocab.csv_columns import COLUMNS
 
 __all__ = ["import_csv", "read_rows"]
 
