@@ -109,8 +109,12 @@ def _progress(name: str, seconds: float) -> Iterator[Callable[[str], None]]:
     from rich.console import Console
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    console = Console(stderr=True)
+    if not console.is_terminal:  # a log or a pipe gets the result, not a line a terminal would redraw
+        yield lambda _what: None
+        return
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
-                  TextColumn(f"(time limit {seconds:g} s)"), console=Console(stderr=True), transient=True) as bar:
+                  TextColumn(f"(time limit {seconds:g} s)"), console=console, transient=True) as bar:
         task = bar.add_task(f"{name}: reading")
 
         def tell(what: str) -> None:
