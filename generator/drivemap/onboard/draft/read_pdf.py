@@ -187,6 +187,24 @@ def _selected(count: int, pages: tuple[int, int] | None, max_pages: int, notes: 
     return range(first, last + 1)
 
 
+def _read_page(page: Any, number: int, notes: list[str]) -> tuple[str, list[_Found]] | None:
+    """(text, ruled tables) of one page, or None (why is noted); the page's objects are dropped after."""
+    if page is None:
+        notes.append(f"p.{number}: not in the page tree")
+        return None
+    try:
+        too_large = content_too_large(page)
+        if too_large is not None:
+            notes.append(f"p.{number}: not read: {too_large}")
+            return None
+        return page.extract_text() or "", _page_tables(page, number)
+    except Exception as exc:  # noqa: BLE001 - a broken page is listed, the others are read
+        notes.append(f"p.{number}: not readable ({type(exc).__name__})")
+        return None
+    finally:
+        page.close()  # its characters, lines and layout are not kept for the pages after it
+
+
 def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int, seconds: float,
              progress: Callable[[str], None] | None = None) -> tuple[list[Table], str, int, list[str]]:
     """(tables, text, pages read, notes) of a PDF; ``progress`` is told each page as it is read."""
@@ -208,22 +226,10 @@ def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int, seconds:
             if time.monotonic() > deadline:
                 notes.append(f"time limit of {seconds:.0f} s reached: pages from {number} on not read (use --pages)")
                 break
-            page = made.get(number)
-            if page is None:
-                notes.append(f"p.{number}: not in the page tree")
+            got = _read_page(made.get(number), number, notes)
+            if got is None:
                 continue
-            try:
-                too_large = content_too_large(page)
-                if too_large is not None:
-                    notes.append(f"p.{number}: not read: {too_large}")
-                    continue
-                text = page.extract_text() or ""
-                found = _page_tables(page, number)
-            except Exception as exc:  # noqa: BLE001 - a broken page is listed, the others are read
-                notes.append(f"p.{number}: not readable ({type(exc).__name__})")
-                continue
-            finally:
-                page.close()  # its characters, lines and layout are not kept for the pages after it
+            text, found = got
             read += 1
             texts.append(text)
             for one in found:
