@@ -13,6 +13,8 @@ from typing import Any
 
 import pytest
 
+from tests.corpora import hostile_docs
+
 ROOT = Path(__file__).resolve().parent.parent
 CORPUS = json.loads((ROOT / "tests" / "corpora" / "cli_hostile.json").read_text(encoding="utf-8"))["cases"]
 
@@ -36,8 +38,22 @@ def plant(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     (work / "np" / "pyproject.toml").write_bytes(b'[tool.drivemap]\nmaps = "\xff\xfe"\n')
     (work / "pk").mkdir()
     (work / "pk" / "pyproject.toml").write_text('[tool.drivemap]\npackage = "class"\n', encoding="utf-8")
+    docs = {"docxbomb": hostile_docs.docx_bomb(work / "bomb.docx", 256 << 20),
+            "xlsxbomb": hostile_docs.xlsx_bomb(work / "bomb.xlsx", 256 << 20),
+            "xlsxlie": hostile_docs.xlsx_bomb(work / "lie.xlsx", 256 << 20, lie=True),
+            "xlsxrows": hostile_docs.xlsx_rows(work / "rows.xlsx", 300_000),
+            "csvrows": hostile_docs.csv_rows(work / "rows.csv", 100_000),
+            "longcell": hostile_docs.csv_long_cell(work / "long.csv"),
+            "csvsmall": hostile_docs.csv_rows(work / "regs.csv", 3),
+            "brokenpdf": hostile_docs.pdf_pages(work / "broken.pdf", 3, broken=True),
+            "pdfbomb": hostile_docs.pdf_content_bomb(work / "bomb.pdf", 256 << 20)}
+    for key, target in {"extpasswd": "/etc/passwd", "extup": "../../../../../../../../../etc/passwd",
+                        "extzero": "/dev/zero"}.items():
+        (work / f"{key}.yaml").write_text(f"drivemap: 2\nextends: {target}\ndevice: {{model: {key}, title: X}}\n",
+                                          encoding="utf-8")
     return {"root": str(work), "file": "afile", "dir": "adir", "fifo": "afifo", "long": "a" * 300,
-            "surrogate": "surrogate.yaml", "bigstate": "big.json"}
+            "surrogate": "surrogate.yaml", "bigstate": "big.json", **{k: p.name for k, p in docs.items()},
+            "extpasswd": "extpasswd.yaml", "extup": "extup.yaml", "extzero": "extzero.yaml"}
 
 
 def _env() -> dict[str, str]:

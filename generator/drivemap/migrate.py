@@ -5,6 +5,12 @@ Each map of an older format (``drivemap: 1``) is rewritten in place by editing l
 format requires is inserted next to its sibling, so comments, order and layout stay as written.
 Without ``--write`` the unified diff is printed and nothing is written; with ``--write`` the diff is
 printed and the file replaced (atomically). A rewritten map must validate, or nothing is written.
+
+The file is read as it is on disk (regular files only, bounded: :func:`~drivemap.frontend.load.read_map_text`)
+and its line endings are kept (CRLF stays CRLF; an inserted line takes its sibling's ending), so the
+diff shows exactly the bytes written. ``--write`` never replaces a symbolic link or a file with other
+hard links (replacing it would leave the other names on the old format): such a map is an error
+naming the link, as ``build`` does.
 """
 
 from __future__ import annotations
@@ -17,18 +23,15 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from drivemap.compiler import compile_text, display_path
-from drivemap.diagnostics import CompileError, Diagnostic
+from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import formats
-from drivemap.frontend.load import load_text
+from drivemap.frontend.load import load_text, read_map_text
 
 
 def migrate_file(path: Path) -> tuple[str, str]:
     """(old text, new text) of one map; the new text is checked by compiling it."""
     shown = display_path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CompileError([Diagnostic(load_text("{}", shown).positions.at(()), f"cannot read file: {exc}")]) from None
+    text = read_map_text(shown)  # line endings as on disk
     doc = load_text(text, shown)
     new = formats.migrate_text(text, doc)
     if new != text:
@@ -43,6 +46,18 @@ def _check(path: Path, text: str) -> None:
     except CompileError as exc:
         raise CompileError([Diagnostic(d.location, f"after migration: {d.message}", d.severity, d.related)
                             for d in exc.diagnostics]) from None
+
+
+def link_problem(path: Path) -> str | None:
+    """Why ``path`` is not replaced (a symbolic link, or a file with other hard links), or None."""
+    if path.is_symlink():
+        return (f"is a symbolic link (to {os.readlink(path)}): drivemap never writes through links; migrate the "
+                "file it points to")
+    links = os.stat(path).st_nlink
+    if links > 1:
+        return (f"has {links} hard links: replacing it would leave the other names on the old format; migrate "
+                "one name after removing the others (or copy it)")
+    return None
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -71,6 +86,11 @@ def run(files: Sequence[Path], write: bool) -> int:
         if new == old:
             print(f"{shown}: format {formats.CURRENT} already", file=sys.stderr)
             continue
+        if write:
+            problem = link_problem(path)
+            if problem is not None:
+                errors.append(Diagnostic(Location(shown, 1, 1), f"{problem}; nothing written"))
+                continue
         changed += 1
         sys.stdout.writelines(difflib.unified_diff(old.splitlines(keepends=True), new.splitlines(keepends=True),
                                                    f"a/{shown}", f"b/{shown}"))

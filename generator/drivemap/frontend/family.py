@@ -2,7 +2,11 @@
 
 ``extends`` names the base map: a file (``acme.yaml``, relative to the extending map) or a model id
 (``acme``: ``acme.yaml`` in the same folder). The base may extend another map in turn; a cycle is
-refused. The extending map is laid over its base:
+refused. A base map must be a regular file inside the project of the map that extends (the folder of
+its ``pyproject.toml``/``drivemap.toml``; without one, the working directory's project when the map is
+in it, else the map's own folder) or a map shipped with drivemap (``drivemap/data/maps`` and its
+sub-folders): the real path counts, so neither ``../..`` nor a symbolic link leads out. The extending
+map is laid over its base:
 
 - ``device`` and ``protocol``: each key given replaces the base's; ``protocol.function_codes`` and
   ``protocol.exceptions`` merge item by item (by ``code``);
@@ -30,9 +34,12 @@ from typing import Any
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend import formats
 from drivemap.frontend.load import Document, PathT, Positions, load_file
+from drivemap.frontend.project import find_project
 from drivemap.model.family import Variant
 
 MAX_CHAIN = 16
+#: The maps shipped with drivemap (and the catalogue's, in sub-folders): a base anywhere under it is allowed.
+SHIPPED_MAPS = Path(__file__).resolve().parent.parent / "data" / "maps"
 #: keyed lists: top-level key -> the item key that names an item
 KEYED = {"registers": "name", "groups": "name", "examples": "name", "known_issues": "title", "identity": "register"}
 PROTOCOL_KEYED = {"function_codes": "code", "exceptions": "code"}
@@ -88,6 +95,7 @@ def resolve(doc: Document) -> tuple[Document, Variant | None]:
         return doc, None
     chain = [doc]
     seen = [os.path.realpath(doc.path)]
+    roots = allowed_roots(doc.path)
     while isinstance(chain[-1].data, dict) and "extends" in chain[-1].data:
         child = chain[-1]
         target = child.data["extends"]
@@ -101,8 +109,14 @@ def resolve(doc: Document) -> tuple[Document, Variant | None]:
             raise CompileError([Diagnostic(where, f"extends makes a cycle: {cycle}")])
         if len(chain) > MAX_CHAIN:
             raise CompileError([Diagnostic(where, f"extends chain longer than {MAX_CHAIN} maps")])
-        if not os.path.isfile(path):
+        if not any(_inside(real, root) for root in roots) and not _inside(os.path.abspath(path), str(SHIPPED_MAPS)):
+            raise CompileError([Diagnostic(where, f"extends {target!r}: {path} is outside the project ({roots[0]}); a "
+                                                  "base map is a map of the project or one shipped with drivemap")])
+        if not os.path.lexists(path):
             raise CompileError([Diagnostic(where, f"extends {target!r}: no map file {path}")])
+        if not os.path.isfile(path):
+            raise CompileError([Diagnostic(where, f"extends {target!r}: {path} is not a regular file (a FIFO, "
+                                                  "device or folder); refused")])
         base = load_file(path)
         if not isinstance(base.data, dict):
             raise CompileError([Diagnostic(base.positions.at(()), "a map is a YAML mapping at the top level")])
@@ -115,6 +129,27 @@ def resolve(doc: Document) -> tuple[Document, Variant | None]:
         merged, made = _lay_over(merged, child)
         changes = made
     return merged, Variant(tuple(d.path for d in chain[1:]), tuple(changes))
+
+
+def allowed_roots(path: str) -> list[str]:
+    """The real folder a base of the map at ``path`` may be in: its project's root (a path into the shipped
+    maps is allowed as written: they may be links, into the source tree, in an editable install)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    roots: list[str] = []
+    try:
+        root, config, _ = find_project(Path(folder))
+        if config is not None:
+            roots.append(os.path.realpath(root))
+        else:
+            here = os.path.realpath(find_project()[0])
+            roots.append(here if _inside(os.path.realpath(path), here) else os.path.realpath(folder))
+    except CompileError:  # an unreadable configuration on the way up: the map's own folder
+        roots.append(os.path.realpath(folder))
+    return roots
+
+
+def _inside(real: str, root: str) -> bool:
+    return real == root or real.startswith(root.rstrip(os.sep) + os.sep)
 
 
 def _target_path(child: str, target: str) -> str:

@@ -323,8 +323,9 @@ def _compose_python(text: str, path: str) -> Node | None:
     return node
 
 
-def load_file(path: str | os.PathLike[str]) -> Document:
-    """Read and parse one map file."""
+def read_map_text(path: str | os.PathLike[str]) -> str:
+    """The text of a map file as it is on disk (line endings kept): regular files only, at most
+    :data:`MAX_MAP_BYTES`, strict UTF-8; a located :class:`CompileError` otherwise."""
     shown = os.fspath(path)
     too_big = CompileError([Diagnostic(Location(shown, 1, 1), f"file larger than {MAX_MAP_BYTES} bytes; refused")])
     try:
@@ -339,9 +340,13 @@ def load_file(path: str | os.PathLike[str]) -> Document:
     if len(raw) > MAX_MAP_BYTES:
         raise too_big
     try:
-        text = raw.decode("utf-8")
+        return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
         col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
         raise CompileError([Diagnostic(Location(shown, line, col), "file is not valid UTF-8")]) from None
-    return load_text(text, shown)
+
+
+def load_file(path: str | os.PathLike[str]) -> Document:
+    """Read and parse one map file."""
+    return load_text(read_map_text(path), os.fspath(path))

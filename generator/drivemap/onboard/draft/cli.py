@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import re
 import signal
 import sys
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
 
@@ -18,7 +19,7 @@ from drivemap.frontend.project import display, load_project
 from drivemap.frontend.schema import SCHEMA_PATH
 from drivemap.onboard.draft.assemble import draft
 from drivemap.onboard.draft.naming import snake
-from drivemap.onboard.draft.read import read_document
+from drivemap.onboard.draft.read import DocumentError, TimeLimit, read_document
 from drivemap.onboard.draft.summary import print_summary
 from drivemap.onboard.draft.tables import DraftError
 from drivemap.onboard.draft.writer import settle
@@ -31,12 +32,45 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help="the map to write (default: the project's maps folder, <model>.yaml)")
     s.add_argument("--model", default=None, help="model id (default: from the document's file name)")
     s.add_argument("--pages", default=None, metavar="A-B", help="PDF pages to read (e.g. 3-9)")
-    s.add_argument("--max-pages", type=int, default=400, help="read at most this many PDF pages (default 400)")
-    s.add_argument("--timeout", type=float, default=300.0, help="give up after this many seconds (default 300)")
+    s.add_argument("--max-pages", type=_page_count, default=400, metavar="N",
+                   help=f"read at most this many PDF pages (1 to {MAX_PAGES}; default 400)")
+    s.add_argument("--timeout", type=_seconds, default=300.0, metavar="S",
+                   help=f"give up after this many seconds (above 0, up to {MAX_TIMEOUT:g}; default 300)")
     s.add_argument("--review", default=None, metavar="FILE.html",
                    help="also write a review page: each table beside the page it came from, open fields, skipped rows")
     s.add_argument("--force", action="store_true", help="replace an existing output file")
     s.set_defaults(func=cmd_draft)
+
+
+#: Upper bounds of --max-pages and --timeout (a day: setitimer overflows on 1e300).
+MAX_PAGES = 10000
+MAX_TIMEOUT = 86400.0
+#: After the time limit, the alarm fires again this often until the run ends: a reader (or a library
+#: it calls) that catches the first one cannot swallow it.
+_REPEAT_S = 0.2
+MAP_SUFFIXES = (".yaml", ".yml")
+
+
+def _page_count(text: str) -> int:
+    """An argparse type: a number of pages, 1 to :data:`MAX_PAGES`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of pages") from None
+    if not 1 <= value <= MAX_PAGES:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of pages from 1 up to {MAX_PAGES}")
+    return value
+
+
+def _seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds above 0, up to :data:`MAX_TIMEOUT`."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value) or not 0 < value <= MAX_TIMEOUT:
+        raise argparse.ArgumentTypeError(f"{text!r}: give seconds above 0 up to {MAX_TIMEOUT:g}")
+    return value
 
 
 def _pages(text: str | None) -> tuple[int, int] | None:
@@ -57,15 +91,36 @@ def _time_limit(seconds: float) -> Iterator[None]:
         return
 
     def expire(_signum: int, _frame: FrameType | None) -> None:
-        raise DraftError(f"time limit of {seconds:.0f} s reached (use --pages or --timeout)")
+        raise TimeLimit(f"time limit of {seconds:g} s reached (use --pages or --timeout)")
 
     old = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    signal.setitimer(signal.ITIMER_REAL, seconds, _REPEAT_S)
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
+
+
+@contextlib.contextmanager
+def _progress(name: str, seconds: float) -> Iterator[Callable[[str], None]]:
+    """A line on stderr (a terminal's: rich draws nothing elsewhere) saying what the draft is doing and
+    for how long, erased at the end; yields the function that changes what it says."""
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    console = Console(stderr=True)
+    if not console.is_terminal:  # a log or a pipe gets the result, not a line a terminal would redraw
+        yield lambda _what: None
+        return
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  TextColumn(f"(time limit {seconds:g} s)"), console=console, transient=True) as bar:
+        task = bar.add_task(f"{name}: reading")
+
+        def tell(what: str) -> None:
+            bar.update(task, description=f"{name}: {what}")
+
+        yield tell
 
 
 def _header(name: str, sha: str, target: Path) -> str:
@@ -107,6 +162,8 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.document)
     model = args.model or (Path(args.output).stem if args.output else snake(path.stem, "device"))
+    if args.output and Path(args.output).suffix.lower() not in MAP_SUFFIXES:
+        raise DraftError(f"-o {args.output}: a map is a YAML file: name it {Path(args.output).stem}.yaml")
     if args.output and Path(args.output).stem != model:
         raise DraftError(f"--model {model} and -o {args.output}: a map's file name is its model id")
     if not re.fullmatch(r"[a-z][a-z0-9_]*", model):
@@ -120,13 +177,17 @@ def run(args: argparse.Namespace) -> int:
             raise DraftError(f"--review {args.review}: the review page is an HTML file (name it *.html)")
         if os.path.lexists(review) and not args.force:
             raise DraftError(f"{display(review)} exists; not overwritten (use --force)")
-    with _time_limit(args.timeout):
-        source = read_document(path, _pages(args.pages), args.max_pages, args.timeout)
+    with _time_limit(args.timeout), _progress(path.name, args.timeout) as tell:
+        source = read_document(path, _pages(args.pages), args.max_pages, args.timeout, tell)
+        rows = sum(len(t.rows) for t in source.tables)
+        tell(f"drafting {rows:,} row{'s' if rows != 1 else ''} of {len(source.tables)} "
+             f"table{'s' if len(source.tables) != 1 else ''}")
         result = draft(source, model)
         if not result.registers:
             count = len(result.skipped)
             why = f" ({count} row{'s' if count != 1 else ''} skipped: {result.skipped[0].reason})" if count else ""
             raise DraftError(f"no register table found: no table with an address column{why}")
+        tell(f"checking the map of {len(result.registers):,} registers")
         text, errors = settle(result, _header(source.name, source.sha256, target), display(target))
     if errors:
         for d in errors:
@@ -145,6 +206,12 @@ def run(args: argparse.Namespace) -> int:
 def cmd_draft(args: argparse.Namespace) -> int:
     try:
         return run(args)
+    except TimeLimit as exc:
+        print(f"{display(args.document)}: error: {exc}", file=sys.stderr)
+        return 1
+    except DocumentError as exc:  # at a place of the document
+        print(f"{display(args.document)}:{exc.line}:{exc.column}: error: {exc}", file=sys.stderr)
+        return 1
     except DraftError as exc:
         print(f"{display(args.document)}: error: {exc}", file=sys.stderr)
         return 1

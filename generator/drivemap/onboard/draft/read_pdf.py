@@ -1,11 +1,18 @@
 """PDF documents through pdfplumber: ruled tables with the page text above them; pages without a
 ruled table are read as text (:mod:`.read_text`). Cells are put under the header they stand under
 (:mod:`.pdf_grid`). A table without a header on the page after a table continues it when its rows are
-as wide, or when it stands in the same frame (laid out then under the header it continues)."""
+as wide, or when it stands in the same frame (laid out then under the header it continues).
+
+Bounds (docs/limits.md): the page tree is walked once to count the pages (at most :data:`MAX_PDF_PAGES`);
+only the pages selected (``--pages``, at most ``--max-pages``) become pdfplumber pages, and each page's
+parsed objects are dropped once it is read; a page whose content streams inflate past
+:data:`MAX_PAGE_CONTENT_BYTES` (measured by inflating them in bounded steps first) is not read."""
 
 from __future__ import annotations
 
 import time
+import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,22 +23,78 @@ from drivemap.onboard.draft.read_text import read_text
 from drivemap.onboard.draft.tables import DraftError, Row, Table
 
 CONTEXT_HEIGHT = 110.0
+#: Pages a PDF may have (counted on its page tree before any page is read).
+MAX_PDF_PAGES = 100_000
+#: Inflated bytes of one page's content streams.
+MAX_PAGE_CONTENT_BYTES = 16 * 1024 * 1024
 
 
-def _open(path: Path) -> Any:
+def _count_pages(pdf: Any) -> int:
+    """The pages of the page tree (pdfminer's walk; no page is parsed), at most :data:`MAX_PDF_PAGES`."""
+    from pdfminer.pdfpage import PDFPage
+
+    count = 0
+    for _ in PDFPage.create_pages(pdf.doc):
+        count += 1
+        if count > MAX_PDF_PAGES:
+            raise DraftError(f"more than {MAX_PDF_PAGES:,} pages; refused")
+    return count
+
+
+def _open(path: Path) -> tuple[Any, int]:
+    """The open PDF (no page made yet) and its number of pages."""
     import pdfplumber
 
     try:
         pdf = pdfplumber.open(str(path))
-        len(pdf.pages)  # parses the page tree: a broken or encrypted file fails here
-        return pdf
     except Exception as exc:  # noqa: BLE001 - any failure of the parser on a bad file is the file's
-        text = repr(exc)
-        if "Password" in text or "Encrypt" in text:
-            raise DraftError("the PDF is encrypted (password protected): decrypt it first") from None
-        inner = exc.args[0] if exc.args and isinstance(exc.args[0], Exception) else exc
-        detail = str(inner) or type(inner).__name__
-        raise DraftError(f"not a readable PDF ({detail})") from None
+        raise _unreadable(exc) from None
+    try:
+        return pdf, _count_pages(pdf)  # walks the page tree: a broken or encrypted file fails here
+    except DraftError:
+        pdf.close()
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure of the parser on a bad file is the file's
+        pdf.close()
+        raise _unreadable(exc) from None
+
+
+def _unreadable(exc: Exception) -> DraftError:
+    text = repr(exc)
+    if "Password" in text or "Encrypt" in text:
+        return DraftError("the PDF is encrypted (password protected): decrypt it first")
+    inner = exc.args[0] if exc.args and isinstance(exc.args[0], Exception) else exc
+    detail = str(inner) or type(inner).__name__
+    return DraftError(f"not a readable PDF ({detail})")
+
+
+def content_too_large(page: Any) -> str | None:
+    """Why a page's content streams are not read (None: they inflate within the bound). A stream of
+    one Flate filter is inflated in bounded steps and dropped; others count by their raw size."""
+    from pdfminer.pdftypes import PDFStream, resolve1
+
+    total = 0
+    for ref in page.page_obj.contents:
+        stream = resolve1(ref)
+        if not isinstance(stream, PDFStream):
+            continue
+        raw = stream.rawdata if stream.rawdata is not None else (stream.data or b"")
+        names = [getattr(f, "name", f) for f, _ in stream.get_filters()]
+        if names in (["FlateDecode"], ["Fl"]):
+            inflater = zlib.decompressobj()
+            try:
+                out = inflater.decompress(raw, MAX_PAGE_CONTENT_BYTES + 1 - total)
+                total += len(out)
+                while inflater.unconsumed_tail and total <= MAX_PAGE_CONTENT_BYTES:
+                    out = inflater.decompress(inflater.unconsumed_tail, MAX_PAGE_CONTENT_BYTES + 1 - total)
+                    total += len(out)
+            except zlib.error:
+                total += len(raw)
+        else:
+            total += len(raw)
+        if total > MAX_PAGE_CONTENT_BYTES:
+            return f"its content inflates past {MAX_PAGE_CONTENT_BYTES // (1024 * 1024)} MiB"
+    return None
 
 
 @dataclass
@@ -186,6 +249,8 @@ def _fits(prev: Table, table: Table) -> bool:
 
 
 def _selected(count: int, pages: tuple[int, int] | None, max_pages: int, notes: list[str]) -> range:
+    if count == 0:
+        raise DraftError("the PDF has no pages (its page tree is empty or broken)")
     first, last = pages if pages is not None else (1, count)
     if first > count:
         raise DraftError(f"--pages {first}-{last}: the document has {count} pages")
@@ -197,29 +262,49 @@ def _selected(count: int, pages: tuple[int, int] | None, max_pages: int, notes: 
     return range(first, last + 1)
 
 
-def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int,
-             seconds: float) -> tuple[list[Table], str, int, list[str]]:
-    """(tables, text, pages read, notes) of a PDF."""
+def _read_page(page: Any, number: int, notes: list[str]) -> tuple[str, list[_Found]] | None:
+    """(text, ruled tables) of one page, or None (why is noted); the page's objects are dropped after."""
+    if page is None:
+        notes.append(f"p.{number}: not in the page tree")
+        return None
+    try:
+        too_large = content_too_large(page)
+        if too_large is not None:
+            notes.append(f"p.{number}: not read: {too_large}")
+            return None
+        return page.extract_text() or "", _page_tables(page, number)
+    except Exception as exc:  # noqa: BLE001 - a broken page is listed, the others are read
+        notes.append(f"p.{number}: not readable ({type(exc).__name__})")
+        return None
+    finally:
+        page.close()  # its characters, lines and layout are not kept for the pages after it
+
+
+def read_pdf(path: Path, pages: tuple[int, int] | None, max_pages: int, seconds: float,
+             progress: Callable[[str], None] | None = None) -> tuple[list[Table], str, int, list[str]]:
+    """(tables, text, pages read, notes) of a PDF; ``progress`` is told each page as it is read."""
     notes: list[str] = []
     joiner = _Joiner()
     tables = joiner.tables
     texts: list[str] = []
     loose: list[str] = []
     deadline = time.monotonic() + seconds
-    pdf = _open(path)
+    pdf, count = _open(path)
     read = 0
     try:
-        for number in _selected(len(pdf.pages), pages, max_pages, notes):
+        selected = _selected(count, pages, max_pages, notes)
+        pdf.pages_to_parse = list(selected)  # only these become pdfplumber pages
+        made = {page.page_number: page for page in pdf.pages}
+        for number in selected:
+            if progress is not None:
+                progress(f"reading page {number} ({number - selected.start + 1} of {len(selected)})")
             if time.monotonic() > deadline:
                 notes.append(f"time limit of {seconds:.0f} s reached: pages from {number} on not read (use --pages)")
                 break
-            try:
-                page = pdf.pages[number - 1]
-                text = page.extract_text() or ""
-                found = _page_tables(page, number)
-            except Exception as exc:  # noqa: BLE001 - a broken page is listed, the others are read
-                notes.append(f"p.{number}: not readable ({type(exc).__name__})")
+            got = _read_page(made.get(number), number, notes)
+            if got is None:
                 continue
+            text, found = got
             read += 1
             texts.append(text)
             for one in found:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import math
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -19,6 +20,7 @@ from typing import Any
 from drivemap.runtime.sim.presets import PresetError, from_command_line, from_file
 from drivemap.runtime.sim.serve import SimServer
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError, StateFileError
+from drivemap.runtime.sim.tcp import IDLE_TIMEOUT_S, MAX_IDLE_TIMEOUT_S
 
 __all__ = ["SimulatorFactory", "add_arguments", "main", "parse_tcp", "serve_cli"]
 
@@ -52,6 +54,11 @@ def _check_options(args: argparse.Namespace) -> None:
         raise SimulatorError("--mode is a serial framing (rtu or ascii); Modbus TCP has its own: drop --mode or use --serial")
     if args.tcp and args.baudrate is not None:
         raise SimulatorError("--baudrate is a serial setting; drop it with --tcp")
+    idle = getattr(args, "idle_timeout", None)
+    if idle is not None and not args.tcp:
+        raise SimulatorError("--idle-timeout is a Modbus TCP setting; drop it with --serial")
+    if idle is not None and not (math.isfinite(idle) and 0 < idle <= MAX_IDLE_TIMEOUT_S):
+        raise SimulatorError(f"--idle-timeout {idle:g}: give seconds above 0 up to {MAX_IDLE_TIMEOUT_S:g}")
     if args.baudrate is not None and not 50 <= args.baudrate <= 4_000_000:
         raise SimulatorError(f"--baudrate {args.baudrate}: give a serial baud rate (50 to 4000000)")
 
@@ -75,6 +82,7 @@ def run(factory: SimulatorFactory, args: argparse.Namespace, prog: str = "drivem
         mode=args.mode,
         baudrate=args.baudrate,
         allow_remote=args.allow_remote,
+        idle_timeout=getattr(args, "idle_timeout", None),
     )
     asyncio.run(_serve_until_signal(server))
     return 0
@@ -124,6 +132,9 @@ def add_arguments(parser: argparse.ArgumentParser, *, with_model: bool) -> None:
     parser.add_argument("--reply-quirk", action="append", dest="reply_quirks", metavar="QUIRK",
                         help="answer in a non-standard reply form the map lists (e.g. two_byte_byte_count)")
     parser.add_argument("--allow-remote", action="store_true", help="allow binding to a non-loopback address")
+    parser.add_argument("--idle-timeout", type=float, default=None, metavar="S",
+                        help=f"close a TCP connection that sends nothing for S seconds (default {IDLE_TIMEOUT_S:g}; "
+                             f"above 0, up to {MAX_IDLE_TIMEOUT_S:g})")
     parser.add_argument("--set", action="append", dest="presets", metavar="NAME=VALUE",
                         help="start with this engineering value (repeatable; checked against the map): "
                              "--set phase_1_voltage=230.1 --set digital_speed[0]=1500")

@@ -334,6 +334,7 @@ class SimServer:
         data_bits: int | None = None,
         allow_remote: bool = False,
         tick_interval: float = 0.02,
+        idle_timeout: float | None = None,
     ) -> None:
         if (tcp is None) == (serial is None):
             raise SimulatorError("give exactly one of tcp=(host, port) and serial=DEVICE")
@@ -341,6 +342,8 @@ class SimServer:
             raise SimulatorError(f"refusing to listen on non-loopback address {tcp[0]!r} (use --allow-remote)")
         self.sim = sim
         self.tcp = tcp
+        self.idle_timeout = idle_timeout
+        """Seconds a TCP connection may stay silent before it is closed (None: 60 s, tcp.IDLE_TIMEOUT_S)."""
         self.serial = serial
         spec_serial = sim.spec.protocol.serial
         self.mode = mode or spec_serial.mode or "rtu"
@@ -376,7 +379,7 @@ class SimServer:
         if self.tcp is not None:
             server = SimTcpServer(
                 self.sim, context, framer=FramerType.SOCKET, address=self.tcp, ignore_missing_devices=True,
-                custom_pdu=custom,
+                custom_pdu=custom, idle_timeout=self.idle_timeout,
             )
         else:
             server = ModbusSerialServer(

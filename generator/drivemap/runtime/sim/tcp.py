@@ -23,7 +23,8 @@ connections (:class:`SimTcpConnection`, made by :class:`SimTcpServer`) follow th
   after its exception reply the connection is closed, so a request it swallowed ends in a closed
   connection, not in silence;
 * requests to units the simulator does not serve and broadcasts get no reply, as before;
-* a connection that sends nothing for :data:`IDLE_TIMEOUT_S` (60 s) is closed: idle clients cannot
+* a connection that sends nothing for the server's idle timeout (:data:`IDLE_TIMEOUT_S`, 60 s, unless
+  ``idle_timeout`` says otherwise: ``drivemap simulate --idle-timeout S``) is closed: idle clients cannot
   hold the server's connections forever (a client reconnects, as after any closed connection).
 
 The frame layout is pymodbus's :class:`~pymodbus.framer.FramerSocket` (which also encodes the
@@ -47,6 +48,7 @@ from drivemap.runtime.sim.simulator import Simulator
 
 __all__ = [
     "IDLE_TIMEOUT_S",
+    "MAX_IDLE_TIMEOUT_S",
     "MAX_MBAP_LENGTH",
     "PARTIAL_FRAME_TIMEOUT_S",
     "SimTcpConnection",
@@ -63,8 +65,10 @@ MAX_MBAP_LENGTH = 254
 #: bytes of one frame follow each other within a round trip; a frame that stops for this long was
 #: announced longer than it is, and whatever comes next would be misread as its rest.
 PARTIAL_FRAME_TIMEOUT_S = 0.1
-#: Seconds without a byte after which a connection is closed.
+#: Seconds without a byte after which a connection is closed (the default; ``idle_timeout`` of the server).
 IDLE_TIMEOUT_S = 60.0
+#: The longest idle timeout a server takes (a day).
+MAX_IDLE_TIMEOUT_S = 86400.0
 _HEADER = 7  # transaction id, protocol id, length, unit id
 
 
@@ -115,6 +119,7 @@ class SimTcpConnection(ServerRequestHandler):
         self._stale: asyncio.TimerHandle | None = None
         self._doubt = False  # a frame whose PDU disagrees with its MBAP length was taken
         self._idle: asyncio.TimerHandle | None = None
+        self.idle_timeout = owner.idle_timeout
 
     def callback_connected(self) -> None:
         super().callback_connected()
@@ -123,7 +128,8 @@ class SimTcpConnection(ServerRequestHandler):
     def _arm_idle(self) -> None:
         if self._idle is not None:
             self._idle.cancel()
-        self._idle = self.loop.call_later(IDLE_TIMEOUT_S, self.give_up, f"idle for {IDLE_TIMEOUT_S:g} s")
+        seconds = self.idle_timeout if self.idle_timeout is not None else IDLE_TIMEOUT_S
+        self._idle = self.loop.call_later(seconds, self.give_up, f"idle for {seconds:g} s")
 
     # ---- receiving -------------------------------------------------------------------------------
     def callback_data(self, data: bytes, addr: tuple[Any, ...] | None = None) -> int:
@@ -207,10 +213,14 @@ class SimTcpConnection(ServerRequestHandler):
 
 
 class SimTcpServer(ModbusTcpServer):
-    """pymodbus's TCP server with :class:`SimTcpConnection` connections serving ``sim``."""
+    """pymodbus's TCP server with :class:`SimTcpConnection` connections serving ``sim``; a connection
+    idle for ``idle_timeout`` seconds (None: :data:`IDLE_TIMEOUT_S`) is closed."""
 
-    def __init__(self, sim: Simulator, context: Any, **kwargs: Any) -> None:
+    def __init__(self, sim: Simulator, context: Any, *, idle_timeout: float | None = None, **kwargs: Any) -> None:
+        if idle_timeout is not None and not 0 < idle_timeout <= MAX_IDLE_TIMEOUT_S:
+            raise ValueError(f"idle_timeout {idle_timeout!r}: give seconds above 0 up to {MAX_IDLE_TIMEOUT_S:g}")
         self.sim = sim
+        self.idle_timeout = idle_timeout
         kwargs.setdefault("framer", "socket")
         super().__init__(context, **kwargs)
         if not issubclass(self.framer, FramerSocket):
