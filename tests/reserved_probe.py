@@ -140,7 +140,7 @@ def _client_attributes(client_tree: ast.Module) -> set[str]:
 
 def _fixed_headings() -> frozenset[str]:
     from drivemap.backends.render import TEMPLATES
-    from drivemap.backends.views.docs import slug
+    from drivemap.vocab.escape import slug
 
     text = (TEMPLATES / "model.md.jinja").read_text(encoding="utf-8")
     return frozenset(slug(line.lstrip("#")) for line in text.splitlines()
@@ -209,7 +209,7 @@ def _frozenset_text(items: frozenset[str], indent: str = "    ") -> str:
 
 
 def module_text(found: Reserved) -> str:
-    """The text of ``drivemap/backends/python/reserved.py`` holding ``found`` (``python tests/reserved_probe.py``)."""
+    """The text of ``drivemap/vocab/reserved.py`` holding ``found`` (``python tests/reserved_probe.py``)."""
     outputs = "".join(f"        ({name!r}, {_frozenset_text(per, '        ')}, {_frozenset_text(once, '        ')}),\n"
                       for name, per, once in found.outputs)
     return f'''"""The names and files generated outputs already use: data the python (and docs) back end owns.
@@ -263,7 +263,7 @@ def reserved() -> Reserved:
 '''
 
 
-_TARGET = "generator/drivemap/backends/python/reserved.py"
+_TARGET = "generator/drivemap/vocab/reserved.py"
 
 if __name__ == "__main__":
     sys.stdout.write(module_text(reserved()))

@@ -1,6 +1,6 @@
 """One escaping path for map text (map text never becomes code or markup), proven over all of Unicode, lone surrogates included.
 
-Property tests (hypothesis) on :mod:`drivemap.backends.escape`, whose functions are the templates' ``py``,
+Property tests (hypothesis) on :mod:`drivemap.vocab.escape`, whose functions are the templates' ``py``,
 ``doc``, ``md`` and ``mdcomment`` filters:
 
 * a Python literal evaluates back to the text; a docstring body, in the contexts the templates put
@@ -31,7 +31,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from markdown_it import MarkdownIt
 
-from drivemap.backends.escape import LINE_BREAKS, md_comment, md_text, py_docstring, py_literal
+from drivemap.vocab.escape import LINE_BREAKS, md_comment, md_text, py_docstring, py_literal
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -1,6 +1,6 @@
 """The reserved names are derived from what the templates produce, and cover what they produce.
 
-:func:`drivemap.backends.python.reserved.reserved` renders a probe map and reads the output back. These tests read
+:func:`drivemap.vocab.reserved.reserved` renders a probe map and reads the output back. These tests read
 the generated packages of the seed maps (other maps than the probe, other features) and check that
 every name they bind, every builtin their classes annotate with and every attribute their clients
 have is in the derived sets, so a map name equal to any of them is refused by ``validate``
@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 from drivemap.backends.python.names import exception_classes
-from drivemap.backends.python.reserved import reserved
 from drivemap.compiler import compile_map, map_paths
 from drivemap.runtime.client.bus import Bus
+from drivemap.vocab.reserved import reserved
 
 ROOT = Path(__file__).resolve().parent.parent
 GENERATED = ROOT / "generated" / "drivemap_models"
@@ -89,7 +89,7 @@ def test_reserved_data_is_what_the_templates_produce() -> None:
     """The python back end's reserved names are data; they must equal what rendering a probe map gives.
 
     When a template or runtime change binds a new name, this fails until
-    ``python tests/reserved_probe.py > generator/drivemap/backends/python/reserved.py`` is run.
+    ``python tests/reserved_probe.py > generator/drivemap/vocab/reserved.py`` is run.
     """
     import dataclasses
 

@@ -50,7 +50,7 @@ def test_validate_with_exporters_renders_nothing() -> None:
     rendering = [m for m in modules if m.startswith(("jinja2", "drivemap.backends.render"))
                  or (m.startswith("drivemap.backends.views.") and m != "drivemap.backends.views.format")]
     assert rendering == []
-    assert "drivemap.backends.python.namecheck" in modules  # the python exporter's checks did run
+    assert "drivemap.vocab.namecheck" in modules  # the python exporter's checks did run
 
 
 def test_a_name_clash_is_refused_where_the_python_exporter_runs(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ from typing import Any
 
 import jinja2
 
-from drivemap.backends import escape
+from drivemap.vocab import escape
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 

@@ -54,8 +54,8 @@ def unique(name: str, taken: set[str]) -> str:
 
 def refused(name: str) -> str | None:
     """Why the compiler refuses ``name`` as a register name (None: it does not)."""
-    from drivemap.backends.python.namecheck import CLIENT_ATTRIBUTES
-    from drivemap.backends.python.reserved import reserved
+    from drivemap.vocab.namecheck import CLIENT_ATTRIBUTES
+    from drivemap.vocab.reserved import reserved
 
     if keyword.iskeyword(name) or keyword.issoftkeyword(name):
         return "a Python keyword"

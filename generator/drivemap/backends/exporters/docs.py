@@ -6,8 +6,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from drivemap.backends.exporters.base import Exporter, Options, Problem
-from drivemap.backends.python import namecheck
 from drivemap.model.nodes import Model
+from drivemap.vocab import namecheck
 
 __all__ = ["DocsExporter"]
 

@@ -26,12 +26,12 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-from drivemap.backends.exporters._yaml import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.common import provenance, review_lines
 from drivemap.backends.views.esphome import Item, align
+from drivemap.backends.yamltext import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.model.nodes import Model, Register
 from drivemap.model.spec import spec_from_model
 from drivemap.runtime.client.planner import plan_reads

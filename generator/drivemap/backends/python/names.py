@@ -2,7 +2,7 @@
 
 The rules live in :mod:`drivemap.runtime.names` (the runtime builds the same classes from a spec).
 
-The checks (:mod:`drivemap.backends.python.namecheck`) refuse a map whose generated names collide; the client view
+The checks (:mod:`drivemap.vocab.namecheck`) refuse a map whose generated names collide; the client view
 (:mod:`drivemap.backends.views.client`) applies the same rules to write them.
 """
 

@@ -12,7 +12,7 @@ import keyword
 from dataclasses import dataclass
 from typing import Any
 
-from drivemap.backends.exporters.base import Options
+from drivemap.backends.common import Options
 from drivemap.backends.python.names import FIXED_NAMES, exception_classes
 from drivemap.backends.python.names import bit_attribute as _attr
 from drivemap.backends.views.common import header

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from drivemap.backends.exporters.base import Options
+from drivemap.backends.common import Options
 from drivemap.model.nodes import Model, Register
 
 

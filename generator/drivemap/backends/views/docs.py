@@ -14,14 +14,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from drivemap.backends.exporters.base import Options
+from drivemap.backends.common import Options
 from drivemap.backends.views.annotate import FrameView, annotate, describe_value, exception_short
 from drivemap.backends.views.common import header, provenance, review_text
-from drivemap.backends.views.format import enum_anchor, example_anchor, hex2, hex4, num, slug, with_unit
+from drivemap.backends.views.format import enum_anchor, example_anchor, hex2, hex4, num, with_unit
 from drivemap.backends.views.registers import addressing, groups, reserved_rows, shown_value
 from drivemap.backends.views.usage import SNIPPET_HOST, SNIPPET_PORT, usage
 from drivemap.frontend.formats import CURRENT
 from drivemap.model.nodes import Example, FunctionCode, Model, Register, Value
+from drivemap.vocab.escape import slug
 
 MODE_NAMES = {"rtu": "Modbus RTU", "ascii": "Modbus ASCII", "tcp": "Modbus TCP"}
 OPERATIONS = {

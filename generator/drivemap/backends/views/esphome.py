@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivemap.backends.exporters._yaml import Hex
+from drivemap.backends.yamltext import Hex
 from drivemap.runtime.client.planner import ReadRequest
 
 #: ESPHome's ModbusRegisterType order (coil, discrete_input, holding, read): its ranges run per type.

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import re
-
 from drivemap.model.nodes import Register
+from drivemap.vocab.escape import slug
 
 
 def num(value: float | int | None) -> str | None:
@@ -24,13 +23,6 @@ def hex4(value: int) -> str:
 
 def hex2(value: int) -> str:
     return f"0x{value:02X}"
-
-
-def slug(text: str) -> str:
-    """The anchor a code-hosting site (GitHub) derives from a heading's text."""
-    text = text.strip().lower()
-    text = re.sub(r"[^\w\- ]", "", text)
-    return text.replace(" ", "-")
 
 
 def with_unit(value: str | None, unit: str | None) -> str | None:

@@ -15,10 +15,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from drivemap.backends.exporters.base import OptionError
+from drivemap.backends.common import OptionError
 from drivemap.model.nodes import AllowedValue, Cell, Model, Port, Register
 from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
 from drivemap.runtime.spec import RegisterSpec
+from drivemap.vocab.escape import comment_safe
 from drivemap.vocab.units import (
     DEVICE_CLASS_SINCE,
     DEVICE_CLASSES,
@@ -47,12 +48,6 @@ __all__ = [
 
 DEFAULT_SCAN_S = 15
 DEFAULT_SETTINGS_S = 300
-_LINE_BREAKS = re.compile(r"[\x00-\x1f\x7f\x85\u2028\u2029]+")
-
-
-def comment_safe(text: str) -> str:
-    """Map text fit for one comment line: every line break and control character becomes a space."""
-    return " ".join(_LINE_BREAKS.sub(" ", text).split())
 
 
 def display_decimals(reg: Register) -> int | None:

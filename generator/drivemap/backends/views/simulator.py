@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from drivemap.backends.exporters.base import Options
+from drivemap.backends.common import Options
 from drivemap.backends.views.common import header
 from drivemap.model.nodes import Model
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from drivemap.backends.exporters.base import Options
+from drivemap.backends.common import Options
 from drivemap.backends.views.common import header
 from drivemap.model.nodes import Model
 from drivemap.model.spec import spec_from_model

@@ -183,8 +183,8 @@ def _numbered_from_one(d: Drafted, said: str) -> None:
 def _group_title(heading: str, label: str, groups: list[dict[str, Any]]) -> str:
     """The group's title: the table's heading, with the table's place where the docs page has a fixed
     section of that name (a sheet called "Registers"), and "(continued)" where a group has it already."""
-    from drivemap.backends.python.reserved import reserved  # the docs exporter's data; loaded when drafting
-    from drivemap.backends.views.format import slug
+    from drivemap.vocab.escape import slug
+    from drivemap.vocab.reserved import reserved  # the docs exporter's data; loaded when drafting
 
     title = heading if slug(heading) not in reserved().headings else f"{heading} ({label})"
     while title in {g["title"] for g in groups}:

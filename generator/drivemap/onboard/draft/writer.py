@@ -13,13 +13,13 @@ from typing import Any
 
 import yaml
 
-from drivemap.build import build_checks
 from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.frontend import checks, schema
 from drivemap.frontend.load import load_text
 from drivemap.model.build import build_model
 from drivemap.onboard.draft.assemble import Draft
 from drivemap.onboard.draft.tables import Drafted, Skipped
+from drivemap.vocab import namecheck
 
 _KEY_ORDER = ("name", "label", "param", "table", "address", "count", "stride", "element_params", "group", "type",
               "length", "word_order", "access", "scale", "unit", "min", "max", "default", "enum", "bits", "source",
@@ -80,10 +80,11 @@ def _key_at(text: str, line: int) -> str | None:
 
 
 def _exporter_problems(doc: Any) -> list[Diagnostic]:
-    """The checks of the exporters ``drivemap build`` runs (generated names, docs anchors), so that a
-    draft builds as written, not only validates."""
+    """The name checks of the outputs ``drivemap build`` writes (generated names, docs anchors: the naming
+    policy in :mod:`drivemap.vocab.namecheck`), so that a draft builds as written, not only validates."""
+    data = dict(doc.data)
     return [Diagnostic(doc.positions.at(where), message)
-            for exporter in build_checks() for where, message, _options in exporter.validate(doc.data)]
+            for where, message, _options in (*namecheck.python_problems(data), *namecheck.docs_problems(data))]
 
 
 def compile_text(text: str, path: str) -> list[Diagnostic]:

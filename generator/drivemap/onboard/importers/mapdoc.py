@@ -140,8 +140,8 @@ class MapDoc:
 
     def group(self, name: str, title: str | None = None) -> str:
         """A group; its title gets " (group)" where the docs page has a fixed heading of that anchor."""
-        from drivemap.backends.python.reserved import reserved
-        from drivemap.backends.views.docs import slug
+        from drivemap.vocab.escape import slug
+        from drivemap.vocab.reserved import reserved
 
         key = snake(name, "group")
         if key not in self.groups:

@@ -3,7 +3,7 @@
 Every value, map text included, goes through PyYAML's safe emitter, which quotes whatever would
 otherwise read as something else (``!!python/...``, ``#``, ``{{ }}``, ``yes``, line breaks), so
 map text can never change the structure of the document. The only text outside the emitter is the
-comment header, whose lines pass :func:`~drivemap.backends.views.integrations.comment_safe`.
+comment header, whose lines pass :func:`~drivemap.vocab.escape.comment_safe`.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from drivemap.backends.views.integrations import comment_safe
+from drivemap.vocab.escape import comment_safe
 
 __all__ = ["Hex", "Literal", "LiteralMap", "Secret", "dump", "header"]
 

@@ -1,7 +1,7 @@
 """Every generated name checked against every other generated name and every fixed output file.
 
 A map's names become Python classes, attributes and fields, docs anchors and file names. Each is
-checked against what the generated code and files already hold (:func:`drivemap.backends.python.reserved.reserved`,
+checked against what the generated code and files already hold (:func:`drivemap.vocab.reserved.reserved`,
 read from the templates' real output) and against each other:
 
 * the model id against the files written once for all models (``index`` would overwrite the docs
@@ -26,12 +26,11 @@ import re
 from collections.abc import Iterator
 from typing import Any
 
-from drivemap.backends.escape import md_text
-from drivemap.backends.python.names import FIXED_NAMES, UNKNOWN_MEMBER, bit_attribute, exception_classes
-from drivemap.backends.python.reserved import reserved
-from drivemap.backends.views.format import slug
-from drivemap.frontend.load import PathT
+from drivemap.diagnostics import Problem
 from drivemap.model.nodes import camel, is_keyword
+from drivemap.runtime.names import FIXED_NAMES, UNKNOWN_MEMBER, bit_attribute, exception_classes
+from drivemap.vocab.escape import md_text, slug
+from drivemap.vocab.reserved import reserved
 
 __all__ = ["CLIENT_ATTRIBUTES", "docs_problems", "python_problems"]
 
@@ -45,7 +44,6 @@ CLIENT_ATTRIBUTES = frozenset(
     }
 )
 
-Problem = tuple[PathT, str, dict[str, Any]]
 
 
 def python_problems(data: dict[str, Any]) -> Iterator[Problem]:
@@ -78,7 +76,7 @@ def _model_id(data: dict[str, Any], only: str) -> Iterator[Problem]:
                                             "writes once for all models; choose another id", {})
 
 
-def _bits_class_names(data: dict[str, Any]) -> Iterator[tuple[str, PathT]]:
+def _bits_class_names(data: dict[str, Any]) -> Iterator[tuple[str, tuple[str | int, ...]]]:
     for i, reg in enumerate(data["registers"]):
         if reg.get("bits"):
             yield reg.get("flags_name") or camel(reg["name"]), ("registers", i, "flags_name" if reg.get("flags_name")
@@ -87,9 +85,9 @@ def _bits_class_names(data: dict[str, Any]) -> Iterator[tuple[str, PathT]]:
 
 def _classes(data: dict[str, Any]) -> Iterator[Problem]:
     taken = reserved().module
-    owners: dict[str, tuple[str, PathT]] = {}
+    owners: dict[str, tuple[str, tuple[str | int, ...]]] = {}
     for name in data.get("enums", {}):
-        where: PathT = ("enums", name)
+        where: tuple[str | int, ...] = ("enums", name)
         if name in FIXED_NAMES:
             yield where, f"enum name {name!r} is taken by the generated client package", {"key": True}
         else:
@@ -129,7 +127,7 @@ def _registers(data: dict[str, Any]) -> Iterator[Problem]:
         if name in seen or is_keyword(name):
             continue  # reported by the register checks
         seen.add(name)
-        where: PathT = ("registers", i, "name")
+        where: tuple[str | int, ...] = ("registers", i, "name")
         if name in CLIENT_ATTRIBUTES:
             yield where, f"register name {name!r} clashes with a client attribute", {}
         elif name in shadowed:
@@ -151,7 +149,7 @@ def _bits(data: dict[str, Any]) -> Iterator[Problem]:
         attributes: dict[str, int] = {}
         for j, bit in enumerate(reg["bits"]):
             attr = bit_attribute(bit["name"])
-            where: PathT = ("registers", i, "bits", j, "name")
+            where: tuple[str | int, ...] = ("registers", i, "bits", j, "name")
             if attr in attributes and reg["bits"][attributes[attr]]["name"] != bit["name"]:
                 first = reg["bits"][attributes[attr]]["name"]
                 yield where, f"bit fields {first!r} and {bit['name']!r} both become the attribute {attr!r}", {
@@ -183,8 +181,8 @@ def _groups(data: dict[str, Any]) -> Iterator[Problem]:
 
 def _anchors(data: dict[str, Any]) -> Iterator[Problem]:
     """Headings of the model's docs page whose anchors collide (a link to one would lead to the other)."""
-    owners: dict[str, tuple[str, PathT | None]] = {a: ("a fixed section of the page", None) for a in reserved().headings}
-    headings: list[tuple[str, PathT, dict[str, Any]]] = []
+    owners: dict[str, tuple[str, tuple[str | int, ...] | None]] = {a: ("a fixed section of the page", None) for a in reserved().headings}
+    headings: list[tuple[str, tuple[str | int, ...], dict[str, Any]]] = []
     for i, port in enumerate(data["protocol"]["ports"]):
         headings.append((f"Port {md_text(port['name'])}", ("protocol", "ports", i, "name"), {}))
     for i, group in enumerate(data.get("groups", ())):

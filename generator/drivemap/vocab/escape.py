@@ -67,3 +67,18 @@ def md_comment(value: Any) -> str:
     while "--" in text:
         text = text.replace("--", "- -")
     return text
+
+
+def slug(text: str) -> str:
+    """The anchor a code-hosting site (GitHub) derives from a heading's text."""
+    text = text.strip().lower()
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f\x85\u2028\u2029]+")
+
+
+def comment_safe(text: str) -> str:
+    """Map text fit for one comment line: every line break and control character becomes a space."""
+    return " ".join(_CONTROL.sub(" ", text).split())
