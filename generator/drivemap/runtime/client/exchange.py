@@ -47,7 +47,7 @@ class Exchange:
     hold_ms: float = 0.0
 
 
-def reply_mismatch(request: ModbusPDU, reply: ModbusPDU) -> str | None:
+def reply_mismatch(request: ModbusPDU, reply: ModbusPDU) -> str | None:  # noqa: C901 - one check per echoed field, in the order the frame has them
     """Why ``reply`` cannot be the answer to ``request`` (None when it can).
 
     RTU and ASCII frames carry no transaction id, so everything a reply echoes is checked: unit,
