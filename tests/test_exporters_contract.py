@@ -41,7 +41,7 @@ def test_json_keeps_unknown_broadcast_unknown() -> None:
 def test_json_review_and_provenance_only_where_stated(tmp_path: Path) -> None:
     plain = export(load("ev"))
     assert plain["evidence"] == "manual" and plain["kind"] == "drive" and "origin" not in plain
-    assert [r["review"] for r in plain["registers"] if r["name"] == "servo_on_mode"] == [["type"]]
+    assert [r["review"] for r in plain["registers"] if r["name"] == "servo_on_mode"] == [["signedness"]]
     assert "review" not in next(r for r in plain["registers"] if r["name"] == "motor_state")
     assert list(plain)[:5] == ["model", "title", "evidence", "kind", "protocol"]
 

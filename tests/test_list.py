@@ -66,7 +66,7 @@ def test_list_shows_shipped_and_catalogue_maps_with_their_evidence(shipped: Path
     assert table["zeta_inv5k"][:3] == ["Zeta Power", "inverter", "imported"]
     assert table["zeta_inv5k"][4] == "catalogue/solarman"
     assert table["sdm630"][0] == "Eastron" and table["sdm630"][4] == "drivemap"
-    assert set(rows(run(capsys, "list", "--kind", "meter")[1])) == {"acme_em100", "acme_em200"}
+    assert set(rows(run(capsys, "list", "--kind", "meter")[1])) == {"acme_em100", "acme_em200", "sdm630"}
     assert set(rows(run(capsys, "list", "--vendor", "zeta")[1])) == {"zeta_inv5k"}
     assert set(rows(run(capsys, "list", "em200")[1])) == {"acme_em200"}
     assert set(rows(run(capsys, "list", "acme", "--kind", "inverter")[1])) == set()

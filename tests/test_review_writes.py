@@ -74,8 +74,9 @@ def test_generated_spec_carries_review(generated: tuple[Path, ModuleType]) -> No
     assert "review=('scale', 'unit')," in text and "review=('type',)," in text
     assert pkg.SPEC.register("rs485_timeout").open_for_writes == ("scale",)
     assert pkg.SPEC.register("rs232_timeout").open_for_writes == ()
-    # the maps without review markers print nothing new: generated/ stays byte-identical
-    assert "review=" not in (ROOT / "generated" / "drivemap_models" / "ev" / "spec.py").read_text(encoding="utf-8")
+    # a map without review markers prints none (sdm630 states every field); ev prints its open signedness
+    assert "review=" not in (ROOT / "generated" / "drivemap_models" / "sdm630" / "spec.py").read_text(encoding="utf-8")
+    assert "review=('signedness',)," in (ROOT / "generated" / "drivemap_models" / "ev" / "spec.py").read_text(encoding="utf-8")
 
 
 def test_client_refuses_writes_and_sends_nothing(served: tuple[Any, int], generated: tuple[Path, ModuleType]) -> None:

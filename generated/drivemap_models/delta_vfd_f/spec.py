@@ -49,14 +49,14 @@ SPEC = DeviceSpec(
             address=0x2102,
             access='r',
             source='VFD-F p.5-58 line 5',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_frequency',
             address=0x2103,
             access='r',
             source='VFD-F p.5-58 line 6',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_current',
@@ -65,7 +65,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='A',
             source='VFD-F p.5-58 line 7',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='dc_bus_voltage',
@@ -74,7 +74,7 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-F p.5-58 line 8',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_voltage',
@@ -83,14 +83,14 @@ SPEC = DeviceSpec(
             scale=0.1,
             unit='V',
             source='VFD-F p.5-58 line 9',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_power_factor',
             address=0x2107,
             access='r',
             source='VFD-F p.5-58 line 10',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_power',
@@ -99,14 +99,14 @@ SPEC = DeviceSpec(
             scale=0.01,
             unit='kW',
             source='VFD-F p.5-58 line 11',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='feedback_signal_actual_value',
             address=0x2109,
             access='r',
             source='VFD-F p.5-58 line 12',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='feedback_signal',
@@ -115,7 +115,7 @@ SPEC = DeviceSpec(
             scale=0.01,
             unit='%',
             source='VFD-F p.5-58 line 13',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='estimated_torque_ratio',
@@ -123,7 +123,7 @@ SPEC = DeviceSpec(
             access='r',
             scale=0.1,
             source='VFD-F p.5-58 line 14',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='user_target_value_ul',
@@ -147,7 +147,7 @@ SPEC = DeviceSpec(
             address=0x210E,
             access='r',
             source='VFD-F p.5-58 line 17',
-            review=('type',),
+            review=('signedness',),
         ),
     ),
     reserved=(

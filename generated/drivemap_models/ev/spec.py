@@ -274,7 +274,7 @@ SPEC = DeviceSpec(
             access='r',
             page=PageSpec('watch_data_select', 0),
             source='001 §4.3',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='bus_voltage',
@@ -315,7 +315,7 @@ SPEC = DeviceSpec(
             access='r',
             page=PageSpec('watch_data_select', 1),
             source='001 §4.3',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='accel_time_monitor',
@@ -568,7 +568,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='01-01',
             source='001 §2.2 例外應答範例',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='operation_data_source',
@@ -576,7 +576,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='02-03',
             source='001 Appendix I 範例 2, RS-485 多台廣播控制',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='servo_on_mode',
@@ -584,7 +584,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='02-14',
             source='001 §4.3',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='always_on_input_1',
@@ -592,7 +592,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='06-07',
             source='001 Appendix I RS-485 多台廣播控制',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='param_08_01',
@@ -600,7 +600,7 @@ SPEC = DeviceSpec(
             broadcast=True,
             param='08-01',
             source='001 §4.3',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='stop_holding_force',

@@ -78,14 +78,14 @@ SPEC = DeviceSpec(
             unit='Hz',
             param='P_258',
             source='003 §保持暂存器的写入 [06H]',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='torque_command',
             address=0x0103,
             param='P_259',
             source='003 §DATA 一览表 (指令 DATA)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='status',
@@ -104,7 +104,7 @@ SPEC = DeviceSpec(
             unit='Hz',
             param='P_291',
             source='003 §保持暂存器内容读出 [03H]',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_current',
@@ -114,7 +114,7 @@ SPEC = DeviceSpec(
             unit='A',
             param='P_295',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='torque_command_monitor',
@@ -122,7 +122,7 @@ SPEC = DeviceSpec(
             access='r',
             param='P_296',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='output_torque',
@@ -130,7 +130,7 @@ SPEC = DeviceSpec(
             access='r',
             param='P_297',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='pid_feedback',
@@ -140,7 +140,7 @@ SPEC = DeviceSpec(
             unit='%',
             param='P_298',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='pid_input',
@@ -160,7 +160,7 @@ SPEC = DeviceSpec(
             unit='V',
             param='P_300',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='av2_input',
@@ -170,7 +170,7 @@ SPEC = DeviceSpec(
             unit='V',
             param='P_301',
             source='003 §DATA 一览表 (监视数据)',
-            review=('type',),
+            review=('signedness',),
         ),
         RegisterSpec(
             name='parameters',
@@ -179,7 +179,7 @@ SPEC = DeviceSpec(
             refuse_while_running=True,
             param='P_0',
             source='003 §参数与暂存器编号对照表',
-            review=('type',),
+            review=('signedness',),
         ),
     ),
     reserved=(

@@ -235,6 +235,8 @@ def number_bounds(reg: Register) -> tuple[int | float, int | float] | None:
         ends = [max(-limit, min(limit, e)) for e in ends]
     else:
         low, high = TYPE_BOUNDS[reg.type]
+        if "signedness" in reg.review:  # signed or not, the map does not say: only what reads the same both ways
+            low, high = 0, (1 << (16 * reg.words - 1)) - 1
         ends = [Decimal(low) * scale + offset, Decimal(high) * scale + offset]
     lo, hi = sorted(_whole(e) for e in ends)
     return (reg.min if reg.min is not None else lo), (reg.max if reg.max is not None else hi)

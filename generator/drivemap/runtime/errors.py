@@ -75,12 +75,13 @@ class OpenForReview(AccessError):
     """A write to a register whose map leaves a field that decides the written words open (its
     ``review:`` list names it): nothing is sent. ``register`` is its name, ``fields`` the open fields."""
 
-    def __init__(self, register: str, fields: tuple[str, ...]) -> None:
+    def __init__(self, register: str, fields: tuple[str, ...], raw: int | None = None) -> None:
         self.register = register
         self.fields = fields
-        super().__init__(f"{register} is not written: its map leaves {', '.join(fields)} open for review "
-                         f"(review: [{', '.join(fields)}]); state {'them' if len(fields) > 1 else 'it'} in the map "
-                         "and remove the review item first")
+        what = (f"raw value {raw} reads differently signed and unsigned, and its map leaves signedness open"
+                if raw is not None else f"its map leaves {', '.join(fields)} open")
+        super().__init__(f"{register} is not written: {what} for review (review: [{', '.join(fields)}]); state "
+                         f"{'them' if len(fields) > 1 else 'it'} in the map and remove the review item first")
 
 
 class ReviewWarning(UserWarning):

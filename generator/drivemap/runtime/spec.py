@@ -127,6 +127,11 @@ class RegisterSpec:
         """The open fields (``review:``) that decide what a write sends: while any is open, no write."""
         return tuple(f for f in self.review if f in WRITE_DECIDING_FIELDS)
 
+    def sign_ambiguous(self, raw: int) -> bool:
+        """Whether ``raw`` means another value signed than unsigned while the map leaves the register's
+        signedness open (``review: [signedness]``): such a value is neither written nor trusted."""
+        return "signedness" in self.review and not 0 <= raw < (1 << (16 * self.words - 1))
+
     @property
     def readable(self) -> bool:
         return "r" in self.access

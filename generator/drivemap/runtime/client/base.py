@@ -352,7 +352,7 @@ class ClientCommon(Generic[S, B]):
     def _read_all_program(self) -> Program:
         core = self._core
         core.check_readable(())  # the broadcast check: every key of read_all is readable by construction
-        if core.tables.under_review:
+        if core.tables.read_review:
             warn_review(core, core.tables.all_keys)
         program = self._all_program = self._snapshot_program(core.tables.all_keys, self.plan(), True)
         return program

@@ -23,7 +23,7 @@ __all__ = ["refuse_open", "warn_review"]
 def warn_review(core: Any, keys: Iterable[Key]) -> None:
     """A :class:`ReviewWarning` for each register of ``keys`` whose map leaves a field that decides
     its value open (once per register and client): the read works, its value may be wrong."""
-    review = core.tables.under_review
+    review = core.tables.read_review
     warned: set[str] = core.review_warned
     for name, _ in keys:
         fields = review.get(name)

@@ -199,7 +199,7 @@ class Core:
             if name not in readable:
                 self.spec.register(name)  # KeyError for a name the map does not have
                 raise WriteOnlyRegister(f"{name} is write-only")
-        if self.tables.under_review:
+        if self.tables.read_review:
             warn_review(self, keys)
 
     def read_raw(self, keys: Sequence[Key], plan: tuple[ReadRequest, ...], *,
@@ -366,6 +366,8 @@ class Core:
             reg = self.check_write(key)
             if reg.command_value is not None and raw != reg.command_value:
                 raise self.not_the_command(reg, key, raw)
+            if reg.review and reg.sign_ambiguous(raw):
+                raise OpenForReview(reg.name, ("signedness",), raw)
             words = raw_to_words(reg, raw)
             if len(words) > 1 and self._limit(reg.table) == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no multiple write for a multi-word value")
@@ -415,6 +417,8 @@ class Core:
         for (key, raw), (reg, _, _) in zip(items, regs, strict=True):
             if reg.command_value is not None and raw != reg.command_value:
                 raise self.not_the_command(reg, key, raw)
+            if reg.review and reg.sign_ambiguous(raw):
+                raise OpenForReview(reg.name, ("signedness",), raw)
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
         for item in regs:
             reg, key, words = item

@@ -33,6 +33,11 @@ class SpecTables:
     under_review: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
     """Per register whose ``review:`` leaves a field open that decides its words: those fields
     (:attr:`RegisterSpec.open_for_writes`); empty for most maps."""
+    read_review: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
+    """Per register whose ``review:`` leaves a field open that decides the value read (those of
+    ``under_review``): a read warns once (:func:`~.review.warn_review`). An open ``signedness``
+    alone does not warn: the value read is the map's (unsigned) reading, and the docs and exports
+    mark it."""
 
 
 _TABLES: dict[int, tuple[DeviceSpec, SpecTables]] = {}
@@ -61,6 +66,7 @@ def spec_tables(spec: DeviceSpec) -> SpecTables:
         fc10=spec.protocol.function(0x10),
         write_limits={"holding": max_write_words(spec, "holding"), "coil": max_write_words(spec, "coil")},
         under_review={r.name: r.open_for_writes for r in spec.registers if r.open_for_writes},
+        read_review={r.name: r.open_for_writes for r in spec.registers if r.open_for_writes},
     )
     _TABLES[id(spec)] = (spec, tables)
     return tables
