@@ -79,3 +79,28 @@ def test_without_the_plugin_it_is_unknown(tmp_path: Path) -> None:
     missing = _drivemap(tmp_path, "export", "ev", "--format", "count")
     assert missing.returncode == 1
     assert textwrap.dedent("unknown format 'count'") in missing.stderr
+
+
+def test_multi_device_is_a_declared_protocol_checked_when_the_plugin_loads(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+    import types
+
+    from drivemap.backends.exporters import _load
+    from drivemap.backends.exporters.base import Exporter, MultiDevice
+    from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
+
+    class Claims(Exporter):
+        name = "claims"
+        multi_device = True
+
+    class Line(Claims):
+        def render_line(self, devices: object, options: object) -> dict[str, str]:
+            return {}
+
+    module = types.ModuleType("drivemap_test_plugins")
+    module.Claims, module.Line = Claims, Line  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "drivemap_test_plugins", module)
+    with pytest.raises(TypeError, match="declares multi_device but has no render_line"):
+        _load("drivemap_test_plugins:Claims")
+    assert _load("drivemap_test_plugins:Line") is Line
+    assert HomeAssistantExporter.multi_device and isinstance(HomeAssistantExporter(), MultiDevice)

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from drivemap.backends.exporters import OptionError, available
+    from drivemap.backends.exporters.base import MultiDevice
     from drivemap.build import export_files
     from drivemap.compiler import compile_map, resolve_map
 
@@ -56,7 +57,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                     raise OptionError(f"the unit is given twice: {args.model[0]} and --unit {values['unit']}")
                 values["unit"] = unit
             files = export_files(exporter, model, project, values, args.output)
-        elif not hasattr(exporter, "render_line"):
+        elif not (exporter.multi_device and isinstance(exporter, MultiDevice)):
             raise UsageError(f"drivemap export --format {args.format}", "several devices in one export: only "
                              "--format homeassistant (one hub per line); export them one by one")
         else:

@@ -26,6 +26,8 @@ def _load(reference: str) -> type[Exporter]:
     obj = getattr(importlib.import_module(module), attr)
     if not (isinstance(obj, type) and issubclass(obj, Exporter)):
         raise TypeError(f"{reference} is not a drivemap Exporter subclass")
+    if obj.multi_device and not callable(getattr(obj, "render_line", None)):
+        raise TypeError(f"{reference} declares multi_device but has no render_line(devices, options)")
     return obj
 
 

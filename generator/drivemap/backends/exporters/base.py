@@ -15,13 +15,22 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from drivemap.backends.common import OptionError, Options
 from drivemap.diagnostics import Problem
 from drivemap.model.nodes import Model
 
-__all__ = ["Exporter", "OptionError", "Options", "Problem"]
+__all__ = ["Exporter", "MultiDevice", "OptionError", "Options", "Problem"]
+
+
+@runtime_checkable
+class MultiDevice(Protocol):
+    """An exporter that writes several devices sharing one line into one output (``drivemap export
+    MODEL:UNIT MODEL:UNIT ...``; Home Assistant: one hub per serial port). An exporter class declares it
+    with ``multi_device = True``; loading a plugin that declares it without ``render_line`` fails."""
+
+    def render_line(self, devices: Sequence[tuple[Model, int | None]], options: Options) -> dict[str, str]: ...
 
 
 class Exporter:
@@ -35,6 +44,8 @@ class Exporter:
     help: ClassVar[str] = ""
     suffix: ClassVar[str] = ""
     multi_file: ClassVar[bool] = False
+    #: writes several devices of one line into one output (:class:`MultiDevice`: implements ``render_line``)
+    multi_device: ClassVar[bool] = False
 
     def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
         """Add this exporter's own options (use ``--long-names``; their ``dest`` keys reach ``Options.values``)."""

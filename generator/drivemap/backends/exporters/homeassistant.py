@@ -137,6 +137,8 @@ class HomeAssistantExporter(Exporter):
         iv.add_selection_arguments(parser)
         iv.add_serial_arguments(parser)
 
+    multi_device = True
+
     def render_line(self, devices: Sequence[tuple[Model, int | None]], options: Options) -> dict[str, str]:
         """Several devices on one line: one hub (:func:`render_line`)."""
         return render_line(devices, options)
