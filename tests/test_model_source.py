@@ -65,3 +65,20 @@ def test_a_source_ref_is_not_part_of_equality(monkeypatch: pytest.MonkeyPatch) -
     a = compile_map("maps/ev.yaml", [])
     b = dataclasses.replace(a.registers[0], src=SourceRef("elsewhere.yaml", 1, 1, ()))
     assert b == a.registers[0]
+
+
+def test_where_a_node_stands_is_no_part_of_the_json_contract(monkeypatch: pytest.MonkeyPatch) -> None:
+    from drivemap.backends.export import export
+
+    monkeypatch.chdir(ROOT)
+
+    def keys(value: object) -> set[str]:
+        if isinstance(value, dict):
+            return set(value) | {k for v in value.values() for k in keys(v)}
+        if isinstance(value, list):
+            return {k for v in value for k in keys(v)}
+        return set()
+
+    for name in ("ev", "vfd1000", "fronius_symo_hybrid"):
+        found = keys(export(compile_map(f"maps/{name}.yaml", [])))
+        assert not found & {"src", "cache_key", "yaml_path"}, name

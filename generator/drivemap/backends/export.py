@@ -61,9 +61,13 @@ def _broadcast(model: Model, reg: Register) -> bool | None:
     return None if any(b is None for b in deciding) else reg.broadcast
 
 
+#: Fields of model nodes that are no part of the contract: where a node stands in its map, the cache's key.
+_NOT_CONTRACT = frozenset({"src", "cache_key"})
+
+
 def _plain(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value) if f.name not in _NOT_CONTRACT}
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     if isinstance(value, bytes):
