@@ -16,7 +16,7 @@ from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 from drivemap.onboard.importers.mapdoc import MapDoc
 
-__all__ = ["Occupancy", "error_at", "find_origin", "leave_open", "licence_id", "mark_imported"]
+__all__ = ["Occupancy", "error_at", "fits", "find_origin", "leave_open", "licence_id", "mark_imported"]
 
 _SOURCE_LINE = re.compile(r"^\s*([\w.-]+/[\w.-]+)\s*@\s*([0-9a-fA-F]{7,40})\s*$")
 
@@ -93,3 +93,16 @@ class Occupancy:
     def take(self, reg: dict[str, Any]) -> None:
         for w in self.span(reg):
             self.words[w] = reg["name"]
+
+
+_RANGES = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF),
+           "u64": (0, 0xFFFFFFFFFFFFFFFF), "s64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF)}
+
+
+def fits(reg: dict[str, Any], value: float) -> bool:
+    """Whether the engineering ``value`` is a raw value of ``reg``'s type at its scale."""
+    if reg["type"] in ("f32", "f64"):
+        return True
+    low, high = _RANGES.get(reg["type"], (0, -1))
+    raw = value / float(reg.get("scale", 1.0))
+    return low <= raw <= high and abs(raw - round(raw)) < 1e-6

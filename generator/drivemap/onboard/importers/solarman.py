@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from drivemap.onboard.importers.imported import Occupancy, error_at, leave_open, mark_imported
+from drivemap.onboard.importers.imported import Occupancy, error_at, fits, leave_open, mark_imported
 from drivemap.onboard.importers.mapdoc import MapDoc, snake, upper
 from drivemap.onboard.importers.yamlsrc import Node, load_yaml
 
@@ -224,18 +224,9 @@ def _writable(doc: MapDoc, reg: dict[str, Any], item: Node) -> None:
         for key in ("min", "max"):
             value = conf.get(key)
             if isinstance(value, (int, float)) and not isinstance(value, bool):
-                if _fits(reg, value):
+                if fits(reg, value):
                     reg[key] = value
                 else:
                     _note(reg, f"ha-solarman {key} {value} does not fit the register's type and scale.")
                     leave_open(doc, reg, key)
 
-
-_RANGES = {"u16": (0, 0xFFFF), "s16": (-0x8000, 0x7FFF), "u32": (0, 0xFFFFFFFF), "s32": (-0x80000000, 0x7FFFFFFF),
-           "u64": (0, 0xFFFFFFFFFFFFFFFF), "s64": (-0x8000000000000000, 0x7FFFFFFFFFFFFFFF)}
-
-
-def _fits(reg: dict[str, Any], value: float) -> bool:
-    low, high = _RANGES.get(reg["type"], (0, -1))
-    raw = value / float(reg.get("scale", 1.0))
-    return low <= raw <= high and abs(raw - round(raw)) < 1e-6
