@@ -41,6 +41,9 @@ def parser() -> argparse.ArgumentParser:
 
     import_parser(sub)  # import: Home Assistant, ESPHome, SunSpec, CSV definitions -> a map
     probe_parser(sub)  # probe: what a live device answers, as a skeleton map
+    from drivemap.cli.compare import add_parser as compare_parser
+
+    compare_parser(sub)  # compare: where two maps of one device disagree
     gateway_parser(sub)
     return p
 
