@@ -34,6 +34,7 @@ VERBS: dict[str, tuple[str, str]] = {
     "import": ("drivemap.onboard.importers.cli", "add_parser"),
     "probe": ("drivemap.onboard.probe_cli", "add_parser"),
     "list": ("drivemap.cli.listing", "add_parser"),
+    "compare": ("drivemap.cli.compare", "add_parser"),
     "gateway": ("drivemap.cli.verbs", "gateway_parser"),
 }
 

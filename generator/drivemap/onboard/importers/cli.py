@@ -4,7 +4,11 @@ FORMAT is ``homeassistant`` (a ``modbus:`` YAML, exported or hand-written), ``es
 (``modbus_controller`` entities), ``sunspec`` (SunSpec model JSON files or model numbers, laid out from
 ``--base``; numbers need ``drivemap[sunspec]``), ``csv`` (drivemap's CSV export or a vendor sheet),
 ``json`` (drivemap's JSON export: the normalized model) or ``pymodbus-sim`` (a pymodbus simulator
-configuration: its tables, addresses, cell types and values).
+configuration: its tables, addresses, cell types and values), ``evcc`` (an evcc meter or charger
+template: its render block expanded per usage), ``ha-solarman`` (an ha-solarman inverter profile) or
+``modbus-local-gateway`` (a modbus_local_gateway device config); these three mark the map
+``evidence: imported`` with its origin (project, path, commit, licence) when SOURCE and LICENSE files
+sit beside the file or above it.
 The map validates as written; a fact the source does not state stays out (or null) and is listed in
 the review printed after it. The map goes to ``-o`` or the project's maps folder as ``MODEL.yaml``,
 never over an existing file unless ``--force``.
@@ -23,11 +27,15 @@ from drivemap.onboard.importers.mapdoc import MapDoc, model_id, snake, target_pa
 
 __all__ = ["FORMATS", "add_parser"]
 
-FORMATS = ("homeassistant", "esphome", "sunspec", "csv", "json", "pymodbus-sim")
+FORMATS = ("homeassistant", "esphome", "sunspec", "csv", "json", "pymodbus-sim", "evcc", "ha-solarman",
+           "modbus-local-gateway")
+#: the formats that read one device definition per file (another project's)
+_ONE_FILE = {"evcc": ("evcc", "import_evcc"), "ha-solarman": ("solarman", "import_solarman"),
+             "modbus-local-gateway": ("mlg", "import_mlg")}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("import", help="a map from Home Assistant, ESPHome, SunSpec, CSV, JSON or pymodbus simulator definitions",
+    p = sub.add_parser("import", help="a map from Home Assistant, ESPHome, SunSpec, CSV, JSON, pymodbus simulator, evcc, ha-solarman or modbus_local_gateway definitions",
                        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("format", metavar="FORMAT", help=f"one of {', '.join(FORMATS)}")
@@ -111,6 +119,12 @@ def _run(args: argparse.Namespace, doc: MapDoc, paths: list[Path]) -> str | None
         from drivemap.onboard.importers.pymodbus_sim import import_pymodbus_sim
 
         return import_pymodbus_sim(doc, paths[0]) if _one(paths) else None
+    if args.format in _ONE_FILE:
+        import importlib
+
+        module, func = _ONE_FILE[args.format]
+        reader = getattr(importlib.import_module(f"drivemap.onboard.importers.{module}"), func)
+        return str(reader(doc, paths[0])) if _one(paths) else None
     if args.format == "homeassistant":
         from drivemap.onboard.importers.homeassistant import import_homeassistant
 

@@ -117,6 +117,10 @@ class MapDoc:
     known_issues: list[dict[str, Any]] = field(default_factory=list)
     identity: list[dict[str, Any]] = field(default_factory=list)
     examples: list[dict[str, Any]] = field(default_factory=list)
+    #: device.evidence / device.origin / device.kind (an import from another project's definitions)
+    evidence: str | None = None
+    origin: dict[str, str] | None = None
+    kind: str | None = None
     _names: set[str] = field(default_factory=set)
     _next: dict[str, int] = field(default_factory=dict)
 
@@ -204,6 +208,9 @@ class MapDoc:
         }
         if self.notes:
             doc["device"]["notes"] = self.notes
+        for key in ("evidence", "origin", "kind"):
+            if getattr(self, key) is not None:
+                doc["device"][key] = getattr(self, key)
         if self.enums:
             doc["enums"] = self.enums
         doc["groups"] = [{"name": k, "title": v, "source": self.source} for k, v in self.groups.items()]

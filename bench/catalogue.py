@@ -1,0 +1,69 @@
+"""The catalogue section of the bench: every file of ``../shared/catalogue-sources`` imported (a map that
+validates, or one located error naming what the importer does not read), counted per source.
+
+    python bench/catalogue.py            # import into a temporary folder, print the counts
+    python bench/catalogue.py --write    # (re)write maps/catalogue/ from the sources
+
+The shared folder is ``$DRIVEMAP_SHARED`` or ``<repo>/../shared``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+from common import ROOT  # noqa: F401 - puts the repository on sys.path
+
+from drivemap.onboard.importers.catalogue import SOURCES, Outcome, build
+
+
+def shared_dir() -> Path:
+    return Path(os.environ.get("DRIVEMAP_SHARED") or ROOT.parent / "shared")
+
+
+def project_ids() -> set[str]:
+    return {p.stem for p in (ROOT / "maps").glob("*.yaml")}
+
+
+def run(out: Path) -> list[Outcome]:
+    shared = shared_dir()
+    if not (shared / "catalogue-sources").is_dir():
+        raise SystemExit(f"{shared}/catalogue-sources: not found (set DRIVEMAP_SHARED)")
+    return build(shared, out, project_ids(), ROOT)
+
+
+def report(outcomes: list[Outcome]) -> str:
+    lines = ["| source | files | maps | located errors |", "|---|---|---|---|"]
+    for source in SOURCES:
+        mine = [o for o in outcomes if o.source == source]
+        lines.append(f"| {source} | {len(mine)} | {sum(1 for o in mine if o.written)} | "
+                     f"{sum(1 for o in mine if o.error)} |")
+    total = len(outcomes)
+    lines.append(f"| all | {total} | {sum(1 for o in outcomes if o.written)} | {sum(1 for o in outcomes if o.error)} |")
+    reasons = Counter(o.error.split(": error: ", 1)[-1].split(" (", 1)[0][:90] for o in outcomes if o.error)
+    lines += ["", "located errors by message:"] + [f"  {n:3d}  {text}" for text, n in reasons.most_common()]
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--write", action="store_true", help="rewrite maps/catalogue/ from the sources")
+    args = parser.parse_args()
+    if args.write:
+        target = ROOT / "maps" / "catalogue"
+        shutil.rmtree(target, ignore_errors=True)
+        outcomes = run(target)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            outcomes = run(Path(tmp))
+    print(report(outcomes))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
