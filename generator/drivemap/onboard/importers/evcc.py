@@ -92,7 +92,8 @@ def import_evcc(doc: MapDoc, path: Path) -> str:
                                 "products, params and render)")
     kind = "charger" if path.parent.name == "charger" else "meter"
     usages = _usages(data)
-    mark_imported(doc, path, REPO_PATH.format(kind=kind, name=path.name), "evcc", _kind(kind, usages))
+    group = str(data.get("group")) if data.get("group") else None
+    mark_imported(doc, path, REPO_PATH.format(kind=kind, name=path.name), "evcc", _kind(kind, usages, group))
     _header(doc, data, path, usages)
     start, indent = _render_line(path)
     found: dict[tuple[str, int], dict[str, Any]] = {}
@@ -114,7 +115,11 @@ def _usages(data: Node) -> list[str]:
     return []
 
 
-def _kind(folder: str, usages: list[str]) -> str:
+def _kind(folder: str, usages: list[str], group: str | None = None) -> str:
+    """What the template says the device is: its group (``heating``: a heat pump or heater, which evcc
+    keeps among the chargers), its folder, the usages a meter template offers."""
+    if group == "heating":
+        return "other"
     if folder == "charger":
         return "charger"
     if ("pv" in usages or "battery" in usages) and "charge" not in usages:
