@@ -162,7 +162,7 @@ class PymodbusSimExporter(Exporter):
         _register_sections(sel, words, base, sections)
         for items in sections.values():
             items.sort(key=lambda item: item["addr"] if isinstance(item["addr"], int) else item["addr"][0])
-        write = [base[t] + a if n == 1 else [base[t] + a, base[t] + a + n - 1] for t, a, n in writable]
+        write = _runs(sorted({base[t] + a + i for t, a, n in writable for i in range(n)}))
         setup = {
             **sizes,
             "shared blocks": False,
@@ -203,3 +203,15 @@ def _register_sections(sel: iv.Selection, words: dict[str, dict[int, int]], base
         for w, value in sorted(cells.items()):
             if (table, w) not in taken:
                 sections["uint16"].append({"addr": base[table] + w, "value": value})
+
+
+def _runs(addresses: list[int]) -> list[int | list[int]]:
+    """Writable addresses as pymodbus's simulator lists them: a lone address, or [first, last] of a run
+    (one canonical form, whatever registers the words belong to, so an import of the file exports it again)."""
+    runs: list[list[int]] = []
+    for address in addresses:
+        if runs and address == runs[-1][1] + 1:
+            runs[-1][1] = address
+        else:
+            runs.append([address, address])
+    return [first if first == last else [first, last] for first, last in runs]

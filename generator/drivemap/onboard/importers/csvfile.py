@@ -3,7 +3,7 @@
 drivemap's CSV (every column of :data:`drivemap.vocab.csv_columns.COLUMNS`) carries nearly every register
 fact: its rows come back as registers, ``name[i]`` rows as arrays (stride from the addresses, one
 default or one per element, ``param`` per element), ``enum_labels`` as enums, ``bits`` as bit fields, ``values`` as value sets, ``precision``, and
-``display_name`` of an array's first element as ``first_index``.
+``display_name`` of an array's first element as ``first_index``, ``review`` (what the source leaves open) as ``review:``.
 A vendor sheet is read by its header words (address / register, name / description / parameter,
 type / format, unit, scale / factor / resolution, access / R/W, function / table, min, max, default);
 a fact without a column stays out and is listed. Its table comes from a table or function-code column,
@@ -196,6 +196,12 @@ def _shown(reg: dict[str, Any], row: dict[str, str]) -> None:
         reg["values"] = [_allowed(reg, item) for item in _text(row["values"]).split(" | ")]
     if row.get("precision"):
         reg["precision"] = int(row["precision"])
+    review = _text(row.get("review", ""))
+    if review:
+        found = re.fullmatch(re.escape(reg["name"]) + r": (.+?) open in the map's source(?: \(.*\))?", review)
+        if not found:
+            raise ValueError(f"review {review!r} is not the export's form (NAME: FIELDS open in the map's source)")
+        reg["review"] = found.group(1).split(", ")
     shown = _text(row.get("display_name", ""))
     if reg.get("count") and shown != row["name"]:
         match = re.fullmatch(re.escape(reg["name"]) + r" (\d+)", shown)

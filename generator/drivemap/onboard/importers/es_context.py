@@ -32,6 +32,13 @@ class Ctx:
     raw_types: dict[str, tuple[str, str | None, str]] = field(default_factory=dict)
     factors: dict[str, str] = field(default_factory=dict)
     intervals: dict[str, int] = field(default_factory=dict)
+    #: modbus_controller id -> (its device address, its update_interval in s): ESPHome 2026.9+ polls slower
+    #: entities through more controllers of one device (drivemap's export names them device_<n>x)
+    controllers: dict[str, tuple[object, int]] = field(default_factory=dict)
+    #: entities read across a hole before them (``reuse_previous_range: true``, 2026.9+): (register_type, address, node)
+    joins: list[tuple[str, int, Any]] = field(default_factory=list)
+    #: (register_type, address) -> the controller that polls it: each controller's reads are its own
+    batch_owner: dict[tuple[str, int], str] = field(default_factory=dict)
     #: polled entities as (table, address) -> (words, starts a new read): drivemap's batching
     batches: dict[tuple[str, int], tuple[int, bool]] = field(default_factory=dict)
     #: entities with a bitmask by (table, address): one register of bit fields (:mod:`.es_bits`)

@@ -21,7 +21,8 @@ def _skip(ctx: Ctx, item: Node, why: str) -> None:
 
 def _group(ctx: Ctx, item: Node) -> str:
     skip = item.get("skip_updates", 0)
-    seconds = ctx.base * ((skip if isinstance(skip, int) else 0) + 1)
+    owner = ctx.controllers.get(str(item.get("modbus_controller_id")))
+    seconds = (owner[1] if owner is not None else ctx.base) * ((skip if isinstance(skip, int) else 0) + 1)
     name = ctx.doc.group(f"scan_{seconds}s", f"Polled every {seconds} s")
     ctx.intervals[name] = seconds
     return name
@@ -39,6 +40,11 @@ def _address(ctx: Ctx, item: Node) -> int:
 
 
 def entity(ctx: Ctx, platform: str, item: Node) -> None:
+    owner = ctx.controllers.get(str(item.get("modbus_controller_id")))
+    first = next(iter(ctx.controllers.values()), None)
+    if owner is not None and first is not None and owner[0] != first[0]:
+        return _skip(ctx, item, f"another device (modbus_controller {item.get('modbus_controller_id')!r}, "
+                                f"address {owner[0]}): import it on its own")
     _batch(ctx, platform, item)
     if item.get("internal") is True and str(item.get("id", "")).startswith("gap_"):
         return _gap(ctx, item)  # drivemap's filler of a batched read: words the device reads
@@ -92,7 +98,24 @@ def _batch(ctx: Ctx, platform: str, item: Node) -> None:
     words = max(words, count if isinstance(count, int) else 1)
     key = (table, item["address"] + (item.get("offset", 0) if isinstance(item.get("offset"), int) else 0) // 2)
     before = ctx.batches.get(key, (0, False))
-    ctx.batches[key] = (max(before[0], words), before[1] or item.get("force_new_range") is True)
+    new_read = item.get("force_new_range") is True or item.get("reuse_previous_range") is False  # before / from 2026.9
+    ctx.batches[key] = (max(before[0], words), before[1] or new_read)
+    ctx.batch_owner[key] = str(item.get("modbus_controller_id"))
+    if item.get("reuse_previous_range") is True:
+        ctx.joins.append((table, key[1], item))
+
+
+def _holes_read(ctx: Ctx) -> None:
+    """ESPHome 2026.9+ reads across a hole before an entity marked ``reuse_previous_range: true`` (the
+    older form names the hole with an internal filler entity): the hole's words are readable."""
+    tables = {"holding": "holding", "read": "input", "coil": "coil", "discrete_input": "discrete"}
+    for kind, address, item in ctx.joins:
+        ends = [a + words for (t, a), (words, _) in ctx.batches.items() if t == kind and a < address]
+        start = max(ends, default=address)
+        if kind in tables and start < address:
+            ctx.doc.reserved.append({"table": tables[kind], "start": start, "end": address - 1, "readable": True,
+                                     "kind": "unlabeled", "source": here(item, ctx.path),
+                                     "notes": "Read as part of a batched request; nothing is named here."})
 
 
 def max_reads(ctx: Ctx) -> None:
@@ -102,12 +125,15 @@ def max_reads(ctx: Ctx) -> None:
 
     tables = {"holding": "holding", "read": "input", "coil": "coil", "discrete_input": "discrete"}
     for table in {t for t, _ in ctx.batches}:
-        run, end, longest = 0, None, 0
-        for (_, address), (words, forced) in sorted(i for i in ctx.batches.items() if i[0][0] == table):
-            if forced and address == end:
-                longest = max(longest, run)
-            run = words if forced or address != end else run + words
-            end = address + words
+        longest = 0
+        for owner in sorted({ctx.batch_owner.get(k, "") for k in ctx.batches if k[0] == table}):
+            run, end = 0, None  # one controller's reads (ESPHome 2026.9+ polls each interval on its own)
+            for (_, address), (words, forced) in sorted(i for i in ctx.batches.items()
+                                                        if i[0][0] == table and ctx.batch_owner.get(i[0], "") == owner):
+                if forced and address == end:
+                    longest = max(longest, run)
+                run = words if forced or address != end else run + words
+                end = address + words
         if longest and table in tables:
             code = TABLE_CODES[tables[table]]
             ctx.doc.max_quantity[code] = longest
@@ -143,11 +169,22 @@ def _command(ctx: Ctx, item: Node) -> dict[str, Any] | None:
             "command": {"value": mask}, "group": _group(ctx, item)}
 
 
+def _text_words(item: Node) -> int | None:
+    """A text entity's registers: ``register_count``, or (ESPHome 2026.9+, which refuses it) its
+    ``response_size`` in bytes, two to a register."""
+    count, size = item.get("register_count"), item.get("response_size")
+    if isinstance(count, int) and not isinstance(count, bool):
+        return count
+    if isinstance(size, int) and not isinstance(size, bool) and size > 0 and size % 2 == 0:
+        return size // 2
+    return None
+
+
 def _typed(ctx: Ctx, item: Node, name: str) -> dict[str, Any] | None:
     if "raw_encode" in item:
         if item.get("raw_encode") == "ANSI":
-            count = item.get("register_count")
-            return {"type": "string", "length": count} if isinstance(count, int) else None
+            count = _text_words(item)
+            return {"type": "string", "length": count} if count is not None else None
         raw = ctx.raw_types.get(name)
         if raw is None:
             return None
@@ -157,7 +194,7 @@ def _typed(ctx: Ctx, item: Node, name: str) -> dict[str, Any] | None:
         if raw[2] == "low_first":
             out["byte_order"] = "low_first"
         if raw[0] == "string":
-            out["length"] = item.get("register_count")
+            out["length"] = _text_words(item)
         return out
     found = VALUE_TYPES.get(str(item.get("value_type", "U_WORD")))
     if found is None:
@@ -294,6 +331,7 @@ def finish(ctx: Ctx) -> None:
         ctx.regs[reg["name"]] = reg
     check_overlaps(ctx.path, [(reg, reg.pop("_node", None)) for reg in ctx.regs.values()],
                    "one register, one entity: delete one, or read parts of one register with bitmask")
+    _holes_read(ctx)
     _free_reserved(ctx)
     max_reads(ctx)
     for reg in ctx.regs.values():

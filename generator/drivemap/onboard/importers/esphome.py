@@ -40,6 +40,7 @@ def import_esphome(doc: MapDoc, paths: list[Path]) -> str | None:
     controller = _controller(path, data)
     base = _seconds(controller.get("update_interval", "60s"))
     ctx = Ctx(doc, path, model, base)
+    ctx.controllers = _controllers(data)
     _line(ctx, data, controller)
     ctx.raw_types = _raw_types(path)
     found = 0
@@ -66,6 +67,14 @@ def _controller(path: Path, data: dict[str, Any]) -> Node:
     if not isinstance(controllers, list) or not controllers or not isinstance(controllers[0], Node):
         raise located(path, data, "no modbus_controller: (the device's address and polling)")
     return controllers[0]
+
+
+def _controllers(data: dict[str, Any]) -> dict[str, tuple[object, int]]:
+    """Each controller's id -> (device address, update_interval in s)."""
+    items = data.get("modbus_controller")
+    items = [items] if isinstance(items, Node) else items if isinstance(items, list) else []
+    return {str(c.get("id")): (c.get("address"), _seconds(c.get("update_interval", "60s")))
+            for c in items if isinstance(c, Node) and c.get("id") is not None}
 
 
 def _seconds(text: Any) -> int:
@@ -139,7 +148,7 @@ def _raw_types(path: Path) -> dict[str, tuple[str, str | None, str]]:
 #: the entity keys the import reads (or that only route an entity: id, platform, controller id)
 ENTITY_KEYS = {"platform", "name", "id", "modbus_controller_id", "register_type", "address", "offset", "value_type",
                "bitmask", "register_count", "filters", "unit_of_measurement", "min_value", "max_value", "step",
-               "multiply", "optionsmap", "skip_updates", "force_new_range", "use_write_multiple", "internal",
+               "multiply", "optionsmap", "skip_updates", "force_new_range", "reuse_previous_range", "use_write_multiple", "internal",
                "raw_encode", "write_lambda", "assumed_state"}
 
 

@@ -47,6 +47,7 @@ def import_model_json(doc: MapDoc, path: Path) -> str:
         raise located(path, data, "not drivemap's JSON export: the top level is not an object")
     model = field(path, data, "model", "str", "the export")
     doc.title = field(path, data, "title", "str", "the export") or doc.title
+    _provenance(path, doc, data)
     doc.protocol = protocol(path, field(path, data, "protocol", "object", "the export"))
     group = doc.group("imported", "Imported registers")
     entries = objects(path, data, "registers", "the export")
@@ -136,10 +137,27 @@ def _register(path: Path, doc: MapDoc, elements: list[Any], where: str, name: st
     reg.update(_numbers(path, first, where))
     reg.update(_defaults(path, elements, where))
     reg.update(_kinds(path, doc, first, where, name))
+    review = first.get("review")
+    if review is not None:
+        if not (isinstance(review, list) and review and all(isinstance(x, str) for x in review)):
+            raise located(path, first, f"{where}: {name}: 'review' must be a list of field names")
+        reg["review"] = list(review)
     broadcast = field(path, first, "broadcast", "bool", where, default=False, nullable=True)
     if broadcast is not None and ("w" in access or broadcast):  # null: unknown, the map derives it
         reg["broadcast"] = broadcast
     return reg
+
+
+def _provenance(path: Path, doc: MapDoc, data: Any) -> None:
+    """The export's ``evidence``, ``kind`` and ``origin``, where it states them (the map's own facts)."""
+    doc.evidence = field(path, data, "evidence", "str", "the export", default=None, nullable=True)
+    doc.kind = field(path, data, "kind", "str", "the export", default=None, nullable=True)
+    origin = data.get("origin")
+    if origin is not None:
+        if not (isinstance(origin, dict) and all(isinstance(origin.get(k), str)
+                                                 for k in ("project", "path", "commit", "licence"))):
+            raise located(path, origin, "the export's 'origin' names project, path, commit and licence")
+        doc.origin = {k: str(v) for k, v in origin.items() if isinstance(v, str)}
 
 
 def _params(path: Path, elements: list[Any], where: str) -> dict[str, Any]:
