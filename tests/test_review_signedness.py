@@ -35,18 +35,20 @@ def test_the_shipped_edx_map_leaves_signedness_open_where_its_manual_does() -> N
 def test_a_sign_neutral_write_goes_out_and_an_ambiguous_one_is_refused() -> None:
     model, pkg = _edx()
     sim = Simulator(spec_from_model(model), [1])
-    reg = model.register("frequency_command")
+    reg = model.register("frequency_command")  # scale 0.01 Hz
     with loopback_bus(sim) as bus:
         drive = pkg.Client(bus, unit=1)
         accessor = getattr(drive, reg.name)
-        accessor.write_raw(1234)
+        accessor.write(12.34)
         assert sim.unit(1).raw(reg.name) == 1234
         sent = bus.stats.transactions
         with pytest.raises(OpenForReview, match=r"raw value 40000 reads differently signed and unsigned") as caught:
-            accessor.write_raw(40000)
+            accessor.write(400.0)
         assert caught.value.fields == ("signedness",)
         assert bus.stats.transactions == sent  # nothing sent
         assert sim.unit(1).raw(reg.name) == 1234
+        accessor.write_raw(40000)  # raw words given as such (a printed frame's): the caller chose them
+        assert sim.unit(1).raw(reg.name) == 40000
 
 
 def test_the_gateway_offers_only_sign_neutral_values() -> None:

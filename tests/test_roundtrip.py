@@ -129,12 +129,13 @@ def _partial(model: Model, address: int, quantity: int) -> str | None:
     return None
 
 
-def _any_writable(model: Model) -> str:
+def _any_writable(model: Model) -> str | None:
+    """A plain writable register to provoke a write's reply with; None when the map has none (a status page)."""
     for cell in model.cells():
         reg = cell.register
         if reg.writable and reg.page is None and not reg.bits and not reg.enum and reg.command_value is None:
             return cell.name
-    raise AssertionError("no plain writable register")
+    return None
 
 
 def _any_readable(model: Model) -> str:
@@ -171,6 +172,16 @@ def perform(model: Model, ex: Example, client: Any) -> Any:
         return None
     else:
         name = _any_writable(model)
+        if name is None:  # no writable register on the page the map covers: the printed reply's 06h by hand
+            from pymodbus.pdu.register_message import WriteSingleRegisterRequest
+
+            from drivemap.runtime.client.exchange import Exchange
+
+            pdu = WriteSingleRegisterRequest(address=model.registers[0].address, registers=[0])
+            pdu.dev_id = meaning.unit
+            reply = client.bus.exchange(Exchange(meaning.unit, pdu, model.protocol.timing, True, 0.0))
+            client._core.raise_for(reply, 0x06)  # the device's exception, as the client raises it
+            return None
         acc = client.accessor(name)
         default = model.cell(name).register.default_at(model.cell(name).index)
         items = [(acc, _typed(acc, default if default is not None else 0))]

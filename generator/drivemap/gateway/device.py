@@ -46,6 +46,7 @@ from drivemap.gateway.valuesets import set_value
 from drivemap.model.nodes import Model, Register
 from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
 from drivemap.runtime.client.display import display_text, register_text
+from drivemap.runtime.client.review import sign_checked
 from drivemap.runtime.errors import AccessError, InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).
@@ -197,7 +198,7 @@ class Device:
         if acc.codec.scale_key is not None:
             acc.codec.check(value)
             return Command(self, acc.name, acc, None, text, source, value=value)
-        raw = acc.codec.encode(value)  # exact or refused (InexactValue): the codec's one rule
+        raw = sign_checked(acc.codec.spec, acc.codec.encode(value))  # exact or refused (InexactValue): the codec's one rule
         return Command(self, acc.name, acc, raw, text, source)
 
     def parse_value(self, reg: Register, acc: Any, text: str) -> Any:

@@ -40,6 +40,7 @@ from drivemap.runtime.client.codec import (
     number_text,
     unwrap,
 )
+from drivemap.runtime.client.review import sign_checked
 from drivemap.runtime.client.sansio import Deferred
 from drivemap.runtime.errors import DriveError, InexactValue
 
@@ -114,11 +115,11 @@ def parse_assignment(target: Target, text: str, round_values: bool = False) -> A
 def _encode(codec: Any, value: Any, round_values: bool) -> tuple[int, Any]:
     """(raw, value sent): a value between two steps is refused, or with ``round_values`` the nearer step."""
     try:
-        return codec.encode(value), value
+        return sign_checked(codec.spec, codec.encode(value)), value
     except InexactValue as exc:
         if not round_values or exc.rounded_raw is None:
             raise
-        return codec.encode(exc.rounded), exc.rounded
+        return sign_checked(codec.spec, codec.encode(exc.rounded)), exc.rounded
 
 
 def lookup(target: Target, name: str, token: str) -> tuple[Register, int | None]:

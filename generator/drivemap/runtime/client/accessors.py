@@ -14,6 +14,7 @@ from typing import Any, ClassVar, Generic, TypeVar, overload
 
 from drivemap.runtime.client.codec import Codec, RawCodec
 from drivemap.runtime.client.planner import Key
+from drivemap.runtime.client.review import sign_checked
 from drivemap.runtime.client.sansio import Deferred
 from drivemap.runtime.errors import DriveError, IndexOutOfRange, InvalidValue, UnsupportedFunction
 from drivemap.runtime.spec import RegisterSpec
@@ -24,7 +25,7 @@ T = TypeVar("T")
 def encode_for_write(codec: Codec[T], value: T) -> int | Deferred:
     """The raw value to write, or a :class:`Deferred` one when it needs the scale factor (checked now)."""
     if codec.scale_key is None:
-        return codec.encode(value)
+        return sign_checked(codec.spec, codec.encode(value))
     codec.check(value)
     return Deferred(value, codec)
 

@@ -18,7 +18,7 @@ from drivemap.runtime.client.descriptor import Reg
 from drivemap.runtime.client.planner import Hole, Key, ReadRequest, plan_reads
 from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
 from drivemap.runtime.client.quirks import accept as accept_reply_quirks
-from drivemap.runtime.client.review import warn_review
+from drivemap.runtime.client.review import sign_checked, warn_review
 from drivemap.runtime.client.sansio import Core, Deferred, PagePolicy, spec_tables
 from drivemap.runtime.client.writes import element_writer, refusing_writer
 from drivemap.runtime.errors import (
@@ -382,7 +382,7 @@ class ClientCommon(Generic[S, B]):
             return general_async
 
         def general(client: Any, value: Any) -> None:
-            client._write_raw_items([(key, codec.encode(value) if codec.scale_key is None
+            client._write_raw_items([(key, sign_checked(codec.spec, codec.encode(value)) if codec.scale_key is None
                                      else encode_for_write(codec, value))])
         return general
 

@@ -15,9 +15,10 @@ from collections.abc import Iterable
 from typing import Any
 
 from drivemap.runtime.client.planner import Key
-from drivemap.runtime.errors import ReviewWarning
+from drivemap.runtime.errors import OpenForReview, ReviewWarning
+from drivemap.runtime.spec import RegisterSpec
 
-__all__ = ["refuse_open", "warn_review"]
+__all__ = ["refuse_open", "sign_checked", "warn_review"]
 
 
 def warn_review(core: Any, keys: Iterable[Key]) -> None:
@@ -41,3 +42,12 @@ def refuse_open(core: Any, keys: Iterable[Key]) -> None:
         for name, index in keys:
             if name in review:
                 core.check_write((name, index))
+
+
+def sign_checked(spec: RegisterSpec, raw: int) -> int:
+    """``raw``, the encoding of an engineering value, unless the map leaves the register's signedness open
+    (``review: [signedness]``) and ``raw`` means another value signed than unsigned: then
+    :class:`OpenForReview` (a raw write, ``write_raw``, gives its words itself and is not refused)."""
+    if spec.review and spec.sign_ambiguous(raw):
+        raise OpenForReview(spec.name, ("signedness",), raw)
+    return raw

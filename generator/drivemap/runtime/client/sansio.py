@@ -366,8 +366,6 @@ class Core:
             reg = self.check_write(key)
             if reg.command_value is not None and raw != reg.command_value:
                 raise self.not_the_command(reg, key, raw)
-            if reg.review and reg.sign_ambiguous(raw):
-                raise OpenForReview(reg.name, ("signedness",), raw)
             words = raw_to_words(reg, raw)
             if len(words) > 1 and self._limit(reg.table) == 0:
                 raise UnsupportedFunction(f"{reg.name}: the map has no multiple write for a multi-word value")
@@ -417,8 +415,6 @@ class Core:
         for (key, raw), (reg, _, _) in zip(items, regs, strict=True):
             if reg.command_value is not None and raw != reg.command_value:
                 raise self.not_the_command(reg, key, raw)
-            if reg.review and reg.sign_ambiguous(raw):
-                raise OpenForReview(reg.name, ("signedness",), raw)
         groups: list[list[tuple[RegisterSpec, Key, list[int]]]] = []
         for item in regs:
             reg, key, words = item
