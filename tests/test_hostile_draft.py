@@ -136,7 +136,9 @@ def test_progress_is_shown_on_a_terminal(tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, "-m", "drivemap.cli", "draft", "regs.csv", "-o", "regs.yaml"], cwd=tmp_path,
                           env=dict(_env(), FORCE_COLOR="1", COLUMNS="200"), capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr
-    assert "regs.csv: drafting 301 rows of 1 table" in proc.stderr  # the header row counts
+    # the stage lines: which of them a refresh catches depends on the machine's speed, one always shows
+    stages = ("regs.csv: reading", "regs.csv: drafting 301 rows of 1 table", "regs.csv: checking the map")
+    assert any(stage in proc.stderr for stage in stages), proc.stderr
     assert "(time limit 300 s)" in proc.stderr
 
 

@@ -136,7 +136,9 @@ def cmd_new(args: argparse.Namespace) -> int:
     ref = Path(os.path.relpath(SCHEMA_PATH.resolve(), folder.resolve())).as_posix()
     text = scaffold(args.model, ref)
     try:
-        compile_text(text, display(target))  # never write a map that validate refuses (a keyword id, ...)
+        from drivemap.build import build_checks
+
+        compile_text(text, display(target), build_checks())  # never write a map that build refuses (id index, ...)
     except CompileError as exc:
         problems = "; ".join(d.message for d in exc.diagnostics)
         raise CompileError([Diagnostic(where, f"model id {args.model!r} cannot be used: {problems}")]) from None

@@ -294,7 +294,8 @@ def fits_of(found: Found, targets: list[Target]) -> list[Fit]:
     finally:
         bus.close()
     found.reads = reads.sent
-    return sorted(fits, key=lambda f: (-f.score, f.model))
+    # equal scores: the map that explains more of the device first (more reads answered, more values in range)
+    return sorted(fits, key=lambda f: (-f.score, -f.answered, -f.values, f.model))
 
 
 def show(result: Scan, as_json: bool) -> None:
