@@ -20,6 +20,24 @@ if str(ROOT) not in sys.path:
 MODELS = ("ev", "vfd1000", "v2", "edx")
 
 
+def peak_rss_mb() -> float:
+    """This process's own peak resident memory (MB): VmHWM on Linux, which exec resets.
+
+    ``ru_maxrss`` is not used where /proc exists: Linux carries it across exec from the parent, so a
+    worker started by a large process would report the parent's peak as its own.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 def median(values: Sequence[float]) -> float:
     return float(statistics.median(values)) if values else float("nan")
 

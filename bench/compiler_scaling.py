@@ -1,14 +1,14 @@
 """(5) Compiler scaling: build time and peak memory for the real maps and synthetic maps.
 
 Each measurement runs in a fresh subprocess (``python bench/compiler_scaling.py --worker ...``)
-so that peak memory (``ru_maxrss``) belongs to that build alone. In the worker:
+so that peak memory (VmHWM, ``common.peak_rss_mb``) belongs to that build alone. In the worker:
 
 * imports happen first and are not timed (they are the same for every map);
 * a warm-up build of a 10-register synthetic map compiles the Jinja templates and the JSON
   Schema validator once, so the timed build measures the per-map cost, not one-time setup;
 * the timed build is ``compile_map`` (load, schema, checks, model) + ``render_tree`` +
   ``write_tree`` into a temporary folder — what ``drivemap build`` does per map;
-* peak memory is ``ru_maxrss`` after the build minus ``ru_maxrss`` before it (the growth the
+* peak memory is the peak after the build minus the peak before it (the growth the
   build caused), plus the absolute peak.
 
 The real maps are also built together with ``drivemap build --out TMP`` (the command itself).
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -35,7 +34,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from common import MODELS, ROOT, Row, Section, median, spread
+from common import MODELS, ROOT, Row, Section, median, peak_rss_mb, spread
 
 SIZES_FULL = (100, 1000, 10000)
 SIZES_QUICK = (100, 300)
@@ -43,7 +42,7 @@ GOAL = 1.3
 
 
 def _rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
+    return peak_rss_mb()
 
 
 def worker(args: list[str]) -> dict[str, Any]:

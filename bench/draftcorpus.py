@@ -228,13 +228,14 @@ def score_document(path: Path, truth_path: Path) -> DocScore:
 
 
 def _child(path: Path, truth_path: Path) -> dict[str, Any]:
-    import resource
     import time
+
+    from common import peak_rss_mb
 
     started = time.perf_counter()
     s = score_document(path, truth_path)
     s.seconds = time.perf_counter() - started
-    s.peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    s.peak_mb = peak_rss_mb()
     return asdict(s)
 
 

@@ -185,7 +185,7 @@ map from Fronius' documents.""",
     "Compiler scaling": """\
 µs/register = timed build (compile + render + write, after a warm-up build in the same process) ÷
 registers. The goal compares the largest synthetic map with the smallest (≤ 1.3×). Peak RSS is the
-worker process's `ru_maxrss`; RSS growth is the increase caused by the timed build.""",
+worker process's VmHWM (its own peak; `ru_maxrss` would carry the parent's across exec); RSS growth is the increase caused by the timed build.""",
 }
 
 
