@@ -6,7 +6,7 @@ install --resolution lowest-direct``. Requirements without a lower bound are pri
 ``--skip a,b`` leaves requirements out (amqtt, which pins PyYAML>=6.0.2 for itself); ``--free a,b``
 keeps them as written, unpinned (the linters the tests run: their newest release judges the code).
 
-    pip install -e . -r <(python .ci/lowest_constraints.py test --skip amqtt --free mypy,ruff)
+    pip install -e . -r <(python .ci/lowest_constraints.py test --skip amqtt,import-linter --free mypy,ruff)
 """
 
 from __future__ import annotations
