@@ -308,6 +308,9 @@ class ClientCommon(Generic[S, B]):
     # -- read programs (drivemap.runtime.client.programs)
     #: Whether the client's programs are coroutine functions (AsyncClientBase).
     _ASYNC: ClassVar[bool] = False
+    #: Whether reads run compiled programs; False: every read takes the general path (the bench's
+    #: client-overhead section measures both side by side, which is why the programs are kept).
+    _PROGRAMS: ClassVar[bool] = True
 
     @classmethod
     def _compiled(cls, kind: str, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...],
@@ -320,7 +323,7 @@ class ClientCommon(Generic[S, B]):
         ck = (kind, keys, result)
         if ck in cache:
             return cache[ck]
-        if len(cache) >= _MAX_PROGRAMS:
+        if len(cache) >= _MAX_PROGRAMS or not cls._PROGRAMS:
             return None
         table = cls._snapshot_table()
         reader = cache[ck] = compile_reader(kind, keys, plan, _tables(cls.SPEC), cls.CODECS, table, cls._shape,
