@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -30,7 +31,9 @@ def _modules_after(args: list[str]) -> tuple[int, list[str]]:
         f"code = main({args!r})\n"
         "print(json.dumps([code, sorted(sys.modules)]))\n"
     )
-    proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    # the compile cache off: every map is compiled (a cached model would import even less)
+    proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, DRIVEMAP_NO_CACHE="1"))
     code, modules = json.loads(proc.stdout.splitlines()[-1])
     return code, modules
 

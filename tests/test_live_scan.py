@@ -97,3 +97,27 @@ def test_scan_in_a_folder_without_maps_compares_the_shipped_maps_reading_each_re
     assert {p[0] for p in pdus} <= {1, 2, 3, 4}  # reads only
     judged = pdus[1:]  # after the probe read: the maps' reads, each distinct one sent once for all of them
     assert len(judged) == unit["reads"] and len(set(judged)) == len(judged), judged
+
+
+def test_scan_builds_a_client_package_only_for_the_maps_whose_values_it_reads(tmp_path: Path) -> None:
+    """Weighing many maps: a map whose first read is refused gets no client package (its raw reads run
+    on the spec), and its runtime spec comes from the compile cache on the next run."""
+    from drivemap import cache
+    from drivemap.device.connection import Link, open_bus
+    from drivemap.device.target import load_target, spec_of
+    from drivemap.live.fingerprint import SharedReads, fingerprint
+
+    with cache.disabled(False), tcp_server("sdm630") as (_, host, port):
+        targets = [load_target(name) for name in ("sdm630", "ev", "vfd1000")]
+        assert all(t._package is None for t in targets)  # nothing built by loading
+        bus = open_bus(Link("tcp", host=host, port=port, unit=1, timeout=0.3))
+        try:
+            reads = SharedReads(bus)
+            fits = {t.model.name: fingerprint(bus, t, 1, reads) for t in targets}
+        finally:
+            bus.close()
+        assert fits["sdm630"].fits and not fits["ev"].fits and not fits["vfd1000"].fits
+        assert fits["ev"].answered == 0 and targets[1]._package is None and targets[2]._package is None
+        again = load_target("ev")
+        assert again.model.cache_key is not None and cache.load("spec", again.model.cache_key) == again.spec
+        assert spec_of(again.model) == targets[1].spec

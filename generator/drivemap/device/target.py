@@ -14,7 +14,8 @@ from functools import cached_property
 from types import ModuleType
 from typing import Any
 
-from drivemap.compiler import compile_map, resolve_map
+from drivemap import cache
+from drivemap.compiler import compile_cached, resolve_map
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.load import load_file
 from drivemap.frontend.project import Project, load_project
@@ -24,16 +25,21 @@ from drivemap.runtime.spec import DeviceSpec
 
 @dataclass
 class Target:
-    """One compiled map and its in-memory generated package."""
+    """One compiled map, its runtime spec and its in-memory generated package (built on first use:
+    a verb that weighs many maps, like scan, builds the packages of the few it reads values of)."""
 
     model: Model
-    package: ModuleType
+    spec: DeviceSpec
+    _package: ModuleType | None = None
     _lines: dict[tuple[str | int, ...], int] = field(default_factory=dict)
 
     @property
-    def spec(self) -> DeviceSpec:
-        spec: DeviceSpec = self.package.SPEC
-        return spec
+    def package(self) -> ModuleType:
+        if self._package is None:
+            from drivemap.runtime.package import load_package
+
+            self._package = load_package(self.spec)
+        return self._package
 
     @property
     def client_class(self) -> Any:
@@ -89,12 +95,24 @@ def project_of(maps: Sequence[str] | None) -> Project:
 
 
 def load_target(name: str, project: Project | None = None) -> Target:
-    """Compile ``name`` (model id or map path) and load its generated package in memory."""
-    from drivemap.model.spec import spec_from_model
-    from drivemap.runtime.package import load_package
+    """Compile ``name`` (model id or map path; the compile cache reused); its package is built when first used."""
+    model = compile_cached(resolve_map(name, project or load_project()))
+    return Target(model, spec_of(model))
 
-    model = compile_map(resolve_map(name, project or load_project()))
-    return Target(model, load_package(spec_from_model(model)))
+
+def spec_of(model: Model) -> DeviceSpec:
+    """``spec_from_model(model)``, kept in the compile cache beside the model it projects (a verb
+    that loads the whole catalogue projects each map once, not on every run)."""
+    from drivemap.model.spec import spec_from_model
+
+    key = model.cache_key
+    spec = cache.load("spec", key) if key is not None else None
+    if isinstance(spec, DeviceSpec):
+        return spec
+    spec = spec_from_model(model)
+    if key is not None:
+        cache.store("spec", key, spec)
+    return spec
 
 
 def command_line_error(argv: Sequence[str], index: int, message: str,

@@ -20,7 +20,8 @@ from drivemap.model.nodes import Register
 from drivemap.runtime.client.bus import Bus
 from drivemap.runtime.client.exchange import Exchange
 from drivemap.runtime.client.identity import identity_keys, identity_mismatches
-from drivemap.runtime.client.sansio import run
+from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.sansio import Core, run
 from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout, TransportError
 
 #: Requests a fingerprint sends at most per map (the planner's first batches).
@@ -215,13 +216,13 @@ def fingerprint(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | 
     if not target.spec.protocol.valid_unit(unit):
         fit.problems.append(f"unit {unit} is outside the map's unit ids")
         return fit
-    client = target.client_class(bus, unit)
-    plan = [req for req in client.plan() if req.page is None][:MAX_REQUESTS]
+    core = Core(target.spec, unit, {}, "raise", False)  # raw reads only: no client package is built
+    plan = [req for req in plan_reads(target.spec, core.tables.all_keys) if req.page is None][:MAX_REQUESTS]
     for req in plan:
         fit.requests += 1
         keys = [key for key, _ in req.cells]
         try:
-            raws = run(reads or bus, client._core.read_raw(keys, (req,), checked=True))  # type: ignore[arg-type]
+            raws = run(reads or bus, core.read_raw(keys, (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
             if reads is not None:
