@@ -99,6 +99,33 @@ def test_scan_in_a_folder_without_maps_compares_the_shipped_maps_reading_each_re
     assert len(judged) == unit["reads"] and len(set(judged)) == len(judged), judged
 
 
+def test_scan_suggests_shipped_maps_when_none_of_the_projects_fits(tmp_path: Path) -> None:
+    """A project holding only the ev map scans an sdm630: ev does not fit, so the maps drivemap ships
+    (seed and catalogue) that the project does not override are weighed, and sdm630 is suggested first;
+    the project's own map of an id is never replaced by a shipped one."""
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "ev.yaml").write_bytes((ROOT / "maps" / "ev.yaml").read_bytes())
+    with tcp_server("sdm630") as (sim, host, port):
+        codes: list[int] = []
+        handle = sim.handle
+
+        def recording(unit: int, pdu: bytes, **kw: Any) -> Any:
+            codes.append(pdu[0])
+            return handle(unit, pdu, **kw)
+
+        sim.handle = recording
+        proc = cli("scan", "--tcp", f"{host}:{port}", "--unit", "1", "--json", cwd=tmp_path)
+        text = cli("scan", "--tcp", f"{host}:{port}", "--unit", "1", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    (unit,) = json.loads(proc.stdout)["units"]
+    assert [f["model"] for f in unit["fits"]] == ["ev"] and not unit["fits"][0]["fits"]
+    suggested = [f["model"] for f in unit["suggested"]]
+    assert suggested[0] == "sdm630" and "ev" not in suggested and all(f["fits"] for f in unit["suggested"])
+    assert "none of the project's maps fits unit 1: weighing the" in proc.stderr
+    assert set(codes) <= {1, 2, 3, 4}  # reads only
+    assert "unit 1: maps shipped with drivemap that fit: sdm630 fits" in " ".join(text.stdout.split())
+
+
 def test_scan_builds_a_client_package_only_for_the_maps_whose_values_it_reads(tmp_path: Path) -> None:
     """Weighing many maps: a map whose first read is refused gets no client package (its raw reads run
     on the spec), and its runtime spec comes from the compile cache on the next run."""

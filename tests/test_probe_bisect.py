@@ -10,10 +10,14 @@ import threading
 from pathlib import Path
 
 import pytest
+from helpers_client import tcp_server
 from helpers_live import cli, no_traceback
-from test_probe import readable_words, served, snapshot_words
+from test_probe import ranges_of, readable_words, record, served, snapshot_words
 
-from drivemap.compiler import compile_map
+from drivemap.compiler import compile_cached, compile_map
+from drivemap.device.target import spec_of
+from drivemap.frontend.project import catalogue_maps
+from drivemap.runtime.package import load_package
 
 
 @pytest.mark.parametrize("model", ["sdm630", "fronius_symo_hybrid"])
@@ -21,7 +25,7 @@ def test_full_address_space_in_three_reads_per_block(model: str, tmp_path: Path)
     with served(model) as (sim, where, codes):
         expected = {w for w in readable_words(sim.spec, sim.unit(1).values) if w[0] in ("holding", "input")}
         proc = cli("probe", "--tcp", where, "--range", "0-65535", "--rate", "1000000", "--snapshot",
-                   str(tmp_path / "s.json"), "-o", str(tmp_path / "m.yaml"), timeout=300)
+                   str(tmp_path / "s.json"), "-o", str(tmp_path / "m.yaml"), timeout=300, cwd=tmp_path)
     no_traceback(proc)
     assert proc.returncode == 0, proc.stderr
     assert set(codes) <= {3, 4} and 1050 <= len(codes) <= 3150  # frame level: reads only, within the budget
@@ -29,13 +33,34 @@ def test_full_address_space_in_three_reads_per_block(model: str, tmp_path: Path)
     doc = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
     assert doc["unresolved"]["holding"]  # the budget ran out: what was not proven is listed, not empty
     assert "stopped by the read budget" in proc.stdout and "unresolved (" in proc.stdout
-    assert f"every register of the shipped map {model} in these ranges answered" in proc.stdout
+    assert f"every register of the shipped map {model} in these ranges answered" in proc.stdout  # an empty folder
     seconds = int(proc.stdout.split("reads take ~")[1].split(" s")[0])
     assert seconds <= 300  # the frames at 19200 Bd
     text = (tmp_path / "m.yaml").read_text(encoding="utf-8")
     assert "evidence: probed" in text
     model_ = compile_map(tmp_path / "m.yaml")
     assert all(r.review and "type" in r.review and "scale" in r.review for r in model_.registers)
+
+
+def test_probe_suggests_the_catalogue_map_of_the_device_it_found(tmp_path: Path) -> None:
+    """A device only the catalogue knows (a drive imported from modbus_local_gateway), probed in a folder
+    without maps: the maps weighed are the shipped ones and the catalogue, and the catalogue map whose
+    every register answered is named, to verify."""
+    path = next(p for p in catalogue_maps() if p.stem == "schneider_atv312")
+    spec = spec_of(compile_cached(path))
+    sim = load_package(spec).simulator.Simulator(units=[1])
+    codes: list[int] = []
+    record(sim, codes)
+    words = {w for w in readable_words(spec, sim.unit(1).values) if w[0] in ("holding", "input")}
+    with tcp_server(spec.name, sim=sim) as (_, host, port):
+        proc = cli("probe", "--tcp", f"{host}:{port}", "--range", ranges_of(words), "--rate", "1000000",
+                   "--exhaustive", "-o", str(tmp_path / "m.yaml"), timeout=300, cwd=tmp_path)
+    no_traceback(proc)
+    assert proc.returncode == 0, proc.stderr
+    assert set(codes) <= {3, 4}
+    named = [line for line in proc.stdout.splitlines() if "in these ranges answered" in line]
+    assert any("the catalogue map schneider_atv312 " in line for line in named), proc.stdout
+    assert not any("the project's map" in line for line in named)  # an empty folder has no project maps
 
 
 def test_without_hints_a_budget_leaves_ranges_unresolved_not_empty(tmp_path: Path) -> None:

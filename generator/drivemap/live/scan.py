@@ -8,13 +8,16 @@ then read with every project map's planned requests (a read fingerprint: a map f
 request is answered and every value lies within its enum and min/max), except that a map naming
 ``identity`` registers is judged by them first: they are read, and the map fits exactly when each
 holds the value the map states (such a fit ranks above every fingerprint); a value that reads 0 where
-the map documents no power-up value is a note, "not set yet?", as in verify. The number of probes is known in advance (progress bar, ETA), each
+the map documents no power-up value is a note, "not set yet?", as in verify. When none of the project's
+maps fits a unit, the maps drivemap ships (and its catalogue) that the project does not override are
+weighed too, and those that fit are suggested by model id. The number of probes is known in advance (progress bar, ETA), each
 probe waits at most ``--timeout``; Ctrl-C stops and prints what was found.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from collections.abc import Iterator
@@ -80,6 +83,8 @@ class Found:
     fits: list[Fit] = field(default_factory=list)
     #: reads sent to judge the maps (each distinct read once for all of them)
     reads: int = 0
+    #: when none of the project's maps fits: the shipped and catalogue maps that do (ids the project lacks)
+    suggested: list[Fit] = field(default_factory=list)
 
 
 @dataclass
@@ -113,6 +118,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
         probe_all(result, settings, units, targets, args.all_settings, err)
         for found in result.found:
             found.fits = fits_of(found, targets)
+        suggest(result, targets, whose, err)
     except KeyboardInterrupt:
         result.interrupted = True
     show(result, args.json)
@@ -136,6 +142,21 @@ def scan_targets(maps: list[str] | None) -> tuple[list[Target], str]:
     if targets or maps:
         return targets, "the project's"
     return project_targets(None, shipped_maps()), "shipped"
+
+
+def suggest(result: Scan, targets: list[Target], whose: str, err: Console) -> None:
+    """For each unit none of the project's maps fits: weigh the shipped and catalogue maps whose ids
+    the project does not have, and keep those that fit (a map to verify, usable by its id)."""
+    lost = [f for f in result.found if not any(fit.fits for fit in f.fits)]
+    if whose != "the project's" or not lost:
+        return
+    have = {t.model.name for t in targets}
+    others = [p for p in shipped_maps() if p.stem not in have]
+    err.print(f"none of the project's maps fits unit{'s' if len(lost) > 1 else ''} "
+              f"{', '.join(str(f.unit) for f in lost)}: weighing the {len(others)} maps shipped with drivemap")
+    more = [t for t in project_targets(None, others) if t.model.name not in have]
+    for found in lost:
+        found.suggested = [fit for fit in fits_of(found, more) if fit.fits]
 
 
 def shipped_maps() -> list[Path]:
@@ -216,7 +237,8 @@ def eta(probes: int, link: Link) -> str:
 def probe_all(result: Scan, settings: list[Link], units: list[int], targets: list[Target],
               all_settings: bool, err: Console) -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeRemainingColumn())
-    with Progress(*columns, console=err, transient=True, disable=not err.is_terminal) as progress:
+    progress = Progress(*columns, console=err, transient=True, disable=not err.is_terminal)
+    with progress if err.is_terminal else contextlib.nullcontext(progress):  # rich 13.0: a disabled bar's stop writes a newline
         task = progress.add_task("probing", total=len(settings) * len(units))
         if settings and settings[0].serial:
             check_serial_device(settings[0].device)
@@ -304,7 +326,8 @@ def show(result: Scan, as_json: bool) -> None:
                "refused": result.refused,
                "maps": result.maps,
                "units": [{"unit": f.unit, "link": f.link.line(), "answer": f.answer, "reads": f.reads,
-                          "fits": [fit.json() for fit in f.fits]} for f in result.found]}
+                          "fits": [fit.json() for fit in f.fits],
+                          "suggested": [fit.json() for fit in f.suggested]} for f in result.found]}
         print(json.dumps(doc, indent=2))
         return
     out = console()
@@ -329,3 +352,9 @@ def show(result: Scan, as_json: bool) -> None:
         for fit in f.fits:
             if not fit.fits:
                 out.print(f"unit {f.unit}: {fit.model} does not fit{fit.why() or ': no read answered'}", soft_wrap=True)
+    for f in result.found:
+        if f.suggested:
+            shown = "; ".join(fit.summary() for fit in f.suggested[:5])
+            more = f" (+{len(f.suggested) - 5} more: --json lists them)" if len(f.suggested) > 5 else ""
+            out.print(f"unit {f.unit}: maps shipped with drivemap that fit: {shown}{more}; verify one by its id: "
+                      f"drivemap verify {f.suggested[0].model} ...", soft_wrap=True)

@@ -126,11 +126,13 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
         self.task = self.progress.add_task("verify", total=total)
 
     def __enter__(self) -> Callable[[], None]:
-        self.progress.start()
+        if not self.progress.disable:  # rich 13.0 writes a newline when a disabled bar stops
+            self.progress.start()
         return lambda: self.progress.advance(self.task)
 
     def __exit__(self, *exc: object) -> None:
-        self.progress.stop()
+        if not self.progress.disable:
+            self.progress.stop()
 
 
 def summary(results: Results, md: object, js: object) -> None:

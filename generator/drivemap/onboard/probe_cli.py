@@ -34,7 +34,7 @@ from drivemap.frontend.project import display, load_project
 from drivemap.onboard.importers.mapdoc import MapDoc, model_id, target_path, write_map
 from drivemap.onboard.probe import STANDARD_MAX, Block, ProbeGarbled, Prober, ProbeSilence, blocks_of, line_seconds
 from drivemap.onboard.probe_bisect import Bisector, Outcome
-from drivemap.onboard.probe_hints import candidates, hint_runs, known_specs
+from drivemap.onboard.probe_hints import candidate_specs, candidates, hint_runs, known_specs
 from drivemap.onboard.probe_snapshot import diff, load_snapshot, snapshot_text
 from drivemap.onboard.probe_sunspec import Chain, walk
 from drivemap.runtime.spec import READ_CODES, DeviceSpec
@@ -261,11 +261,13 @@ class ProbeProgress:
         self.task = self.bar.add_task("probe", total=budget, islands=0, left="")
 
     def __enter__(self) -> ProbeProgress:
-        self.bar.__enter__()
+        if not self.bar.disable:  # rich 13.0 writes a newline when a disabled bar stops
+            self.bar.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.bar.__exit__(None, None, None)
+        if not self.bar.disable:
+            self.bar.stop()
 
     def update(self, bisector: Bisector) -> None:
         prober = bisector.prober
@@ -306,16 +308,23 @@ def _finish(args: argparse.Namespace, plan: _Plan, link: Link, prober: Prober, v
     _summary(doc, plan, prober, values, chain)
     if outcome is not None:
         _proof(outcome, prober, link)
+    if chain is None:
         _candidates(plan, values)
     return EXIT_OK
 
 
 def _candidates(plan: _Plan, values: dict[str, dict[int, int]]) -> None:
-    """The shipped maps whose every register in the ranges answered: a map to verify, not a proof."""
-    found = candidates(known_specs(), values, plan.tables, plan.ranges)
+    """The maps (the project's, shipped, catalogue) whose every register in the ranges answered, the
+    map naming most of what was read first: a map to verify, not a proof."""
+    weighed = candidate_specs(load_project())
+    whose = {spec.name: who for who, spec in weighed}
+    found = candidates([spec for _, spec in weighed], values, plan.tables, plan.ranges)
     for model, words, _ in found[:3]:
-        print(f"  every register of the shipped map {model} in these ranges answered ({words} words): check it with "
+        print(f"  every register of {whose[model]} {model} in these ranges answered ({words} words): check it with "
               f"drivemap verify {model}", file=sys.stdout)
+    if len(found) > 3:
+        print(f"  ... and {len(found) - 3} more maps (of {len(weighed)} weighed) whose registers all answered",
+              file=sys.stdout)
 
 
 def _spans(spans: list[tuple[int, int]], most: int = 12) -> str:

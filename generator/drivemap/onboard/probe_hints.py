@@ -8,10 +8,12 @@ read like any other: it proves only what the device answers.
 from __future__ import annotations
 
 import importlib
+import sys
 
+from drivemap.frontend.project import Project
 from drivemap.runtime.spec import DeviceSpec
 
-__all__ = ["candidates", "hint_runs", "known_specs"]
+__all__ = ["candidate_specs", "candidates", "hint_runs", "known_specs"]
 
 
 def known_specs() -> list[DeviceSpec]:
@@ -28,6 +30,32 @@ def known_specs() -> list[DeviceSpec]:
         if isinstance(spec, DeviceSpec):
             specs.append(spec)
     return specs
+
+
+def candidate_specs(project: Project) -> list[tuple[str, DeviceSpec]]:
+    """What a probe's findings are weighed against: (whose map, spec) of the project's maps, then the
+    shipped maps and the catalogue maps whose model id the project does not have (the user's map wins).
+    Compiled through the compile cache; a map that does not compile is left out with a line on stderr."""
+    from drivemap.compiler import compile_cached
+    from drivemap.device.target import spec_of
+    from drivemap.diagnostics import CompileError
+    from drivemap.frontend.project import catalogue_maps, shipped_maps
+
+    out: list[tuple[str, DeviceSpec]] = []
+    seen: set[str] = set()
+    for whose, paths in (("the project's map", project.map_files()), ("the shipped map", shipped_maps()),
+                         ("the catalogue map", catalogue_maps())):
+        for path in paths:
+            if path.stem in seen:
+                continue
+            try:
+                model = compile_cached(path)
+            except CompileError as exc:
+                print(f"drivemap probe: not weighed: {exc.diagnostics[0].format()}", file=sys.stderr)
+                continue
+            seen.add(model.name)
+            out.append((whose, spec_of(model)))
+    return out
 
 
 def _words(spec: DeviceSpec, tables: list[str]) -> set[tuple[str, int]]:
@@ -52,7 +80,7 @@ def candidates(specs: list[DeviceSpec], values: dict[str, dict[int, int]], table
         words = {(t, a) for t, a in _words(spec, tables) if any(lo <= a <= hi for lo, hi in ranges)}
         if words and words <= read:
             out.append((spec.name, len(words), len(words & read)))
-    return sorted(out, key=lambda c: (-c[2], c[0]))
+    return sorted(out, key=lambda c: (-c[2], c[0]))  # stable: among equals, the order of ``specs``
 
 
 def hint_runs(specs: list[DeviceSpec], tables: list[str]) -> dict[str, list[tuple[int, int]]]:
