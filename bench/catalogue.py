@@ -1,5 +1,6 @@
 """The catalogue section of the bench: every file of ``../shared/catalogue-sources`` imported (a map that
-validates, or one located error naming what the importer does not read), counted per source.
+validates, or one located error naming what the importer does not read), counted per source, and the
+maps that define one device (drivemap.onboard.importers.pairs) compared, with their disagreements.
 
     python bench/catalogue.py            # import into a temporary folder, print the counts
     python bench/catalogue.py --write    # (re)write maps/catalogue/ from the sources
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from common import ROOT  # noqa: F401 - puts the repository on sys.path
 
-from drivemap.onboard.importers.catalogue import SOURCES, Outcome, build
+from drivemap.onboard.importers.catalogue import SOURCES, Outcome, Pair, build
 
 
 def shared_dir() -> Path:
@@ -30,14 +31,14 @@ def project_ids() -> set[str]:
     return {p.stem for p in (ROOT / "maps").glob("*.yaml")}
 
 
-def run(out: Path) -> list[Outcome]:
+def run(out: Path, found: list[Pair]) -> list[Outcome]:
     shared = shared_dir()
     if not (shared / "catalogue-sources").is_dir():
         raise SystemExit(f"{shared}/catalogue-sources: not found (set DRIVEMAP_SHARED)")
-    return build(shared, out, project_ids(), ROOT)
+    return build(shared, out, project_ids(), ROOT, found)
 
 
-def report(outcomes: list[Outcome]) -> str:
+def report(outcomes: list[Outcome], found: list[Pair]) -> str:
     lines = ["| source | files | maps | located errors |", "|---|---|---|---|"]
     for source in SOURCES:
         mine = [o for o in outcomes if o.source == source]
@@ -47,6 +48,9 @@ def report(outcomes: list[Outcome]) -> str:
     lines.append(f"| all | {total} | {sum(1 for o in outcomes if o.written)} | {sum(1 for o in outcomes if o.error)} |")
     reasons = Counter(o.error.split(": error: ", 1)[-1].split(" (", 1)[0][:90] for o in outcomes if o.error)
     lines += ["", "located errors by message:"] + [f"  {n:3d}  {text}" for text, n in reasons.most_common()]
+    lines += ["", f"maps of one device compared ({len(found)} pairs; the disagreements are known issues of the "
+                  "imported map(s)):"]
+    lines += [f"  {p.a:34s} {p.b:34s} {p.disagreements:4d}  ({p.rule})" for p in found]
     return "\n".join(lines)
 
 
@@ -54,14 +58,15 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--write", action="store_true", help="rewrite maps/catalogue/ from the sources")
     args = parser.parse_args()
+    found: list[Pair] = []
     if args.write:
         target = ROOT / "maps" / "catalogue"
         shutil.rmtree(target, ignore_errors=True)
-        outcomes = run(target)
+        outcomes = run(target, found)
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            outcomes = run(Path(tmp))
-    print(report(outcomes))
+            outcomes = run(Path(tmp), found)
+    print(report(outcomes, found))
     return 0
 
 

@@ -74,3 +74,54 @@ def test_catalogue_rebuilds_from_the_sources(tmp_path: Path) -> None:
     for rel in written:
         assert (tmp_path / rel).read_text(encoding="utf-8") == (ROOT / "maps" / "catalogue" / rel).read_text(
             encoding="utf-8"), rel
+
+
+def test_pairing_rule_pairs_one_model_never_two() -> None:
+    from drivemap.onboard.importers.pairs import Entry, designations, pairs
+
+    assert designations("Eastron SDM630-Modbus three-phase meter") == designations("Eastron SDM-630") == {"sdm630"}
+    entries = [
+        Entry("maps/sdm630.yaml", "project", "Eastron", "Eastron SDM630-Modbus meter", "sdm630"),
+        Entry("sdm630_mlg", "mlg", "Eastron", "Eastron SDM-630", "SDM630"),
+        Entry("sdm120", "evcc", "Eastron", "Eastron SDM120-Modbus", "eastron-sdm120"),
+        Entry("min_xe", "evcc", "Growatt", "Growatt MIN 3000TL-XE", "growatt-min-tlxe"),
+        Entry("min_xh", "mlg", "Growatt", "Growatt MIN 6000TL-XH", "MIN_6000TL-XH"),
+        Entry("solis_hybrid", "evcc", "Ginlong", "Ginlong Solis Hybrid Inverter", "solis-hybrid"),
+        Entry("solis_hybrid_2", "ha_solarman", None, "solis_hybrid", "solis_hybrid"),
+        Entry("other_hybrid", "ha_solarman", None, "other_hybrid", "solis_hybrid_x"),
+        Entry("deye_hybrid", "mlg", "Deye", "Deye hybrid", "solis-hybrid"),  # another vendor, same name
+        Entry("sunspec_common", "sunspec", None, "SunSpec model 1", "sdm630"),
+        Entry("sdm630_again", "mlg", "Eastron", "Eastron SDM630 v2", "sdm630b"),  # one source: not paired
+    ]
+    found = {(a.model, b.model) for a, b, _ in pairs(entries)}
+    assert found == {("maps/sdm630.yaml", "sdm630_mlg"), ("solis_hybrid", "solis_hybrid_2")}
+
+
+@pytest.mark.corpus
+def test_every_pair_of_one_device_is_compared_and_recorded(tmp_path: Path) -> None:
+    """The real catalogue: the pairs the rule finds, and each disagreement a known issue of the imported map."""
+    shared = Path(os.environ.get("DRIVEMAP_SHARED") or ROOT.parent / "shared")
+    assert (shared / "catalogue-sources").is_dir(), f"{shared}/catalogue-sources is missing (set DRIVEMAP_SHARED)"
+    from drivemap.compiler import compile_map
+    from drivemap.onboard.compare import compare_models
+    from drivemap.onboard.importers.catalogue import Pair, build
+
+    found: list[Pair] = []
+    build(shared, tmp_path, {p.stem for p in (ROOT / "maps").glob("*.yaml")}, ROOT, found)
+    assert {(p.a, p.b) for p in found} == {
+        ("maps/sdm630.yaml", "sdm630_modbus_local_gateway"), ("afore_hybrid", "afore_hybrid_ha_solarman"),
+        ("deye_hybrid_3p", "deye_p3"), ("deye_string", "deye_string_ha_solarman"),
+        ("solis_hybrid", "solis_hybrid_ha_solarman")}
+    files = {p.stem: p for p in tmp_path.rglob("*.yaml")}
+    recorded = 0
+    for pair in found:
+        for mine, other in ((pair.a, pair.b), (pair.b, pair.a)):
+            if mine.startswith("maps/"):
+                continue
+            other_path = ROOT / other if other.startswith("maps/") else files[other]
+            diffs = compare_models(compile_map(files[mine]), compile_map(other_path))
+            data = yaml.safe_load(files[mine].read_text(encoding="utf-8"))
+            printed = " ".join(k["printed"] for k in data.get("known_issues") or [])
+            assert all(d.line() in printed for d in diffs), mine
+            recorded += len(diffs)
+    assert recorded >= 5  # afore (1 each way) and deye 3p (4 + more) disagree today

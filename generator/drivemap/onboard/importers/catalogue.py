@@ -6,8 +6,10 @@ SunSpec), gives each map a model id unique across the catalogue and the project'
 file's name; ``_<source>`` appended when another map has it), writes the maps that validate and
 returns, per file, the map written or the located error that says what the importer does not read.
 What an import leaves out goes into the map's notes (with the file and line). For the devices that
-two sources define (:data:`SAME_DEVICE`), :func:`drivemap.onboard.compare.compare_models` lists their
-disagreements, recorded as known issues of the imported map: errata candidates, not settled by vote.
+two sources define (paired by :mod:`drivemap.onboard.importers.pairs`: vendor and model designation, or
+the sources' own name), :func:`drivemap.onboard.compare.compare_models` lists their disagreements,
+recorded as known issues of each imported map of the pair (never of the project's own maps): errata
+candidates naming the other source, not settled by vote.
 """
 
 from __future__ import annotations
@@ -21,8 +23,9 @@ from typing import Any
 from drivemap.diagnostics import CompileError
 from drivemap.onboard.importers.imported import error_at, leave_open, mark_imported
 from drivemap.onboard.importers.mapdoc import MapDoc, snake, write_map
+from drivemap.onboard.importers.pairs import Entry, pairs
 
-__all__ = ["SAME_DEVICE", "SOURCES", "Outcome", "build"]
+__all__ = ["SOURCES", "Outcome", "Pair", "build"]
 
 #: source -> (folder in catalogue-sources, file patterns, drivemap import format)
 SOURCES: dict[str, tuple[str, tuple[str, ...], str]] = {
@@ -33,20 +36,6 @@ SOURCES: dict[str, tuple[str, tuple[str, ...], str]] = {
 }
 #: files that are not a device (the project's own test fixture)
 NOT_A_DEVICE = {"modbus_local_gateway/Test.yaml": "the project's test config ('Test Model (DO NOT USE)')"}
-#: (catalogue map, the other map of the same device: a catalogue id or a project map file)
-SAME_DEVICE: tuple[tuple[str, str], ...] = (
-    ("sdm630_modbus_local_gateway", "maps/sdm630.yaml"),
-    ("deye_string", "deye_string_ha_solarman"),
-    ("deye_string_ha_solarman", "deye_string"),
-    ("solis_hybrid", "solis_hybrid_ha_solarman"),
-    ("solis_hybrid_ha_solarman", "solis_hybrid"),
-    ("deye_hybrid_3p", "deye_p3"),
-    ("deye_p3", "deye_hybrid_3p"),
-    ("growatt_min_tlxe", "min_6000_tl_xh"),
-    ("min_6000_tl_xh", "growatt_min_tlxe"),
-)
-
-
 @dataclass
 class Outcome:
     """One source file: the map written (its path) or the located error."""
@@ -55,6 +44,17 @@ class Outcome:
     file: Path
     written: Path | None = None
     error: str | None = None
+
+
+@dataclass
+class Pair:
+    """Two maps of one device: their model ids (a project map as ``maps/<id>.yaml``), the rule that
+    paired them and the disagreements drivemap compare found."""
+
+    a: str
+    b: str
+    rule: str
+    disagreements: int = 0
 
 
 def _importer(fmt: str) -> Callable[[MapDoc, Path], str]:
@@ -117,11 +117,13 @@ def _doc(path: Path) -> MapDoc:
     return MapDoc("imported", f"Imported from {path.name}", path.name, path.name, modes=["tcp"])
 
 
-def build(shared: Path, out: Path, project_ids: set[str], project_root: Path) -> list[Outcome]:
-    """Import every catalogue source file into ``out/<source>/``; the outcome of each file."""
+def build(shared: Path, out: Path, project_ids: set[str], project_root: Path,
+          found: list[Pair] | None = None) -> list[Outcome]:
+    """Import every catalogue source file into ``out/<source>/``; the outcome of each file (the pairs
+    of maps of one device compared are appended to ``found``)."""
     outcomes: list[Outcome] = []
     taken = set(project_ids)
-    docs: dict[str, tuple[MapDoc, Path]] = {}
+    docs: dict[str, tuple[MapDoc, Path, str]] = {}
     for source in SOURCES:
         fmt = SOURCES[source][2]
         for path in _files(shared, source):
@@ -151,8 +153,8 @@ def build(shared: Path, out: Path, project_ids: set[str], project_root: Path) ->
                 outcome.error = exc.diagnostics[0].format()
                 continue
             outcome.written = target
-            docs[model] = (doc, target)
-    _known_issues(docs, out, project_root)
+            docs[model] = (doc, target, source)
+    _known_issues(docs, project_root, found if found is not None else [])
     return outcomes
 
 
@@ -162,31 +164,59 @@ def _left_out(doc: MapDoc) -> None:
         doc.notes = (doc.notes + " " if doc.notes else "") + "Left out by the import (review): " + "; ".join(lines)
 
 
-def _known_issues(docs: dict[str, tuple[MapDoc, Path]], out: Path, root: Path) -> None:
+def _entries(docs: dict[str, tuple[MapDoc, Path, str]], root: Path) -> tuple[list[Entry], dict[str, Path]]:
+    import yaml
+
+    entries: list[Entry] = []
+    paths: dict[str, Path] = {}
+    for path in sorted((root / "maps").glob("*.yaml")):
+        device = (yaml.safe_load(path.read_text(encoding="utf-8")) or {}).get("device") or {}
+        key = f"maps/{path.name}"
+        entries.append(Entry(key, "project", device.get("vendor"), str(device.get("title") or ""), path.stem))
+        paths[key] = path
+    for model, (doc, target, source) in docs.items():
+        origin = Path((doc.origin or {}).get("path") or model).stem
+        entries.append(Entry(model, source, doc.vendor, doc.title or "", origin))
+        paths[model] = target
+    return entries, paths
+
+
+def _known_issues(docs: dict[str, tuple[MapDoc, Path, str]], root: Path, found: list[Pair]) -> None:
     from drivemap.compiler import compile_map
     from drivemap.onboard.compare import compare_models
 
-    for mine, other in SAME_DEVICE:
-        if mine not in docs:
-            continue
-        other_path = root / other if other.endswith(".yaml") else (docs[other][1] if other in docs else None)
-        if other_path is None or not other_path.is_file():
-            continue
-        doc, target = docs[mine]
-        diffs = compare_models(compile_map(target), compile_map(other_path))
-        fields: dict[str, list[Any]] = {}
-        for diff in diffs:
-            fields.setdefault(diff.field, []).append(diff)
-        for field, items in fields.items():
-            doc.known_issues.append({
-                "title": f"{field} disagrees with {Path(other).stem} ({len(items)} register{'s' if len(items) > 1 else ''})",
-                "source": doc.source,
-                "printed": "; ".join(d.line() for d in items),
-                "corrected": None,
-                "chosen": f"this map keeps {doc.origin['project'] if doc.origin else 'its source'}'s reading",
-                "reason": "an errata candidate found by drivemap compare: the sources disagree; the vendor's "
-                          "manual decides, not a vote",
-                "affects": sorted({d.a.split(" ")[0] for d in items}),
-            })
-        if fields:
+    entries, paths = _entries(docs, root)
+    compiled: dict[str, Any] = {}
+    for a, b, rule in pairs(entries):
+        for key in (a.model, b.model):
+            if key not in compiled:
+                compiled[key] = compile_map(paths[key])
+        pair = Pair(a.model, b.model, rule)
+        found.append(pair)
+        for mine, other in ((a, b), (b, a)):
+            if mine.model not in docs:
+                continue  # the project's own maps are not edited
+            diffs = compare_models(compiled[mine.model], compiled[other.model])
+            pair.disagreements = max(pair.disagreements, len(diffs))
+            _record(docs[mine.model][0], other, diffs)
+    for doc, target, _ in docs.values():
+        if doc.known_issues:
             write_map(doc, target, force=True)
+
+
+def _record(doc: MapDoc, other: Entry, diffs: list[Any]) -> None:
+    fields: dict[str, list[Any]] = {}
+    for diff in diffs:
+        fields.setdefault(diff.field, []).append(diff)
+    name = other.model if other.source == "project" else f"{other.model} ({other.source})"
+    for field, items in fields.items():
+        doc.known_issues.append({
+            "title": f"{field} disagrees with {name} ({len(items)} register{'s' if len(items) > 1 else ''})",
+            "source": doc.source,
+            "printed": "; ".join(d.line() for d in items),
+            "corrected": None,
+            "chosen": f"this map keeps {doc.origin['project'] if doc.origin else 'its source'}'s reading",
+            "reason": "an errata candidate found by drivemap compare: the sources disagree; the vendor's "
+                      "manual decides, not a vote",
+            "affects": sorted({d.a.split(" ")[0] for d in items}),
+        })
