@@ -18,6 +18,7 @@ from drivemap.frontend import checks, schema
 from drivemap.frontend.load import load_text
 from drivemap.model.build import build_model
 from drivemap.onboard.draft.assemble import Draft
+from drivemap.onboard.draft.fields import REVIEWED
 from drivemap.onboard.draft.tables import Drafted, Skipped
 from drivemap.vocab import namecheck
 
@@ -126,6 +127,10 @@ def _fix(draft: Draft, text: str, firsts: list[int], diag: Diagnostic, drop: set
             reg.entry.pop("length", None)
         reg.missing.append(key)
         reg.notes.append(f"{key} left out: the compiler refused it ({diag.message})")
+        if key in REVIEWED:  # the schema's default would now stand in for what the document stated
+            listed = reg.entry.get("review")
+            items = list(listed) if isinstance(listed, list) else []
+            reg.entry["review"] = items if key in items else [*items, key]
     elif index not in drop:
         drop.add(index)
         draft.skipped.append(Skipped(reg.where, str(reg.entry.get("label") or reg.entry.get("name")),
