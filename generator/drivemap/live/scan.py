@@ -17,7 +17,6 @@ probe waits at most ``--timeout``; Ctrl-C stops and prints what was found.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import sys
 from collections.abc import Iterator
@@ -37,6 +36,7 @@ from drivemap.device.connection import (
     resolve_link,
 )
 from drivemap.device.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.progress import shown
 from drivemap.device.target import Target, load_target, project_of
 from drivemap.diagnostics import CompileError
 from drivemap.live.fingerprint import Fit, SharedReads, fingerprint, identify
@@ -160,11 +160,11 @@ def suggest(result: Scan, targets: list[Target], whose: str, err: Console) -> No
 
 
 def shipped_maps() -> list[Path]:
-    from drivemap.compiler import BUNDLED_MAPS, bundled_maps
+    """The seed maps drivemap ships, then its catalogue."""
+    from drivemap.frontend.project import catalogue_maps
+    from drivemap.frontend.project import shipped_maps as seed_maps
 
-    catalogue = BUNDLED_MAPS / "catalogue"
-    listed = sorted(p for p in catalogue.rglob("*.yaml") if not p.name.startswith(".")) if catalogue.is_dir() else []
-    return [*bundled_maps(), *listed]
+    return [*seed_maps(), *catalogue_maps()]
 
 
 def project_targets(maps: list[str] | None, files: list[Path] | None = None) -> list[Target]:
@@ -237,8 +237,7 @@ def eta(probes: int, link: Link) -> str:
 def probe_all(result: Scan, settings: list[Link], units: list[int], targets: list[Target],
               all_settings: bool, err: Console) -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeRemainingColumn())
-    progress = Progress(*columns, console=err, transient=True, disable=not err.is_terminal)
-    with progress if err.is_terminal else contextlib.nullcontext(progress):  # rich 13.0: a disabled bar's stop writes a newline
+    with shown(Progress(*columns, console=err, transient=True, disable=not err.is_terminal)) as progress:
         task = progress.add_task("probing", total=len(settings) * len(units))
         if settings and settings[0].serial:
             check_serial_device(settings[0].device)

@@ -19,6 +19,7 @@ from rich.table import Table
 
 from drivemap.device.connection import add_connection_arguments, explain
 from drivemap.device.errors import EXIT_DISAGREE, EXIT_INPUT, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.progress import shown
 from drivemap.device.target import load_target, project_of
 from drivemap.live.fmt import console
 from drivemap.live.pages import Cell, current_pages, on_shown_page, restore, selectors
@@ -124,15 +125,14 @@ class progress_bar:  # noqa: N801 (a context manager used like a function)
         err = Console(stderr=True)
         self.progress = Progress(*columns, console=err, transient=True, disable=not err.is_terminal)
         self.task = self.progress.add_task("verify", total=total)
+        self._shown = shown(self.progress)
 
     def __enter__(self) -> Callable[[], None]:
-        if not self.progress.disable:  # rich 13.0 writes a newline when a disabled bar stops
-            self.progress.start()
+        self._shown.__enter__()
         return lambda: self.progress.advance(self.task)
 
     def __exit__(self, *exc: object) -> None:
-        if not self.progress.disable:
-            self.progress.stop()
+        self._shown.__exit__(None, None, None)
 
 
 def summary(results: Results, md: object, js: object) -> None:

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from drivemap.device.connection import Link, add_connection_arguments, explain, open_bus, resolve_link
 from drivemap.device.errors import EXIT_INPUT, EXIT_NO_ANSWER, EXIT_OK, LiveError, epilog, verb
+from drivemap.device.progress import shown
 from drivemap.device.target import locate_error
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display, load_project
@@ -259,15 +260,14 @@ class ProbeProgress:
                             TextColumn("{task.fields[islands]} islands"), TextColumn("{task.fields[left]}"),
                             console=err, transient=True, disable=not err.is_terminal)
         self.task = self.bar.add_task("probe", total=budget, islands=0, left="")
+        self._shown = shown(self.bar)
 
     def __enter__(self) -> ProbeProgress:
-        if not self.bar.disable:  # rich 13.0 writes a newline when a disabled bar stops
-            self.bar.start()
+        self._shown.__enter__()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if not self.bar.disable:
-            self.bar.stop()
+        self._shown.__exit__(None, None, None)
 
     def update(self, bisector: Bisector) -> None:
         prober = bisector.prober

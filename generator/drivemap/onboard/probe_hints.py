@@ -80,7 +80,7 @@ def candidates(specs: list[DeviceSpec], values: dict[str, dict[int, int]], table
         words = {(t, a) for t, a in _words(spec, tables) if any(lo <= a <= hi for lo, hi in ranges)}
         if words and words <= read:
             out.append((spec.name, len(words), len(words & read)))
-    return sorted(out, key=lambda c: (-c[2], c[0]))  # stable: among equals, the order of ``specs``
+    return sorted(out, key=lambda c: (-c[2], c[0]))
 
 
 def hint_runs(specs: list[DeviceSpec], tables: list[str]) -> dict[str, list[tuple[int, int]]]:
