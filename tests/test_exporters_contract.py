@@ -10,7 +10,9 @@ from typing import Any
 import yaml
 from exporter_helpers import ROOT, load, parse, render
 
+from drivemap.backends.common import Options
 from drivemap.backends.export import export
+from drivemap.backends.exporters import available
 from drivemap.compiler import compile_map
 
 FORMATS = ("homeassistant", "esphome", "csv", "pymodbus-sim", "docs")
@@ -93,6 +95,10 @@ def test_every_export_header_names_the_evidence(tmp_path: Path) -> None:
     assert "# evidence: manual; kind: meter\n" in render(model, "esphome")
     assert json.loads(render(model, "pymodbus-sim"))["drivemap"]["provenance"] == ["evidence: manual; kind: meter"]
     assert "**Evidence:** manual; kind: meter" in render(model, "docs")
+    assert {(r["evidence"], r["origin_project"]) for r in parse("csv", render(model, "csv"))} == {("manual", "")}
+    files = available()["python"]().render(model, Options(root=ROOT, values={"package": "drivemap_models"}))
+    for name in ("sdm630/client.py", "sdm630/__init__.py", "sdm630/spec.py", "sdm630/simulator.py"):
+        assert files[name].split("\n")[2] == "evidence: manual; kind: meter", name  # in the module docstring
 
     def edit(data: dict[str, Any]) -> None:
         del data["device"]["evidence"]
@@ -103,6 +109,12 @@ def test_every_export_header_names_the_evidence(tmp_path: Path) -> None:
     text = render(other, "homeassistant")
     assert "# evidence: not stated by the map; kind: meter\n# origin: x/y m.json at c0ffee (MIT; imported as modeljson)\n" \
         in text
+    rows = parse("csv", render(other, "csv"))
+    assert {(r["evidence"], r["origin_project"], r["origin_path"], r["origin_commit"], r["origin_licence"],
+             r["origin_format"]) for r in rows} == {("", "x/y", "m.json", "c0ffee", "MIT", "modeljson")}
+    client = available()["python"]().render(other, Options(root=ROOT, values={"package": "p"}))["sdm630/client.py"]
+    assert client.split("\n")[2:4] == ["evidence: not stated by the map; kind: meter",
+                                       "origin: x/y m.json at c0ffee (MIT; imported as modeljson)"]
     index = (ROOT / "generated" / "docs" / "index.md").read_text(encoding="utf-8")
     assert "| Evidence | Origin |" in index
     assert "| manual | the map's manual |" in index

@@ -3,6 +3,8 @@ the proven Fronius map, hand-written Home Assistant / ESPHome / vendor CSV defin
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import re
 import shutil
@@ -15,6 +17,7 @@ from helpers_live import ROOT, cli, no_traceback
 from drivemap.cli import main
 from drivemap.compiler import compile_map
 from drivemap.frontend.formats import CURRENT
+from drivemap.vocab.csv_columns import COLUMNS, REGISTER_COLUMNS
 
 MAPS = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))
 #: the exporter's options for a map that leaves the line open (the same for both exports)
@@ -85,6 +88,68 @@ def test_round_trip_export_import_export(model: str, fmt: str, tmp_path: Path,
         assert lost == ["    command_throttle: 20ms"] and "command_throttle 20ms" in summary
         return
     assert body(second) == body(first)
+
+
+#: one imported map per catalogue source: its CSV carries the evidence level and the origin on every row
+CATALOGUE_SAMPLES = ["catalogue/evcc/afore_hybrid", "catalogue/ha_solarman/deye_p3",
+                     "catalogue/modbus_local_gateway/device_7_m_24", "catalogue/sunspec/sunspec_ac_meter_abc"]
+
+
+@pytest.mark.parametrize("path", CATALOGUE_SAMPLES)
+def test_csv_carries_evidence_and_origin_both_ways(path: str, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    source = ROOT / "maps" / f"{path}.yaml"
+    model = compile_map(source)
+    origin = model.device.origin
+    assert model.device.evidence == "imported" and origin is not None
+    first = export(capsys, str(source), "csv")
+    rows = list(csv.DictReader(io.StringIO(first)))
+    assert rows and {(r["evidence"], r["origin_project"], r["origin_path"], r["origin_commit"], r["origin_licence"],
+                      r["origin_format"]) for r in rows} == {
+        ("imported", origin.project, origin.path, origin.commit, origin.licence, origin.format or "")}
+    sheet = tmp_path / "sheet.csv"
+    sheet.write_text(first, encoding="utf-8")
+    target = tmp_path / "maps" / "back.yaml"
+    code, _, err = run(capsys, "import", "csv", str(sheet), "-o", str(target))
+    assert code == 0, err
+    back = compile_map(target)
+    assert back.device.evidence == "imported" and back.device.origin == origin
+    assert export(capsys, str(target), "csv") == first  # byte for byte, the map-level columns included
+
+
+def test_csv_map_columns_disagreeing_or_from_before_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    first = export(capsys, "sdm630", "csv")
+    rows = list(csv.DictReader(io.StringIO(first)))
+    assert {r["evidence"] for r in rows} == {"manual"} and {r["origin_project"] for r in rows} == {""}
+
+    def write(name: str, columns: list[str], table: list[dict[str, str]]) -> Path:
+        out = io.StringIO()
+        writer = csv.DictWriter(out, fieldnames=columns, lineterminator="\n", extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(table)
+        (tmp_path / name).write_text(out.getvalue(), encoding="utf-8")
+        return tmp_path / name
+
+    # a sheet exported before the map-level columns is still drivemap's own; its evidence stays unstated
+    old = write("old.csv", list(REGISTER_COLUMNS), rows)
+    code, _, err = run(capsys, "import", "csv", str(old), "-o", str(tmp_path / "old.yaml"))
+    assert code == 0, err
+    assert compile_map(tmp_path / "old.yaml").device.evidence is None
+    # one row saying another evidence level is refused at its line, nothing written
+    mixed = [dict(r) for r in rows]
+    mixed[3]["evidence"] = "verified"
+    bad = write("mixed.csv", list(COLUMNS), mixed)
+    code, _, err = run(capsys, "import", "csv", str(bad), "-o", str(tmp_path / "mixed.yaml"))
+    assert code == 1 and "mixed.csv:5:1: error: evidence 'verified' differs from line 2's 'manual'" in err, err
+    assert not (tmp_path / "mixed.yaml").exists()
+    odd = [dict(r, evidence="guessed") for r in rows]
+    code, _, err = run(capsys, "import", "csv", str(write("odd.csv", list(COLUMNS), odd)), "-o",
+                       str(tmp_path / "odd.yaml"))
+    assert code == 1 and "odd.csv:2:1: error: evidence 'guessed': one of manual, imported, probed, verified" in err
+    half = [dict(r, origin_project="someone/project") for r in rows]
+    code, _, err = run(capsys, "import", "csv", str(write("half.csv", list(COLUMNS), half)), "-o",
+                       str(tmp_path / "half.yaml"))
+    assert code == 1 and "origin_path, origin_commit, origin_licence empty" in err, err
 
 
 def cells(model: object, first: int) -> dict[int, tuple[str, int, int | None]]:

@@ -5,7 +5,9 @@ column). ``table`` is holding/input/coil/discrete, ``modicon`` the six-digit ref
 digit first (coil 0, discrete 1, input 3, holding 4), ``not_available`` the raw values meaning "no
 value" (hex, as the register's words), ``scale_register`` the register whose value v scales by 10^v,
 ``values`` the value set (``value (label) | ...``: the only values a write may send), ``precision`` the
-decimals shown, ``display_name`` the element as the manual numbers it (``first_index``; else the name).
+decimals shown, ``display_name`` the element as the manual numbers it (``first_index``; else the name);
+``evidence`` and ``origin_*`` repeat the map's evidence level and origin on every row (empty where the map
+does not state them), so a sheet says how far it is proven however it is sorted or filtered.
 Text cells are flattened to one line, and a text cell that a spreadsheet would run as a
 formula (it starts with ``=``, ``+``, ``-``, ``@``) gets a leading apostrophe.
 """
@@ -21,7 +23,7 @@ from drivemap.backends.exporters.base import Exporter, OptionError, Options
 from drivemap.backends.views.common import review_text
 from drivemap.backends.views.integrations import comment_safe
 from drivemap.model.nodes import Cell, Model
-from drivemap.vocab.csv_columns import COLUMNS
+from drivemap.vocab.csv_columns import COLUMNS, ORIGIN_KEYS
 
 __all__ = ["COLUMNS", "MODICON", "CsvExporter"]
 
@@ -58,6 +60,15 @@ def _num(value: float | None) -> str:
 def modicon(table: str, address: int) -> str:
     """Six-digit Modicon reference (holding 0x0000 -> 400001), one-based as PLC tools count."""
     return f"{MODICON[table][0]}{address + 1:05d}"
+
+
+def _map_cells(model: Model) -> dict[str, str]:
+    """The map-level columns: ``device.evidence`` and ``device.origin``, the same on every row."""
+    dev = model.device
+    cells = {"evidence": dev.evidence or ""}
+    for key in ORIGIN_KEYS:
+        cells[f"origin_{key}"] = _text(getattr(dev.origin, key, None) or "") if dev.origin else ""
+    return cells
 
 
 def _row(model: Model, cell: Cell) -> dict[str, str]:
@@ -128,6 +139,7 @@ class CsvExporter(Exporter):
         order = {"coil": 0, "discrete": 1, "input": 3, "holding": 4}
         cells: list[Any] = sorted(model.cells(), key=lambda c: (order[c.register.table], c.address,
                                                                 c.register.page.value if c.register.page else -1, c.name))
+        shared = _map_cells(model)
         for cell in cells:
-            writer.writerow(_row(model, cell))
+            writer.writerow(_row(model, cell) | shared)
         return {f"{model.name}.csv": ("\ufeff" if options.get("bom") else "") + out.getvalue()}

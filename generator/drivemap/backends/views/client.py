@@ -15,7 +15,7 @@ from typing import Any
 from drivemap.backends.common import Options
 from drivemap.backends.python.names import FIXED_NAMES, exception_classes
 from drivemap.backends.python.names import bit_attribute as _attr
-from drivemap.backends.views.common import header
+from drivemap.backends.views.common import header, provenance
 from drivemap.model.nodes import Bit, Model, Register, camel
 from drivemap.runtime.client.declare import REG_CLASSES, broadcast_kind_of, kind_of
 
@@ -276,6 +276,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
         e["name"] for e in exceptions]
     return {
         "header": header(model, options),
+        "provenance": provenance(model),
         "package": options.package,
         "model": model,
         "title": model.device.title,

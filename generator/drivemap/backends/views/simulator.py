@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from drivemap.backends.common import Options
-from drivemap.backends.views.common import header
+from drivemap.backends.views.common import header, provenance
 from drivemap.model.nodes import Model
 
 _CASE_TEXT = {
@@ -47,6 +47,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     eeprom = sum(r.count for r in model.registers if r.storage == "eeprom")
     return {
         "header": header(model, options),
+        "provenance": provenance(model),
         "package": options.package,
         "model": model,
         "class_name": "Simulator",

@@ -11,7 +11,7 @@ import dataclasses
 from typing import Any
 
 from drivemap.backends.common import Options
-from drivemap.backends.views.common import header
+from drivemap.backends.views.common import header, provenance
 from drivemap.model.nodes import Model
 from drivemap.model.spec import spec_from_model
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec, TimingSpec
@@ -116,6 +116,7 @@ def context(model: Model, options: Options) -> dict[str, Any]:
     text = print_spec(spec)
     return {
         "header": header(model, options),
+        "provenance": provenance(model),
         "package": options.package,
         "model": model,
         "spec": text,

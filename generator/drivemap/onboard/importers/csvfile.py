@@ -3,7 +3,9 @@
 drivemap's CSV (every column of :data:`drivemap.vocab.csv_columns.COLUMNS`) carries nearly every register
 fact: its rows come back as registers, ``name[i]`` rows as arrays (stride from the addresses, one
 default or one per element, ``param`` per element), ``enum_labels`` as enums, ``bits`` as bit fields, ``values`` as value sets, ``precision``, and
-``display_name`` of an array's first element as ``first_index``, ``review`` (what the source leaves open) as ``review:``.
+``display_name`` of an array's first element as ``first_index``, ``review`` (what the source leaves open) as ``review:``,
+and the map-level ``evidence`` / ``origin_*`` columns (the same on every row, or the file is refused) as
+``device.evidence`` and ``device.origin``. A sheet exported before those columns existed is still drivemap's own.
 A vendor sheet is read by its header words (address / register, name / description / parameter,
 type / format, unit, scale / factor / resolution, access / R/W, function / table, min, max, default);
 a fact without a column stays out and is listed. Its table comes from a table or function-code column,
@@ -22,7 +24,7 @@ from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
 from drivemap.onboard.importers.mapdoc import MapDoc, snake
 from drivemap.onboard.importers.vendor import vendor_rows
-from drivemap.vocab.csv_columns import COLUMNS
+from drivemap.vocab.csv_columns import MAP_COLUMNS, ORIGIN_KEYS, REGISTER_COLUMNS
 
 __all__ = ["import_csv", "read_rows"]
 
@@ -63,8 +65,10 @@ def read_rows(path: Path) -> tuple[list[str], list[tuple[int, dict[str, str]]]]:
 
 def import_csv(doc: MapDoc, path: Path, table: str | None, word_order: str | None) -> None:
     header, rows = read_rows(path)
-    if set(COLUMNS) <= set(header):
+    if set(REGISTER_COLUMNS) <= set(header):
         _own(doc, path, rows)
+        if set(MAP_COLUMNS) <= set(header):
+            _map_level(doc, path, rows)
     else:
         for reg in vendor_rows(doc, path, header, rows, table, word_order):
             doc.add(reg)
@@ -78,6 +82,33 @@ def _text(cell: str) -> str:
 def _number(text: str) -> int | float:
     value = float(text)
     return int(value) if value.is_integer() and "." not in text and "e" not in text.lower() else value
+
+
+_EVIDENCE = ("manual", "imported", "probed", "verified")
+
+
+def _map_level(doc: MapDoc, path: Path, rows: list[tuple[int, dict[str, str]]]) -> None:
+    """``evidence`` and ``origin_*``: the map's own facts, stated once per row and alike on every row."""
+    if not rows:
+        return
+    first_line, first = rows[0]
+    for line, row in rows[1:]:
+        for column in MAP_COLUMNS:
+            if row.get(column, "") != first.get(column, ""):
+                raise error(path, line, f"{column} {row.get(column, '')!r} differs from line {first_line}'s "
+                                        f"{first.get(column, '')!r}: a map has one evidence level and one origin")
+    evidence = first["evidence"]
+    if evidence:
+        if evidence not in _EVIDENCE:
+            raise error(path, first_line, f"evidence {evidence!r}: one of {', '.join(_EVIDENCE)}")
+        doc.evidence = evidence
+    origin = {key: _text(first[f"origin_{key}"]) for key in ORIGIN_KEYS if first[f"origin_{key}"]}
+    if origin:
+        missing = [f"origin_{key}" for key in ORIGIN_KEYS[:4] if key not in origin]
+        if missing:
+            raise error(path, first_line, f"{', '.join(missing)} empty: an origin names project, path, commit "
+                                          "and licence")
+        doc.origin = origin
 
 
 def _own(doc: MapDoc, path: Path, rows: list[tuple[int, dict[str, str]]]) -> None:
