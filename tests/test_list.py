@@ -81,6 +81,15 @@ def test_a_catalogue_map_is_found_by_model_id(shipped: Path, empty: Path, capsys
     assert "using the catalogue map" in err and str(shipped / "catalogue" / "solarman" / "zeta_inv5k.yaml") in err
     code, out, err = run(capsys, "export", "nosuch", "--format", "json")
     assert code == 1 and "`drivemap list` shows the shipped and catalogue maps" in err
+    # validate takes model ids as export does, and shows each map's evidence
+    code, out, err = run(capsys, "validate", "zeta_inv5k", "sdm630")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert len(lines) == 2 and lines[0].startswith(str(shipped / "catalogue" / "solarman" / "zeta_inv5k.yaml") + ": ok")
+    assert lines[0].endswith("evidence: imported)") and lines[1].endswith("evidence: manual)")
+    assert "'zeta_inv5k' is not a map of the project" in err
+    code, out, err = run(capsys, "validate", "nosuch")
+    assert code == 1 and out == "" and "no map for model 'nosuch'" in err
 
 
 def test_the_projects_map_overrides_a_catalogue_map_and_says_so(shipped: Path, empty: Path,

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from drivemap.cli.common import (
     UsageError,
+    compile_files,
     project_flags,
     project_models,
     project_of,
@@ -27,8 +28,21 @@ if TYPE_CHECKING:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    project = project_of(args, args.paths)
-    models = project_models(project, _checking_exporters(args.exporter or []))
+    from drivemap.compiler import looks_like_path, resolve_map
+
+    checks = _checking_exporters(args.exporter or [])
+    ids = [p for p in args.paths if not Path(p).exists() and not looks_like_path(p)]
+    if ids:  # model ids: the project's map of that id, else the shipped or catalogue one (as export and read do)
+        project = project_of(args)
+        files = [resolve_map(name, project) for name in ids]
+        paths = [p for p in args.paths if p not in ids]
+        if paths:
+            files += project_of(args, paths).map_files()
+        models, errors = compile_files(list(dict.fromkeys(files)), checks)
+        if errors:
+            raise CompileError(errors)
+    else:
+        models = project_models(project_of(args, args.paths), checks)
     for m in models:
         print(f"{m.path}: ok ({summary(m)})")
     return 0
@@ -195,7 +209,8 @@ def check_parsers(sub: Any) -> None:
                        description="Check maps: the schema and the semantic checks of the map language. The "
                                    "exporters' own checks (the generated Python names, the docs anchors) run where "
                                    "an exporter writes (build, check, export) or here with --exporter.")
-    s.add_argument("paths", nargs="*", metavar="PATH", help="map files or folders")
+    s.add_argument("paths", nargs="*", metavar="PATH|MODEL",
+                   help="map files or folders, or model ids (the project's map, else the shipped or catalogue map)")
     s.add_argument("--exporter", action="append", default=None, metavar="NAME",
                    help="also run this exporter's checks (repeatable; `all`: every installed exporter, "
                         "`python` and `docs`: what build writes)")
