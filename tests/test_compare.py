@@ -76,3 +76,23 @@ def test_compare_lists_a_changed_value_set(tmp_path: Path, capsys: pytest.Captur
     assert main(["compare", str(a), str(b)]) == 0
     out = capsys.readouterr().out
     assert "values: state (" in out and "= 0, 1, 2 | " in out and "= 0, 1, 7" in out and "1 disagreement " in out
+
+
+def test_a_label_two_registers_share_pairs_none_across_addresses(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """A register moved and renamed is found by its label only while that label names one register in
+    each map; a label two registers share says nothing of which one is meant."""
+    data = yaml.safe_load((ROOT / "maps" / "sdm630.yaml").read_text(encoding="utf-8"))
+    data["device"]["model"] = "moved"
+    regs = {r["name"]: r for r in data["registers"]}
+    label = regs["phase_3_voltage"]["label"]
+    regs["phase_3_voltage"].update(name="p3", register=30901)
+    moved = tmp_path / "moved.yaml"
+    moved.write_text(yaml.safe_dump(data, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    assert main(["compare", str(ROOT / "maps" / "sdm630.yaml"), str(moved)]) == 0
+    assert "address: phase_3_voltage (input 4) = 4 | p3 (input 900) = 900" in capsys.readouterr().out
+    regs["phase_1_current"]["label"] = label  # now two registers of the moved map carry the label
+    moved.write_text(yaml.safe_dump(data, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    assert main(["compare", str(ROOT / "maps" / "sdm630.yaml"), str(moved)]) == 0
+    out = capsys.readouterr().out
+    assert "phase_3_voltage (input 4)" not in out and "p3 (input 900)" not in out, out

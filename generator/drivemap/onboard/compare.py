@@ -5,7 +5,9 @@ Registers are paired by table and address (the sources name them differently); a
 type, word order (multi-word registers only), scale (neither scaled by a scale-factor register), unit
 (case and spaces ignored) or value set (enum values or ``values:``). A register of one map that the
 other has (the same label or name) at the same address in another table is a table disagreement; at
-another address, an address disagreement. These are errata candidates: the
+another address, an address disagreement. A label or name pairs registers across places only where it
+names one register in each map: a label two registers share ("Register", "Reserved", "Battery") says
+nothing of which one is meant, so it pairs none. These are errata candidates: the
 comparison says where the sources differ, never which one is right.
 """
 
@@ -77,21 +79,28 @@ def _pair(ma: Model, a: Register, mb: Model, b: Register) -> list[Difference]:
     return out
 
 
+def _unique_labels(model: Model) -> dict[str, Register]:
+    """label or name key -> the one register of ``model`` it names (keys naming two registers left out)."""
+    seen: dict[str, list[Register]] = {}
+    for r in model.registers:
+        for key in dict.fromkeys(k for k in (_key(r.label), _key(r.name)) if k):
+            seen.setdefault(key, []).append(r)
+    return {key: regs[0] for key, regs in seen.items() if len(regs) == 1}
+
+
 def compare_models(ma: Model, mb: Model) -> list[Difference]:
     """The disagreements of ``ma`` and ``mb``, in ``ma``'s register order."""
     by_place = {(r.table, r.address): r for r in mb.registers}
-    by_label: dict[str, Register] = {}
-    for r in mb.registers:
-        for text in (r.label, r.name):
-            if _key(text):
-                by_label.setdefault(_key(text), r)
+    by_label = _unique_labels(mb)
+    mine = _unique_labels(ma)
     out: list[Difference] = []
     for a in ma.registers:
         b = by_place.get((a.table, a.address))
         if b is not None:
             out.extend(_pair(ma, a, mb, b))
             continue
-        same = by_label.get(_key(a.label)) or by_label.get(_key(a.name))
+        keys = [k for k in (_key(a.label), _key(a.name)) if k and mine.get(k) is a]
+        same = next((by_label[k] for k in keys if k in by_label), None)
         if same is None:
             continue
         if same.address == a.address:
