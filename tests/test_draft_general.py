@@ -71,3 +71,37 @@ def test_register_type_column_pairs_and_plus(tmp_path: Path) -> None:
     assert (regs["active_power"]["table"], regs["active_power"]["address"], regs["active_power"]["type"]) == \
         ("input", 1020, "u32")
     assert (regs["energy"]["table"], regs["energy"]["address"]) == ("holding", 1030)
+
+
+RANGES = """\
+# Storage inverter protocol
+
+| Addr | Register meaning | R/W | data range | unit | note |
+| --- | --- | --- | --- | --- | --- |
+| 3 | Device type | R | | | |
+| 61 | Self-check time | R/W | [0,1000] | s | MI |
+| 501 | Active energy today | R | [-32768,32767] | 0.1kWh | |
+| 502 | Counter | R | [0,65535] | | |
+
+## Address areas
+
+0-59 registers are read-only, function code 0x03.
+60-499 registers are read/write, function code 0x10.
+Battery data (1000-1999) is read with function code 0x04.
+"""
+
+
+def test_range_statements_register_meaning_and_interval_spans(tmp_path: Path) -> None:
+    """A line giving an address range one function code decides the table of the rows in it (and says so);
+    outside every range the table stays open. ``Register meaning`` is the name column, not a second address
+    column. ``[a,b]`` is a range, and a range that is exactly a raw type's span states that type (and no limit)."""
+    regs = drafted(tmp_path, "storage.md", RANGES)
+    assert set(regs) == {"device_type", "self_check_time", "active_energy_today", "counter"}
+    assert regs["device_type"]["table"] == "holding" and "0-59 registers are read-only" in regs["device_type"]["notes"]
+    assert regs["self_check_time"]["table"] == "holding" and "60-499" in regs["self_check_time"]["notes"]
+    assert regs["self_check_time"]["min"] == 0 and regs["self_check_time"]["max"] == 1000
+    assert "type" in regs["self_check_time"]["review"]  # [0,1000] does not say signed or unsigned
+    energy = regs["active_energy_today"]
+    assert "table" in energy["review"] and "table" not in energy  # 501 is in no stated range
+    assert energy["type"] == "s16" and "min" not in energy and energy["scale"] == 0.1
+    assert regs["counter"]["type"] == "u16" and "type" not in regs["counter"].get("review", [])

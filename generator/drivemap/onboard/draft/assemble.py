@@ -99,8 +99,48 @@ def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
         or _nearest_kind(table.context) or doc_kind
     access = table_access(table.context)
     if table.matrix:
-        return matrix_raws(table, kind)
-    return loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
+        raws, skipped = matrix_raws(table, kind)
+    else:
+        raws, skipped = loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
+    if any(r.table is None for r in raws):
+        _kinds_by_range(raws, _range_kinds(source.text))
+    return raws, skipped
+
+
+#: function code -> the table it reads or writes (03h/06h/10h: holding registers; 04h: input registers)
+_CODE_TABLES = {"03": "holding", "06": "holding", "10": "holding", "04": "input"}
+_CODE = r"(?:0x(0[346]|10)|\b(0[346]|10)\s*[hH])(?![0-9A-Za-z])"
+_ADDRESS_WORD = re.compile(r"regist|address|寄存器|地址|位址", re.I)
+_RANGE = re.compile(r"(?<![\d.])(\d{1,5})\s*(?:-|~|～|–|to|至|到)\s*(\d{1,5})(?![\d.])")
+
+
+def _range_kinds(text: str) -> list[tuple[int, int, str, str]]:
+    """(first, last, table, the sentence) of every line that gives an address range one function code
+    ("0-59 ... read registers, 0x03 function code"): a statement of the document, read only where the
+    line names one range and one table."""
+    found: list[tuple[int, int, str, str]] = []
+    for line in text.splitlines():
+        ranges = _RANGE.findall(line)
+        codes = {_CODE_TABLES[a or b] for a, b in re.findall(_CODE, line)}
+        if len(ranges) != 1 or len(codes) != 1 or len(line) > 160 or not _ADDRESS_WORD.search(line):
+            continue
+        lo, hi = int(ranges[0][0]), int(ranges[0][1])
+        if lo <= hi:
+            found.append((lo, hi, codes.pop(), line.strip()))
+    return found
+
+
+def _kinds_by_range(raws: list[Raw], ranges: list[tuple[int, int, str, str]]) -> None:
+    """A row whose table nothing near it states takes the table of the document's range statement that
+    holds its address (only where the statements holding it agree)."""
+    for raw in raws:
+        if raw.table is not None:
+            continue
+        holding = {(kind, line) for lo, hi, kind, line in ranges if lo <= raw.address <= hi}
+        if len({kind for kind, _ in holding}) == 1:
+            kind, line = sorted(holding)[0]
+            raw.table = kind
+            raw.notes.append(f"table {kind}: the document states {line!r}")
 
 
 def _nearest_kind(context: str) -> str | None:

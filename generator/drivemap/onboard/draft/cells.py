@@ -146,9 +146,26 @@ _REFERENCE = re.compile(r"(?:\btable|\btab\.|\bfig(?:ure|\.)?|\bchapter|\bsectio
 """``Table 2-2``, ``Figure 3-1``: the numbers of a table or figure, not a range."""
 
 
+_INTERVAL = re.compile(rf"[\[(]\s*({_NUMBER})\s*[,，;]\s*({_NUMBER})\s*[\])]")
+"""``[0,1000]``, ``[-32768,32767]``: an interval written with brackets and a comma."""
+
+#: a range that is exactly the span of a raw register type states that type (``[-32768,32767]``: s16)
+FULL_SPANS = {(-32768, 32767): "s16", (0, 65535): "u16", (-2147483648, 2147483647): "s32", (0, 4294967295): "u32"}
+
+
+def span_type(text: str) -> str | None:
+    """The register type a range states by being its whole span (``[-32768,32767]`` -> s16), else None."""
+    rng = parse_range(text) if text else None
+    return FULL_SPANS.get((rng[0], rng[1])) if rng is not None else None
+
+
 def parse_range(text: str) -> tuple[float, float, str] | None:
-    """``0 ~ 1000``, ``-10000~10000``, ``0-65535 r/min`` -> (low, high, the text after it)."""
+    """``0 ~ 1000``, ``-10000~10000``, ``0-65535 r/min``, ``[0,1000]`` -> (low, high, the text after it)."""
     text = text.replace("−", "-")
+    interval = _INTERVAL.search(text)
+    if interval and not _REFERENCE.search(text[:interval.start()]):
+        low, high = _num(interval.group(1)), _num(interval.group(2))
+        return (low, high, text[interval.end():].strip()) if low <= high else None
     m = next((m for m in _RANGE.finditer(text) if not _REFERENCE.search(text[:m.start()])), None)
     if not m:
         return None

@@ -58,10 +58,19 @@ class Layout:
     other_header: str = ""
 
 
+#: "Register name", "Register meaning", "寄存器名", "寄存器含义": the register's name, not its address
+_REGISTER_NAMED = re.compile(r"(?:regist|寄存器|暂存器|暫存器).*(?:name|meaning|descr|名|含义|含義|意义|说明|說明)", re.I)
+_ADDRESS_SAID = re.compile(r"addr|地址|位址|number|\bno\b|编号|編號|offset|modbus", re.I)
+
+
 def role_of(text: str) -> str | None:
-    """The role a header cell names; a word broken over two lines (``Registe`` / ``rNO.``) is read whole."""
+    """The role a header cell names; a word broken over two lines (``Registe`` / ``rNO.``) is read whole.
+    A header naming a register's name or meaning (``Register meaning``, ``寄存器名``) is a name column, though
+    it starts with the word that usually heads the address column."""
     low = re.sub(r"\s+", " ", text.strip().lower())
     low = re.sub(r"(?<=[\u4e00-\u9fff]) (?=[\u4e00-\u9fff])", "", low)
+    if _REGISTER_NAMED.search(low) and not _ADDRESS_SAID.search(low):
+        return "name"
     for candidate in (low, low.replace(" ", "")):
         for role, pattern in _ROLES:
             if candidate and re.search(pattern, candidate, re.I):

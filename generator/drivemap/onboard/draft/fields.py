@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from drivemap.onboard.draft.cells import (
+    FULL_SPANS,
     parse_access,
     parse_bits,
     parse_enum,
@@ -17,6 +18,7 @@ from drivemap.onboard.draft.cells import (
     parse_range,
     parse_type,
     signed_hint,
+    span_type,
     value_list,
 )
 from drivemap.onboard.draft.tables import Drafted
@@ -61,6 +63,11 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
     rtype = parse_type(raw.cells.get("type", ""), words)
     if rtype is None and signed_hint(raw.text + " " + raw.cells.get("type", "")):
         rtype = "s16" if words in (None, 1) else None
+    if rtype is None:
+        spanned = span_type(raw.cells.get("range", ""))
+        if spanned is not None and (words is None or words == int(spanned[1:]) // 16):
+            rtype = spanned
+            notes.append(f"type {spanned}: the range {raw.cells['range'].strip()!r} is its whole span")
     if rtype is None and words is not None and words > 1:
         notes.append(f"{words} registers long, type not stated: left at one u16 register")
     if rtype is None or rtype == "bool":
@@ -191,6 +198,9 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
             lo, hi = rng[0], rng[1]
     if lo is None or hi is None:
         missing.append("range")
+        return
+    if entry.get("type") is not None and FULL_SPANS.get((lo, hi)) == entry.get("type"):
+        notes.append(f"range {lo}..{hi}: the whole span of {entry['type']}, no limit of its own")
         return
     factor = 1.0
     after = parse_range(text or _range_text(raw.text))
