@@ -105,3 +105,33 @@ def test_range_statements_register_meaning_and_interval_spans(tmp_path: Path) ->
     assert "table" in energy["review"] and "table" not in energy  # 501 is in no stated range
     assert energy["type"] == "s16" and "min" not in energy and energy["scale"] == 0.1
     assert regs["counter"]["type"] == "u16" and "type" not in regs["counter"].get("review", [])
+
+
+PLAIN_FIVE_DIGITS = """\
+# Logger protocol
+
+| SN | Name | Read/Write | Type | Unit | Gain | Address | Quantity |
+| --- | --- | --- | --- | --- | --- | --- | --- |
+| 1 | Date and time | RW | U32 | N/A | 1 | 40000 | 2 |
+| 2 | Alarm info | RO | U16 | N/A | 1 | 50000 | 1 |
+
+## Meter
+
+| SN | Name | Read/Write | Type | Unit | Gain | Address | Quantity |
+| --- | --- | --- | --- | --- | --- | --- | --- |
+| 1 | Phase A voltage | RO | I32 | V | 100 | 32260 | 2 |
+| 2 | Phase B voltage | RO | I32 | V | 100 | 32262 | 2 |
+"""
+
+
+def test_five_digit_addresses_no_modicon_number_can_be_and_an_undirected_gain(tmp_path: Path) -> None:
+    """A document that prints 40000 and 50000 numbers its registers plainly: its 3xxxx numbers are addresses
+    too, not Modicon input references (said on each). A ``Gain`` of 100 does not say raw x 100 or raw / 100:
+    the scale stays open, never a guessed multiplier."""
+    regs = drafted(tmp_path, "logger.md", PLAIN_FIVE_DIGITS)
+    assert regs["alarm_info"]["address"] == 50000 and regs["date_and_time"]["address"] == 40000
+    volts = regs["phase_a_voltage"]
+    assert volts["address"] == 32260 and "table" not in volts
+    assert "address 32260 as printed, not a Modicon number" in volts["notes"] and "the document prints address 40000" in volts["notes"]
+    assert "scale" not in volts and "scale" in volts["review"] and "Gain 100: raw x 100 or raw / 100?" in volts["notes"]
+    assert regs["date_and_time"]["scale"] == 1  # a gain of 1 is 1 either way

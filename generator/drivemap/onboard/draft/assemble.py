@@ -10,7 +10,7 @@ from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
-from drivemap.onboard.draft.rows import grid_raws, loose_raws, table_access, table_kind
+from drivemap.onboard.draft.rows import grid_raws, loose_raws, plain_addresses, table_access, table_kind
 from drivemap.onboard.draft.tables import Drafted, Skipped, Source, Table
 
 #: Protocol facts the draft cannot read from register tables; written as placeholders and listed.
@@ -93,7 +93,18 @@ def _heading(table: Table) -> str:
     return table.label
 
 
-def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
+def _not_modicon(source: Source) -> str | None:
+    """Where the document prints a five-digit address no Modicon number can be (30000, 40000, 50000 and
+    above): its 3xxxx and 4xxxx numbers are then plain addresses too, not Modicon references."""
+    for table in source.tables:
+        for value in plain_addresses(table):
+            if value in (30000, 40000) or 50000 <= value <= 99999:
+                where = f" ({table.rows[0].where()})" if table.rows else ""
+                return f"the document prints address {value}{where}, which no Modicon number is"
+    return None
+
+
+def _raws(source: Source, table: Table, plain: str | None = None) -> tuple[list[Raw], list[Skipped]]:
     doc_kind = _document_kind(source.text)
     kind = table_kind(table.context.splitlines()[-1] if table.context else "") or table_kind(table.context) \
         or _nearest_kind(table.context) or doc_kind
@@ -101,7 +112,12 @@ def _raws(source: Source, table: Table) -> tuple[list[Raw], list[Skipped]]:
     if table.matrix:
         raws, skipped = matrix_raws(table, kind)
     else:
-        raws, skipped = loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access)
+        raws, skipped = loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access,
+                                                                                     plain is None)
+    if plain is not None:
+        for raw in raws:
+            if 30001 <= raw.address <= 49999:
+                raw.notes.append(f"address {raw.address} as printed, not a Modicon number: {plain}")
     if any(r.table is None for r in raws):
         _kinds_by_range(raws, _range_kinds(source.text))
     return raws, skipped
@@ -172,8 +188,9 @@ def draft(source: Source, model: str) -> Draft:
     groups: list[dict[str, Any]] = []
     found: list[tuple[str, int]] = []
     names: set[str] = set()
+    not_modicon = _not_modicon(source)
     for table in source.tables:
-        raws, skip = _raws(source, table)
+        raws, skip = _raws(source, table, not_modicon)
         skipped += skip
         if not raws:
             continue

@@ -150,7 +150,7 @@ _INTERVAL = re.compile(rf"[\[(]\s*({_NUMBER})\s*[,，;]\s*({_NUMBER})\s*[\])]")
 """``[0,1000]``, ``[-32768,32767]``: an interval written with brackets and a comma."""
 
 #: a range that is exactly the span of a raw register type states that type (``[-32768,32767]``: s16)
-FULL_SPANS = {(-32768, 32767): "s16", (0, 65535): "u16", (-2147483648, 2147483647): "s32", (0, 4294967295): "u32"}
+FULL_SPANS: dict[tuple[float, float], str] = {(-32768, 32767): "s16", (0, 65535): "u16", (-2147483648, 2147483647): "s32", (0, 4294967295): "u32"}
 
 
 def span_type(text: str) -> str | None:

@@ -102,12 +102,8 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
             and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
         found = Scale(float(bare), None, unit_cell)
-    factor = parse_number(raw.cells.get("scale", ""))
-    if factor is not None and factor < 0:
-        notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
-    if factor is not None and factor > 0:  # a bare number in a Scale/Factor column
-        factor = _factor_scale(factor, raw, entry, direction)
-    if factor is not None and factor > 0:
+    factor = _factor_cell(raw, entry, notes, direction)
+    if factor is not None:
         unit = found.unit if found is not None else None
         found = Scale(factor, unit, raw.cells["scale"])
     raw_range = False
@@ -147,7 +143,10 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     return scale, raw_range
 
 
-_MULTIPLIER = re.compile(r"multiplier|^gain|倍率", re.I)
+_MULTIPLIER = re.compile(r"multiplier|倍率", re.I)
+#: a header that names a factor without saying its direction: vendors print "Gain 100" for raw ÷ 100
+#: (Huawei) as others print it for raw × 100; only the document's own ranges decide it
+_UNDIRECTED = re.compile(r"^gain", re.I)
 _RAW_MAX = {"u16": 65535, "s16": 32767}
 
 
@@ -176,13 +175,30 @@ def factor_direction(raws: list[Raw]) -> str | None:
     return said.pop() if len(said) == 1 else None
 
 
-def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: str | None) -> float:
+def _factor_cell(raw: Raw, entry: dict[str, object], notes: list[str], direction: str | None) -> float | None:
+    """The scale a Scale/Factor/Gain column's bare number states (None: no number, or not a scale)."""
+    factor = parse_number(raw.cells.get("scale", ""))
+    if factor is not None and factor < 0:
+        notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
+    if factor is None or factor <= 0:
+        return None
+    scale = _factor_scale(factor, raw, entry, direction)
+    if scale is None:
+        notes.append(f"{raw.cells.get('scale_header', '').strip()} {factor:g}: raw x {factor:g} or raw / "
+                     f"{factor:g}? the document does not say (scale left out)")
+    return scale
+
+
+def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: str | None) -> float | None:
     """The scale of a bare number in a Scale/Factor column: the number itself when it is 1 or the header
     says multiplier; else what the row's printed range tells, else what the table's rows tell (a
-    column divides on every row or on none), else the number as a multiplier."""
+    column divides on every row or on none), else the number as a multiplier under a Scale/Factor
+    header, and nothing (None: open) under a ``Gain`` header, which does not say its direction."""
     if factor == 1 or _MULTIPLIER.search(raw.cells.get("scale_header", "")):
         return factor
     said = _range_says(factor, str(entry.get("type")), raw.cells.get("range", "")) or direction
+    if said is None and _UNDIRECTED.search(raw.cells.get("scale_header", "").strip()):
+        return None
     return _clean(1 / factor) if said == "divide" else factor
 
 

@@ -65,7 +65,7 @@ def table_access(text: str) -> str | None:
 class _Column:
     """Address column reading: hex-marked columns read unmarked cells as hex only when few are unmarked."""
 
-    def __init__(self, cells: list[str], radix: str | None, header: str = "") -> None:
+    def __init__(self, cells: list[str], radix: str | None, header: str = "", modicon: bool = True) -> None:
         parsed = [a for a in (parse_address(c) for c in cells if c.strip()) if a is not None]
         marked = sum(1 for a in parsed if a.marked)
         self.radix = radix or ("hex" if parsed and marked >= 0.8 * len(parsed) else "dec" if marked == 0 else None)
@@ -74,7 +74,8 @@ class _Column:
         plain = [a.dec_value for a in parsed if not a.marked and a.dec_value is not None]
         self.numbered = False
         """Plain decimal numbers under a header that does not say address: a register number from 0 or 1?"""
-        self.modicon = self.radix != "hex" and len(plain) >= 2 and (
+        self.plain = plain
+        self.modicon = modicon and self.radix != "hex" and len(plain) >= 2 and (
             all(30001 <= v <= 39999 for v in plain) or all(40001 <= v <= 49999 for v in plain))
         self.numbered = bool(plain) and not self.modicon and self.radix != "hex" \
             and not re.search(r"addr|offset|位址|地址|pdu", header, re.I)
@@ -120,12 +121,13 @@ def _hi_lo(row: Row, layout: Layout) -> Address | None:
 class GridReader:
     """One layout of one grid table, row by row."""
 
-    def __init__(self, table: Table, layout: Layout, kind: str | None, access: str | None) -> None:
+    def __init__(self, table: Table, layout: Layout, kind: str | None, access: str | None,
+                 modicon: bool = True) -> None:
         self.table, self.layout, self.kind, self.access = table, layout, kind, access
         start = (layout.header_row or 0) + (0 if layout.header_row is None else layout.header_rows)
         self.rows = table.rows[start:]
         cells = [part for r in self.rows for part in _parts(_cell(r, layout, "address"))]
-        self.column = _Column(cells, layout.radix, layout.headers.get("address", ""))
+        self.column = _Column(cells, layout.radix, layout.headers.get("address", ""), modicon)
         self.words: int | None = None
         self.raws: list[Raw] = []
         self.skipped: list[Skipped] = []
@@ -320,7 +322,25 @@ def _pairs(texts: list[str]) -> list[tuple[int, str]]:
     return out
 
 
-def grid_raws(table: Table, kind: str | None, access: str | None) -> tuple[list[Raw], list[Skipped]]:
+def plain_addresses(table: Table) -> list[int]:
+    """The plain decimal numbers of a grid table's address columns (no hex mark, not read as hex)."""
+    if table.matrix or table.loose:
+        return []
+    found: list[int] = []
+    for layout in find_layouts([r.cells for r in table.rows]):
+        if "address" in layout.roles:
+            start = (layout.header_row or 0) + (0 if layout.header_row is None else layout.header_rows)
+            cells = [part for r in table.rows[start:] for part in _parts(_cell(r, layout, "address"))]
+            column = _Column(cells, layout.radix, layout.headers.get("address", ""))
+            if column.radix != "hex":
+                found += column.plain
+    return found
+
+
+def grid_raws(table: Table, kind: str | None, access: str | None,
+              modicon: bool = True) -> tuple[list[Raw], list[Skipped]]:
+    """The rows of a grid table; ``modicon`` False: 3xxxx/4xxxx numbers are plain addresses (the document
+    prints addresses no Modicon number can be)."""
     rows = [r.cells for r in table.rows]
     layouts = find_layouts(rows)
     if not layouts:
@@ -333,7 +353,7 @@ def grid_raws(table: Table, kind: str | None, access: str | None) -> tuple[list[
     for layout in layouts:
         if "address" not in layout.roles and not {"hi_byte", "lo_byte"} <= set(layout.roles):
             continue
-        reader = GridReader(table, layout, kind, access)
+        reader = GridReader(table, layout, kind, access, modicon)
         reader.run()
         raws += reader.raws
         skipped += reader.skipped
