@@ -2,13 +2,14 @@
 
 The compiler is the front end and the model: it imports no back end. A verb that writes an output
 asks for that output's own checks by handing them in (``checks``: anything with an exporter's
-``validate(document)``; ``build`` and ``check`` hand in the python and docs exporters, ``export``
+``validate(model)``, run on the located model once the front end has passed; ``build`` and ``check`` hand in the python and docs exporters, ``export``
 the exporter it runs, ``drivemap validate --exporter NAME`` the ones named); by default none run.
 """
 
 from __future__ import annotations
 
 import hashlib
+import inspect
 import os
 import stat
 import sys
@@ -39,7 +40,7 @@ def display_path(path: str | os.PathLike[str]) -> str:
 class MapCheck(Protocol):
     """An output's own checks of a map that passed the front end (an exporter's ``validate``)."""
 
-    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]: ...
+    def validate(self, model: Model, options: Any = None) -> Iterable[Problem]: ...
 
 
 def compile_map(path: str | os.PathLike[str], checks: Sequence[MapCheck] = ()) -> Model:
@@ -165,13 +166,29 @@ def compile_document(doc: Document, checks: Sequence[MapCheck] = ()) -> Model:
     if errors:
         raise CompileError(family.note_overrides(doc, errors))
     problems, statuses = semantic.check(doc)
-    for check in checks:
-        problems += semantic.located(doc, check.validate(doc.data))
     if problems:
         raise CompileError(family.note_overrides(doc, problems))
     lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
     model = build_model(shown, doc.data, statuses, lines, doc.positions.at)  # type: ignore[arg-type]
-    return replace(model, format_version=version or formats.CURRENT, variant=variant)
+    model = replace(model, format_version=version or formats.CURRENT, variant=variant)
+    for check in checks:  # outputs' own checks walk the located model; their YAML paths are placed in the map
+        problems += semantic.located(doc, run_check(check, model, doc.data))
+    if problems:
+        raise CompileError(family.note_overrides(doc, problems))
+    return model
+
+
+def run_check(check: MapCheck, model: Model, document: Mapping[str, Any]) -> Iterable[Problem]:
+    """``check.validate(model)``; a plugin written against drivemap 0.2 or before, whose ``validate`` takes the
+    YAML document (its first parameter named ``document``), gets the document and a deprecation warning
+    (removal: drivemap 0.4)."""
+    params = list(inspect.signature(check.validate).parameters)
+    if params[:1] == ["document"]:
+        warnings.warn(f"{type(check).__name__}.validate(document) reads the YAML dict: take the model instead "
+                      "(validate(self, model, options=None)); the dict form goes in drivemap 0.4",
+                      DeprecationWarning, stacklevel=2)
+        return check.validate(document)  # type: ignore[arg-type]
+    return check.validate(model)
 
 
 def map_paths() -> list[Path]:

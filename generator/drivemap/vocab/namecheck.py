@@ -17,7 +17,9 @@ read from the templates' real output) and against each other:
 * group names against each other, and every heading anchor of the docs page against every other
   (``Parity`` / ``PARITY``, a group titled ``Enums``).
 
-:func:`problems` yields (where, message, options of :meth:`Checker.error`).
+:func:`python_problems` and :func:`docs_problems` walk the compiled model (not the YAML dict) and yield
+(YAML path, message, options of :meth:`Checker.error`), each path taken from the node's own source
+reference (``src``; the same index path where a model was built without one).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from collections.abc import Iterator
 from typing import Any
 
 from drivemap.diagnostics import Problem
-from drivemap.model.nodes import camel, is_keyword
+from drivemap.model.nodes import Model, camel, is_keyword
+from drivemap.model.source import YamlPath
 from drivemap.runtime.names import FIXED_NAMES, UNKNOWN_MEMBER, bit_attribute, exception_classes
 from drivemap.vocab.escape import md_text, slug
 from drivemap.vocab.reserved import reserved
@@ -46,48 +49,55 @@ CLIENT_ATTRIBUTES = frozenset(
 
 
 
-def python_problems(data: dict[str, Any]) -> Iterator[Problem]:
+def _at(node: object, fallback: YamlPath, *tail: str | int) -> YamlPath:
+    """The node's YAML path (its ``src``), else ``fallback``; then ``tail``."""
+    src = getattr(node, "src", None)
+    return (*(src.yaml_path if src is not None else fallback), *tail)
+
+
+def python_problems(model: Model) -> Iterator[Problem]:
     """Every collision of a map's names with the generated Python package (the python exporter's hook)."""
-    yield from _model_id(data, "python")
-    yield from _classes(data)
-    yield from _registers(data)
-    yield from _bits(data)
-    yield from _enum_members(data)
+    yield from _model_id(model, "python")
+    yield from _classes(model)
+    yield from _registers(model)
+    yield from _bits(model)
+    yield from _enum_members(model)
 
 
-def docs_problems(data: dict[str, Any]) -> Iterator[Problem]:
+def docs_problems(model: Model) -> Iterator[Problem]:
     """Every collision of a map's names on its generated docs page (the docs exporter's hook)."""
-    yield from _model_id(data, "docs")
-    yield from _groups(data)
-    yield from _anchors(data)
+    yield from _model_id(model, "docs")
+    yield from _groups(model)
+    yield from _anchors(model)
 
 
-def _model_id(data: dict[str, Any], only: str) -> Iterator[Problem]:
-    model = data["device"]["model"]
+def _model_id(model: Model, only: str) -> Iterator[Problem]:
+    name = model.name
     for exporter, per_model, once in reserved().outputs:
         if exporter != only:
             continue
         for pattern in sorted(per_model):
-            path = pattern.replace("{model}", model)
+            path = pattern.replace("{model}", name)
             clash = next((f for f in sorted(once) if f == path or f.startswith(path + "/")
                           or path.startswith(f + "/")), None)
             if clash is not None:
-                yield (("device", "model"), f"model id {model!r} would write {path}, the file the {exporter} exporter "
+                yield (("device", "model"), f"model id {name!r} would write {path}, the file the {exporter} exporter "
                                             "writes once for all models; choose another id", {})
 
 
-def _bits_class_names(data: dict[str, Any]) -> Iterator[tuple[str, tuple[str | int, ...]]]:
-    for i, reg in enumerate(data["registers"]):
-        if reg.get("bits"):
-            yield reg.get("flags_name") or camel(reg["name"]), ("registers", i, "flags_name" if reg.get("flags_name")
-                                                                 else "name")
+def _bits_class_names(model: Model) -> Iterator[tuple[str, YamlPath]]:
+    for i, reg in enumerate(model.registers):
+        if reg.bits:
+            yield reg.flags_name or camel(reg.name), _at(reg, ("registers", i), "flags_name" if reg.flags_name
+                                                          else "name")
 
 
-def _classes(data: dict[str, Any]) -> Iterator[Problem]:
+def _classes(model: Model) -> Iterator[Problem]:
     taken = reserved().module
-    owners: dict[str, tuple[str, tuple[str | int, ...]]] = {}
-    for name in data.get("enums", {}):
-        where: tuple[str | int, ...] = ("enums", name)
+    owners: dict[str, tuple[str, YamlPath]] = {}
+    for enum in model.enums:
+        name = enum.name
+        where = _at(enum, ("enums", name))
         if name in FIXED_NAMES:
             yield where, f"enum name {name!r} is taken by the generated client package", {"key": True}
         else:
@@ -96,7 +106,7 @@ def _classes(data: dict[str, Any]) -> Iterator[Problem]:
             elif is_keyword(name):
                 yield where, f"enum name {name!r} is a Python keyword", {"key": True}
         owners.setdefault(name, (f"enum {name}", where))
-    for cls, where in _bits_class_names(data):
+    for cls, where in _bits_class_names(model):
         if cls in FIXED_NAMES:
             yield where, f"bit-field class name {cls!r} is taken by the generated client package", {}
         elif cls in taken:
@@ -104,30 +114,31 @@ def _classes(data: dict[str, Any]) -> Iterator[Problem]:
         elif is_keyword(cls):
             yield where, f"bit-field class name {cls!r} is a Python keyword", {}
         owners.setdefault(cls, (f"the bit-field class of registers[{where[1]}]", where))
-    exceptions = data["protocol"]["exceptions"]
-    classes = exception_classes([(e["name"], e["code"]) for e in exceptions])
+    exceptions = model.protocol.exceptions
+    classes = exception_classes([(e.name, e.code) for e in exceptions])
     for i, cls in enumerate(classes):
-        where = ("protocol", "exceptions", i, "name")
+        exc = exceptions[i]
+        where = _at(exc, ("protocol", "exceptions", i), "name")
         other = owners.get(cls)
         if cls in taken:
-            yield where, f"exception {exceptions[i]['name']!r} becomes class {cls!r}, a name the generated client " \
+            yield where, f"exception {exc.name!r} becomes class {cls!r}, a name the generated client " \
                          "module imports or defines", {}
         elif other is not None:
-            yield where, f"exception {exceptions[i]['name']!r} becomes class {cls!r}, which {other[0]} also defines", {
+            yield where, f"exception {exc.name!r} becomes class {cls!r}, which {other[0]} also defines", {
                 "related": other[1], "note": "defined here", "related_key": other[1][0] == "enums"}
-        owners.setdefault(cls, (f"exception {exceptions[i]['name']!r}", where))
+        owners.setdefault(cls, (f"exception {exc.name!r}", where))
 
 
-def _registers(data: dict[str, Any]) -> Iterator[Problem]:
+def _registers(model: Model) -> Iterator[Problem]:
     shadowed = reserved().annotation
     attributes = reserved().client
     seen: set[str] = set()
-    for i, reg in enumerate(data["registers"]):
-        name = reg["name"]
+    for i, reg in enumerate(model.registers):
+        name = reg.name
         if name in seen or is_keyword(name):
             continue  # reported by the register checks
         seen.add(name)
-        where: tuple[str | int, ...] = ("registers", i, "name")
+        where = _at(reg, ("registers", i), "name")
         if name in CLIENT_ATTRIBUTES:
             yield where, f"register name {name!r} clashes with a client attribute", {}
         elif name in shadowed:
@@ -136,68 +147,63 @@ def _registers(data: dict[str, Any]) -> Iterator[Problem]:
             yield where, f"register name {name!r} clashes with a client attribute", {}
 
 
-def _is_record(reg: dict[str, Any]) -> bool:
-    """Rendered as a frozen dataclass (multi-bit or enumerated fields), as :func:`views.client.bits_kind` says."""
-    return any(b.get("width", 1) > 1 or b.get("enum") for b in reg.get("bits", ()))
-
-
-def _bits(data: dict[str, Any]) -> Iterator[Problem]:
+def _bits(model: Model) -> Iterator[Problem]:
+    """Bit-field attributes of a register rendered as a frozen dataclass (multi-bit or enumerated fields,
+    as :func:`views.client.bits_kind` says)."""
     shadowed = reserved().annotation
-    for i, reg in enumerate(data["registers"]):
-        if not _is_record(reg):
+    for i, reg in enumerate(model.registers):
+        if not any(b.width > 1 or b.enum for b in reg.bits):
             continue
         attributes: dict[str, int] = {}
-        for j, bit in enumerate(reg["bits"]):
-            attr = bit_attribute(bit["name"])
-            where: tuple[str | int, ...] = ("registers", i, "bits", j, "name")
-            if attr in attributes and reg["bits"][attributes[attr]]["name"] != bit["name"]:
-                first = reg["bits"][attributes[attr]]["name"]
-                yield where, f"bit fields {first!r} and {bit['name']!r} both become the attribute {attr!r}", {
-                    "related": ("registers", i, "bits", attributes[attr], "name")}
+        for j, bit in enumerate(reg.bits):
+            attr = bit_attribute(bit.name)
+            where = _at(bit, ("registers", i, "bits", j), "name")
+            if attr in attributes and reg.bits[attributes[attr]].name != bit.name:
+                first = reg.bits[attributes[attr]]
+                yield where, f"bit fields {first.name!r} and {bit.name!r} both become the attribute {attr!r}", {
+                    "related": _at(first, ("registers", i, "bits", attributes[attr]), "name")}
             elif attr in shadowed:
-                yield where, f"bit field {bit['name']!r} becomes the attribute {attr!r}, which would shadow the " \
+                yield where, f"bit field {bit.name!r} becomes the attribute {attr!r}, which would shadow the " \
                              "builtin in the generated class", {}
             attributes.setdefault(attr, j)
 
 
-def _enum_members(data: dict[str, Any]) -> Iterator[Problem]:
+def _enum_members(model: Model) -> Iterator[Problem]:
     pseudo = re.compile(re.escape(UNKNOWN_MEMBER) + r"-?\d+$")
-    for name, enum in data.get("enums", {}).items():
-        for j, item in enumerate(enum["values"]):
-            if pseudo.match(item["name"]):
-                yield ("enums", name, "values", j, "name"), (
-                    f"enum member {item['name']!r} looks like the name a generated enum gives a value the map "
+    for enum in model.enums:
+        for j, member in enumerate(enum.members):
+            if pseudo.match(member.name):
+                yield _at(member, ("enums", enum.name, "values", j), "name"), (
+                    f"enum member {member.name!r} looks like the name a generated enum gives a value the map "
                     f"does not name ({UNKNOWN_MEMBER}<value>)"), {}
 
 
-def _groups(data: dict[str, Any]) -> Iterator[Problem]:
-    seen: dict[str, int] = {}
-    for i, group in enumerate(data.get("groups", ())):
-        if group["name"] in seen:
-            yield ("groups", i, "name"), f"duplicate group name {group['name']!r}", {
-                "related": ("groups", seen[group["name"]], "name")}
-        seen.setdefault(group["name"], i)
+def _groups(model: Model) -> Iterator[Problem]:
+    seen: dict[str, YamlPath] = {}
+    for i, group in enumerate(model.groups):
+        where = _at(group, ("groups", i), "name")
+        if group.name in seen:
+            yield where, f"duplicate group name {group.name!r}", {"related": seen[group.name]}
+        seen.setdefault(group.name, where)
 
 
-def _anchors(data: dict[str, Any]) -> Iterator[Problem]:
+def _anchors(model: Model) -> Iterator[Problem]:
     """Headings of the model's docs page whose anchors collide (a link to one would lead to the other)."""
-    owners: dict[str, tuple[str, tuple[str | int, ...] | None]] = {a: ("a fixed section of the page", None) for a in reserved().headings}
-    headings: list[tuple[str, tuple[str | int, ...], dict[str, Any]]] = []
-    for i, port in enumerate(data["protocol"]["ports"]):
-        headings.append((f"Port {md_text(port['name'])}", ("protocol", "ports", i, "name"), {}))
-    for i, group in enumerate(data.get("groups", ())):
-        headings.append((md_text(group["title"]), ("groups", i, "title"), {}))
-    for name in data.get("enums", {}):
-        headings.append((f"Enum {name}", ("enums", name), {"key": True}))
-    names = {reg["name"]: i for i, reg in reversed(list(enumerate(data["registers"])))}
-    for name, i in names.items():  # a repeated register or example name is reported by its own check
-        if data["registers"][i].get("bits"):
-            headings.append((f"Bits of {name}", ("registers", i, "name"), {}))
-    examples = {ex["name"]: i for i, ex in reversed(list(enumerate(data["examples"])))}
-    for name, i in examples.items():
-        headings.append((f"Example {name}", ("examples", i, "name"), {}))
-    for i, issue in enumerate(data.get("known_issues", ())):
-        headings.append((f"{i + 1}. {md_text(issue['title'])}", ("known_issues", i, "title"), {}))
+    owners: dict[str, tuple[str, YamlPath | None]] = {a: ("a fixed section of the page", None) for a in reserved().headings}
+    headings: list[tuple[str, YamlPath, dict[str, Any]]] = []
+    for i, port in enumerate(model.protocol.ports):
+        headings.append((f"Port {md_text(port.name)}", _at(port, ("protocol", "ports", i), "name"), {}))
+    for i, group in enumerate(model.groups):
+        headings.append((md_text(group.title), _at(group, ("groups", i), "title"), {}))
+    for enum in model.enums:
+        headings.append((f"Enum {enum.name}", _at(enum, ("enums", enum.name)), {"key": True}))
+    for i, reg in enumerate(model.registers):
+        if reg.bits:
+            headings.append((f"Bits of {reg.name}", _at(reg, ("registers", i), "name"), {}))
+    for i, ex in enumerate(model.examples):
+        headings.append((f"Example {ex.name}", _at(ex, ("examples", i), "name"), {}))
+    for i, issue in enumerate(model.known_issues):
+        headings.append((f"{i + 1}. {md_text(issue.title)}", _at(issue, ("known_issues", i), "title"), {}))
     for text, where, options in headings:
         anchor = slug(text)
         other = owners.get(anchor)

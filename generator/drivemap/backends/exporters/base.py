@@ -14,8 +14,8 @@ and is then listed by ``drivemap export --list`` and run by ``drivemap export MO
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from collections.abc import Iterable, Sequence
+from typing import ClassVar, Protocol, runtime_checkable
 
 from drivemap.backends.common import OptionError, Options
 from drivemap.diagnostics import Problem
@@ -50,15 +50,17 @@ class Exporter:
     def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
         """Add this exporter's own options (use ``--long-names``; their ``dest`` keys reach ``Options.values``)."""
 
-    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
-        """Exporter-side checks of a map that passed the front end (schema and semantic checks).
+    def validate(self, model: Model, options: Options | None = None) -> Iterable[Problem]:
+        """Exporter-side checks of a map that passed the front end (schema and semantic checks), on its
+        compiled model: the names and values this output could not hold (the python exporter: generated
+        names; docs: heading anchors). Nothing is rendered here.
 
-        Yields ``(path, message, options)``: ``path`` is the place in the map document (a tuple of
-        keys and indexes, as ``("registers", 3, "name")``), ``options`` those of a located error
-        (``key``, ``related``, ``note``, ``related_key``). Nothing is rendered here: an exporter checks
-        the names and values its output could not hold (the python exporter: generated names). The
-        pipeline (:func:`drivemap.compiler.compile_map`) locates them in the map's file. None by default.
-        """
+        Yields ``(path, message, options)``: ``path`` is the YAML path of the node concerned, taken from
+        the node's ``src`` (:class:`~drivemap.model.source.SourceRef`; ``reg.src.yaml_path + ("name",)``),
+        and ``options`` those of a located error (``key``, ``related``, ``note``, ``related_key``). The
+        pipeline (:func:`drivemap.compiler.compile_map`) places each in the map's file. None by default.
+        A plugin whose ``validate`` still takes the YAML document (first parameter ``document``) is given
+        it, with a deprecation warning, until drivemap 0.4."""
         return ()
 
     def render(self, model: Model, options: Options) -> dict[str, str]:

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from collections.abc import Iterable, Sequence
 
 from drivemap.backends.exporters.base import Exporter, Options, Problem
 from drivemap.model.nodes import Model
@@ -18,9 +17,9 @@ class DocsExporter(Exporter):
     suffix = ".md"
     multi_file = True
 
-    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
+    def validate(self, model: Model, options: Options | None = None) -> Iterable[Problem]:
         """Headings whose anchors collide on the model's page, and a model id the index file takes."""
-        return namecheck.docs_problems(dict(document))
+        return namecheck.docs_problems(model)
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
         from drivemap.backends.render import render_template  # Jinja only when rendering

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from collections.abc import Iterable, Sequence
 
 from drivemap.backends.exporters.base import Exporter, Options, Problem
 from drivemap.model.nodes import Model
@@ -17,9 +16,9 @@ class PythonExporter(Exporter):
     help = "typed Python package: <model>/spec.py, client.py, simulator.py (what `drivemap build` writes to out)"
     multi_file = True
 
-    def validate(self, document: Mapping[str, Any]) -> Iterable[Problem]:
+    def validate(self, model: Model, options: Options | None = None) -> Iterable[Problem]:
         """The map's names against each other and against what the generated package defines."""
-        return namecheck.python_problems(dict(document))
+        return namecheck.python_problems(model)
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
         from drivemap.backends.render import render_template  # Jinja only when rendering

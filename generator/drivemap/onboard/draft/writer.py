@@ -17,6 +17,7 @@ from drivemap.diagnostics import CompileError, Diagnostic
 from drivemap.frontend import checks, schema
 from drivemap.frontend.load import load_text
 from drivemap.model.build import build_model
+from drivemap.model.nodes import Model
 from drivemap.onboard.draft.assemble import Draft
 from drivemap.onboard.draft.fields import REVIEWED
 from drivemap.onboard.draft.tables import Drafted, Skipped
@@ -80,12 +81,11 @@ def _key_at(text: str, line: int) -> str | None:
     return None
 
 
-def _exporter_problems(doc: Any) -> list[Diagnostic]:
+def _exporter_problems(doc: Any, model: Model) -> list[Diagnostic]:
     """The name checks of the outputs ``drivemap build`` writes (generated names, docs anchors: the naming
     policy in :mod:`drivemap.vocab.namecheck`), so that a draft builds as written, not only validates."""
-    data = dict(doc.data)
     return [Diagnostic(doc.positions.at(where), message)
-            for where, message, _options in (*namecheck.python_problems(data), *namecheck.docs_problems(data))]
+            for where, message, _options in (*namecheck.python_problems(model), *namecheck.docs_problems(model))]
 
 
 def compile_text(text: str, path: str) -> list[Diagnostic]:
@@ -96,11 +96,11 @@ def compile_text(text: str, path: str) -> list[Diagnostic]:
         if errors:
             return errors
         problems, statuses = checks.check(doc)
-        problems += _exporter_problems(doc)
         if problems:
             return problems
         lines = {r["name"]: doc.positions.at(("registers", i)).line for i, r in enumerate(doc.data["registers"])}
-        build_model(path, doc.data, statuses, lines)  # type: ignore[arg-type]
+        model = build_model(path, doc.data, statuses, lines, doc.positions.at)  # type: ignore[arg-type]
+        return _exporter_problems(doc, model)
     except CompileError as exc:
         return list(exc.diagnostics)
     return []
