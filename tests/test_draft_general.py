@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from drivemap.onboard.draft.assemble import draft
+from drivemap.onboard.draft.assemble import Hints, draft
 from drivemap.onboard.draft.read import read_document
 
 
@@ -135,3 +135,30 @@ def test_five_digit_addresses_no_modicon_number_can_be_and_an_undirected_gain(tm
     assert "address 32260 as printed, not a Modicon number" in volts["notes"] and "the document prints address 40000" in volts["notes"]
     assert "scale" not in volts and "scale" in volts["review"] and "Gain 100: raw x 100 or raw / 100?" in volts["notes"]
     assert regs["date_and_time"]["scale"] == 1  # a gain of 1 is 1 either way
+
+
+def test_a_persons_hints_fill_only_what_the_document_leaves_open(tmp_path: Path) -> None:
+    """``--assume`` and ``--address-base``: used where the document states nothing, recorded on each
+    register they decide, in the map's device notes and in the review list; refused when malformed."""
+    doc = tmp_path / "hints.csv"
+    doc.write_text("No.,Name,Type,Unit\n1,Voltage,,V\n2,Energy,U32,kWh\n3,Mode,S16,\n", encoding="utf-8")
+    plain = draft(read_document(doc), "dev")
+    regs = {str(d.entry["name"]): d for d in plain.registers}
+    assert "table" not in regs["voltage"].entry and "type" not in regs["voltage"].entry
+    assert any("0- or 1-based" in r for r in plain.review)
+    hinted = draft(read_document(doc), "dev", Hints((("table", "input"), ("type", "f32"), ("word_order", "low_first")), 1))
+    regs = {str(d.entry["name"]): d for d in hinted.registers}
+    volts, energy, mode = regs["voltage"], regs["energy"], regs["mode"]
+    assert volts.entry["table"] == "input" and volts.entry["type"] == "f32" and volts.entry["word_order"] == "low_first"
+    assert volts.entry["address"] == 0 and energy.entry["address"] == 1  # numbered from 1, as the person said
+    assert "type f32: source: assumed by the user (--assume type=f32)" in volts.notes
+    assert "table input: source: assumed by the user (--assume table=input)" in volts.notes
+    assert energy.entry["type"] == "u32" and mode.entry["type"] == "s16"  # the document's types stand
+    assert "word_order low_first: source: assumed by the user (--assume word_order=low_first)" in energy.notes
+    assert "assumed by the user, not read from the document: --assume table=input" in hinted.data["device"]["notes"]
+    assert any(r.startswith("assumed by the user: --address-base 1") for r in hinted.review)
+    assert not any("0- or 1-based" in r for r in hinted.review)
+    as_printed = draft(read_document(doc), "dev", Hints((), 0))
+    regs = {str(d.entry["name"]): d for d in as_printed.registers}
+    assert regs["voltage"].entry["address"] == 1 and not any("0- or 1-based" in r for r in as_printed.review)
+    assert "address as printed: source: assumed by the user (--address-base 0)" in regs["voltage"].notes

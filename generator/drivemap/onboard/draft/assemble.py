@@ -18,6 +18,32 @@ PLACEHOLDERS = ("protocol.unit_ids (1..247)", "protocol.ports (settings unknown)
                 "(from the tables drafted; max_quantity null)", "protocol.exceptions (none)", "protocol.timing (null)")
 
 
+#: the fields ``--assume FIELD=VALUE`` may give, and the values each takes
+ASSUMABLE: dict[str, tuple[str, ...]] = {
+    "table": ("holding", "input", "coil", "discrete"),
+    "type": ("u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64"),
+    "word_order": ("high_first", "low_first"),
+}
+
+
+@dataclass(frozen=True)
+class Hints:
+    """What a person tells the draft (``--assume FIELD=VALUE``, ``--address-base N``): used only where the
+    document does not state the field, and recorded on every register it decides and in the review list."""
+
+    assume: tuple[tuple[str, str], ...] = ()
+    address_base: int | None = None
+
+    def value(self, key: str) -> str | None:
+        return next((v for k, v in self.assume if k == key), None)
+
+    def said(self) -> list[str]:
+        out = [f"--assume {k}={v}" for k, v in self.assume]
+        if self.address_base is not None:
+            out.append(f"--address-base {self.address_base}")
+        return out
+
+
 @dataclass
 class Draft:
     """Everything the draft found: the map data, each register's review facts, skipped rows."""
@@ -181,8 +207,33 @@ def _document_kind(text: str) -> str | None:
     return {frozenset({"03"}): "holding", frozenset({"04"}): "input"}.get(frozenset(reads))
 
 
-def draft(source: Source, model: str) -> Draft:
+def _assumed(raws: list[Raw], hints: Hints) -> None:
+    """``--assume table=`` / ``type=`` on the rows whose document leaves that field open."""
+    table, rtype = hints.value("table"), hints.value("type")
+    for raw in raws:
+        if table is not None and raw.table is None:
+            raw.table = table
+            raw.notes.append(f"table {table}: source: assumed by the user (--assume table={table})")
+        if rtype is not None and raw.table not in ("coil", "discrete") and not raw.cells.get("type", "").strip():
+            raw.cells["type"] = rtype
+            raw.notes.append(f"type {rtype}: source: assumed by the user (--assume type={rtype})")
+
+
+def _context(source: Source, hints: Hints) -> Context:
+    """The document's statements, and the person's hints where the document states nothing."""
     ctx = document_context(source)
+    order = hints.value("word_order")
+    if order is not None and ctx.word_order is None:
+        ctx.word_order = order
+        ctx.word_order_source = f"source: assumed by the user (--assume word_order={order})"
+    if hints.address_base == 1 and not ctx.base_one:
+        ctx.base_one = "source: assumed by the user (--address-base 1)"
+    return ctx
+
+
+def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
+    hints = hints or Hints()
+    ctx = _context(source, hints)
     registers: list[Drafted] = []
     skipped: list[Skipped] = []
     groups: list[dict[str, Any]] = []
@@ -191,6 +242,7 @@ def draft(source: Source, model: str) -> Draft:
     not_modicon = _not_modicon(source)
     for table in source.tables:
         raws, skip = _raws(source, table, not_modicon)
+        _assumed(raws, hints)
         skipped += skip
         if not raws:
             continue
@@ -219,9 +271,19 @@ def draft(source: Source, model: str) -> Draft:
             _finish(d, source.name, names)
         registers += drafts
     data = _document(source, model, groups, registers)
+    if hints.said():
+        data["device"]["notes"] += ("; assumed by the user, not read from the document: " + ", ".join(hints.said())
+                                    + " (each register it decided says so in its notes)")
     review = list(PLACEHOLDERS)
+    if hints.address_base == 0:
+        for d in registers:
+            if any("as printed under" in n for n in d.notes):
+                d.notes = [n for n in d.notes if "as printed under" not in n]
+                d.notes.append("address as printed: source: assumed by the user (--address-base 0)")
     if any("as printed under" in n for d in registers for n in d.notes):
         review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
+    review += [f"assumed by the user: {said} (the registers it decided say so in their notes)"
+               for said in hints.said()]
     return Draft(data, registers, skipped, found, review)
 
 

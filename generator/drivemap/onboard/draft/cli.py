@@ -1,4 +1,5 @@
-"""``drivemap draft DOCUMENT [-o maps/ID.yaml] [--model ID] [--pages 3-9] [--force]``."""
+"""``drivemap draft DOCUMENT [-o maps/ID.yaml] [--model ID] [--pages 3-9] [--sheet NAME] [--assume FIELD=VALUE]
+[--address-base 0|1] [--review FILE.html] [--force]``."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from types import FrameType
 
 from drivemap.frontend.project import display, load_project
 from drivemap.frontend.schema import SCHEMA_PATH
-from drivemap.onboard.draft.assemble import draft
+from drivemap.onboard.draft.assemble import ASSUMABLE, Hints, draft
 from drivemap.onboard.draft.naming import snake
 from drivemap.onboard.draft.read import DocumentError, TimeLimit, read_document
 from drivemap.onboard.draft.summary import print_summary
@@ -36,6 +37,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help=f"read at most this many PDF pages (1 to {MAX_PAGES}; default 400)")
     s.add_argument("--timeout", type=_seconds, default=300.0, metavar="S",
                    help=f"give up after this many seconds (above 0, up to {MAX_TIMEOUT:g}; default 300)")
+    s.add_argument("--sheet", default=None, metavar="NAME", help="read only this sheet of a workbook (XLSX)")
+    s.add_argument("--assume", action="append", default=[], metavar="FIELD=VALUE",
+                   help="what the document leaves open and you know: table=holding|input|coil|discrete, "
+                        "type=u16|s16|u32|s32|u64|s64|f32|f64, word_order=high_first|low_first (repeatable; used "
+                        "only where the document states nothing, and recorded on each register it decides)")
+    s.add_argument("--address-base", type=int, choices=(0, 1), default=None, metavar="0|1",
+                   help="plain register numbers the draft cannot place: 1 (the protocol address is one less) "
+                        "or 0 (as printed)")
     s.add_argument("--review", default=None, metavar="FILE.html",
                    help="also write a review page: each table beside the page it came from, open fields, skipped rows")
     s.add_argument("--force", action="store_true", help="replace an existing output file")
@@ -71,6 +80,22 @@ def _seconds(text: str) -> float:
     if not math.isfinite(value) or not 0 < value <= MAX_TIMEOUT:
         raise argparse.ArgumentTypeError(f"{text!r}: give seconds above 0 up to {MAX_TIMEOUT:g}")
     return value
+
+
+def _hints(args: argparse.Namespace) -> Hints:
+    """``--assume FIELD=VALUE`` (each field once, a value the field takes) and ``--address-base``."""
+    seen: dict[str, str] = {}
+    for item in args.assume:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or key not in ASSUMABLE:
+            raise DraftError(f"--assume {item!r}: give FIELD=VALUE, FIELD one of {', '.join(ASSUMABLE)}")
+        if value not in ASSUMABLE[key]:
+            raise DraftError(f"--assume {item!r}: {key} is one of {', '.join(ASSUMABLE[key])}")
+        if key in seen and seen[key] != value:
+            raise DraftError(f"--assume {key}={seen[key]} and {key}={value}: one value per field")
+        seen[key] = value
+    return Hints(tuple(seen.items()), args.address_base)
 
 
 def _pages(text: str | None) -> tuple[int, int] | None:
@@ -171,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
     target = Path(args.output) if args.output else load_project().maps_folder() / f"{model}.yaml"
     if os.path.lexists(target) and not args.force:
         raise DraftError(f"{display(target)} exists; not overwritten (use --force)")
+    hints = _hints(args)
     review = Path(args.review) if args.review else None
     if review is not None:
         if review.suffix.lower() not in (".html", ".htm"):
@@ -178,15 +204,17 @@ def run(args: argparse.Namespace) -> int:
         if os.path.lexists(review) and not args.force:
             raise DraftError(f"{display(review)} exists; not overwritten (use --force)")
     with _time_limit(args.timeout), _progress(path.name, args.timeout) as tell:
-        source = read_document(path, _pages(args.pages), args.max_pages, args.timeout, tell)
+        source = read_document(path, _pages(args.pages), args.max_pages, args.timeout, tell, args.sheet)
         rows = sum(len(t.rows) for t in source.tables)
         tell(f"drafting {rows:,} row{'s' if rows != 1 else ''} of {len(source.tables)} "
              f"table{'s' if len(source.tables) != 1 else ''}")
-        result = draft(source, model)
+        result = draft(source, model, hints)
         if not result.registers:
             count = len(result.skipped)
             why = f" ({count} row{'s' if count != 1 else ''} skipped: {result.skipped[0].reason})" if count else ""
-            raise DraftError(f"no register table found: no table with an address column{why}")
+            sheets = [t.label for t in source.tables if t.label.startswith("sheet ")]
+            tried = f"; tried {', '.join(sheets)} (--sheet NAME picks one)" if sheets else ""
+            raise DraftError(f"no register table found: no table with an address column{why}{tried}")
         tell(f"checking the map of {len(result.registers):,} registers")
         text, errors = settle(result, _header(source.name, source.sha256, target), display(target))
     if errors:

@@ -236,7 +236,9 @@ def _unsized(_sheet: Any) -> None:
     with max_row/max_col given, so the size is never needed."""
 
 
-def read_xlsx(path: Path) -> tuple[list[Table], str, list[str]]:
+def read_xlsx(path: Path, sheet_name: str | None = None) -> tuple[list[Table], str, list[str]]:
+    """Every sheet of a workbook as a table (``sheet_name``: that sheet only; a name the workbook does not
+    have is refused, naming the sheets it has)."""
     import openpyxl
     from openpyxl.worksheet._read_only import ReadOnlyWorksheet
 
@@ -247,7 +249,15 @@ def read_xlsx(path: Path) -> tuple[list[Table], str, list[str]]:
         raise DraftError(f"cannot read the workbook: {type(exc).__name__}: {exc}") from None
     tables, texts, notes = [], [], []
     try:
-        for sheet in book.worksheets:
+        sheets = book.worksheets
+        if sheet_name is not None:
+            sheets = [s for s in sheets if s.title == sheet_name]
+            if not sheets:
+                names = ", ".join(repr(s.title) for s in book.worksheets)
+                raise DraftError(f"--sheet {sheet_name!r}: the workbook has no such sheet (its sheets: {names})")
+            notes.append(f"--sheet {sheet_name!r}: only that sheet was read "
+                         f"({len(book.worksheets) - 1} other sheet{'s' if len(book.worksheets) != 2 else ''} left out)")
+        for sheet in sheets:
             try:
                 grid, more = _sheet_grid(sheet)
                 merged = _fill_merged(sheet, grid)
@@ -320,8 +330,10 @@ def _continued(tables: list[Table], rows: list[Row], recent: list[str]) -> Table
 
 
 def read_document(path: Path, pages: tuple[int, int] | None = None, max_pages: int = 400,
-                  seconds: float = 120.0, progress: Callable[[str], None] | None = None) -> Source:
-    """The tables and text of ``path`` (``progress`` is told what is being read: a PDF's pages)."""
+                  seconds: float = 120.0, progress: Callable[[str], None] | None = None,
+                  sheet: str | None = None) -> Source:
+    """The tables and text of ``path`` (``progress`` is told what is being read: a PDF's pages;
+    ``sheet``: a workbook's sheet to read alone)."""
     data = _bytes(path)
     sha = hashlib.sha256(data).hexdigest()
     kind = kind_of(path, data)
@@ -330,9 +342,11 @@ def read_document(path: Path, pages: tuple[int, int] | None = None, max_pages: i
         from drivemap.onboard.draft.read_pdf import read_pdf
 
         tables, text, count, notes = read_pdf(path, pages, max_pages, seconds, progress)
+        if sheet is not None:
+            notes.append("--sheet applies to workbooks (XLSX) only: the whole document was read")
         return Source(path.name, sha, tables, text, count, notes)
     if kind == "xlsx":
-        tables, text, notes = read_xlsx(path)
+        tables, text, notes = read_xlsx(path, sheet)
     elif kind == "docx":
         tables, text = read_docx(path)
     elif kind == "csv":
@@ -343,4 +357,6 @@ def read_document(path: Path, pages: tuple[int, int] | None = None, max_pages: i
         tables = read_text(text, is_html=kind == "html")
     if pages is not None and kind != "pdf":
         notes.append("--pages applies to PDF documents only: the whole document was read")
+    if sheet is not None and kind != "xlsx":
+        notes.append("--sheet applies to workbooks (XLSX) only: the whole document was read")
     return Source(path.name, sha, tables, text, 0, notes)
