@@ -162,3 +162,18 @@ def test_a_persons_hints_fill_only_what_the_document_leaves_open(tmp_path: Path)
     regs = {str(d.entry["name"]): d for d in as_printed.registers}
     assert regs["voltage"].entry["address"] == 1 and not any("0- or 1-based" in r for r in as_printed.review)
     assert "address as printed: source: assumed by the user (--address-base 0)" in regs["voltage"].notes
+
+
+def test_iec_hex_addresses_and_a_cell_whose_two_forms_disagree(tmp_path: Path) -> None:
+    """``16#2136`` is IEC 61131-3 hex; ``16#2136 = 08502`` prints the decimal beside it. Where the two
+    disagree, the row is listed with both readings, never drafted at either."""
+    doc = tmp_path / "vfd.csv"
+    doc.write_text("Address,Name,Type,Unit\n16#2136 = 08502,Output frequency,U16,0.01Hz\n16#2137,Output current,U16,"
+                   "0.1A\n16#2138 = 08510,Output voltage,U16,V\n", encoding="utf-8")
+    result = draft(read_document(doc), "dev")
+    regs = {str(d.entry["name"]): d.entry for d in result.registers}
+    assert regs["output_frequency"]["address"] == 0x2136 and regs["output_current"]["address"] == 0x2137
+    assert "output_voltage" not in regs
+    (skip,) = result.skipped
+    assert skip.reason == "address '16#2138 = 08510': 16#2138 is 8504, the decimal beside it says 8510: the two " \
+                          "forms disagree"

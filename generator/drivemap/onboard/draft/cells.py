@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 _HEX_MARKED = re.compile(r"^(?:0[xX]([0-9A-Fa-f]{1,5})|([0-9A-Fa-f]{1,5})\s?[hH])$")
 _PLAIN = re.compile(r"^\d{1,6}$")
+#: IEC 61131-3 hex literal, with the decimal a vendor prints beside it: ``16#2136``, ``16#2136 = 08502``
+_IEC_HEX = re.compile(r"^16#([0-9A-Fa-f]{1,5})(?:\s*[=/(]\s*(\d{1,6})\)?)?$")
 _BARE_HEX = re.compile(r"^[0-9A-Fa-f]{2,5}$")
 _ADDR_RANGE = re.compile(r"^(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?\s*(?:~|-|–|to)\s*(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?$")
 
@@ -27,17 +29,33 @@ class Address:
 
 
 def parse_address(text: str) -> Address | None:
-    """``00E6H``, ``0x1A``, ``1A2Bh``, ``40001``, ``0100`` (radix left to the column) -> Address."""
+    """``00E6H``, ``0x1A``, ``1A2Bh``, ``16#1A2B`` (IEC; ``16#2136 = 08502`` where both forms agree),
+    ``40001``, ``0100`` (radix left to the column) -> Address."""
     t = text.strip().strip("()[]").strip()
     t = t[:-1] if re.fullmatch(r"\d{1,6}\.", t) else t  # "0." of a numbered list of registers
     t = t.replace("O", "0") if re.fullmatch(r"[0-9A-FO]{4}[hH]", t) else t
     m = _HEX_MARKED.match(t)
     if m:
         return Address(text, int(m.group(1) or m.group(2), 16), None, True)
+    iec = _IEC_HEX.match(t)
+    if iec:
+        value = int(iec.group(1), 16)
+        if iec.group(2) is not None and int(iec.group(2)) != value:
+            return None  # the two forms of one cell disagree: no address is read from it
+        return Address(text, value, None, True)
     if _PLAIN.match(t):
         return Address(text, int(t, 16) if len(t) <= 5 else None, int(t), False)
     if _BARE_HEX.match(t) and re.search(r"[A-Fa-f]", t):
         return Address(text, int(t, 16), None, True)
+    return None
+
+
+def address_conflict(text: str) -> str | None:
+    """Why an address cell printed in two forms is not read: the forms disagree (``16#2138 = 08510``)."""
+    iec = _IEC_HEX.match(text.strip())
+    if iec and iec.group(2) is not None and int(iec.group(2)) != int(iec.group(1), 16):
+        return (f"address {text.strip()!r}: 16#{iec.group(1)} is {int(iec.group(1), 16)}, the decimal beside it "
+                f"says {int(iec.group(2))}: the two forms disagree")
     return None
 
 

@@ -11,6 +11,7 @@ import re
 
 from drivemap.onboard.draft.cells import (
     Address,
+    address_conflict,
     bit_index,
     is_address_range,
     parse_address,
@@ -194,7 +195,8 @@ class GridReader:
             if text and is_address_range(text):
                 self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), "address range (reserved block)"))
             elif text:
-                self.skipped.append(Skipped(self.where(row), " | ".join(row.cells), f"address {text!r} not readable"))
+                self.skipped.append(Skipped(self.where(row), " | ".join(row.cells),
+                                            address_conflict(text) or f"address {text!r} not readable"))
             elif not self.raws and len([c for c in row.cells if c.strip()]) >= 2:
                 self.skipped.append(Skipped(self.where(row), " | ".join(c for c in row.cells if c.strip()),
                                             "no address in the address column"))
