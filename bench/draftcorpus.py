@@ -4,7 +4,8 @@ against its truth file (``shared/draft-corpus/truth/<name>.json``, see that fold
 Each document is drafted in a child process (the verb's code, nothing written; the child reports its
 tool time and peak resident memory) and every truth register is scored on the map **as written**:
 
-* **found**: a drafted register (or array element) at the truth's exact 0-based address;
+* **found**: a drafted register (or array element) at the truth's exact 0-based address (in another table
+  only where the truth has no register of its own at that address in that table);
 * **exact**: found, and table, type, scale and unit as the truth says: a field the draft leaves out
   reads as the schema's default (holding, u16, 1); (scale, unit) pairs that differ by an SI prefix
   only are equal (0.001 kWh = 1 Wh); a drafted unit is not wrong where the truth unit is null;
@@ -173,8 +174,13 @@ def score_draft(document: str, truth: list[dict[str, Any]], registers: list[dict
     listed: set[int] = set()
     for text in skipped_texts:
         listed |= _numbers(text)
+    places = {(t["table"], int(t["address"])) for t in truth}
     for t in truth:
-        candidates = at.get(int(t["address"]), [])
+        # a drafted register at this address in another table belongs to the truth register of that table,
+        # where the truth has one (Sungrow: holding 4999 "year" beside input 4999 "device type code")
+        candidates = [e for e in at.get(int(t["address"]), [])
+                      if e.get("table", "holding") == t["table"]
+                      or (e.get("table", "holding"), int(t["address"])) not in places]
         if not candidates:
             if int(t["address"]) in listed:
                 score.listed += 1

@@ -49,3 +49,14 @@ def test_si_prefix_and_unit_differences() -> None:
     assert s.wrong == ["p@1.unit: drafted 'kW', truth 'W'"]  # same scale, another prefix
     s = draftcorpus.score_draft("doc", [truth("p", 1, unit="A")], [{"name": "p", "address": 1, "unit": "V"}], [])
     assert s.wrong == ["p@1.unit: drafted 'V', truth 'A'"]
+
+
+def test_a_register_of_another_table_at_the_address_is_not_this_one() -> None:
+    """Holding 4999 "year" and input 4999 "device type code" are two registers: a draft of the input one
+    alone finds that one, and the holding one is not found (dropped), not "found with a wrong table"."""
+    both = [truth("year", 4999, "holding"), truth("code", 4999, "input")]
+    s = draftcorpus.score_draft("doc", both, [{"name": "code", "address": 4999, "table": "input"}], [])
+    assert s.found == 1 and s.dropped == ["year@4999"] and not any("table" in w for w in s.wrong)
+    # with no input register of its own in the truth, the drafted one is the holding one in the wrong table
+    s = draftcorpus.score_draft("doc", both[:1], [{"name": "code", "address": 4999, "table": "input"}], [])
+    assert s.found == 1 and any(w.startswith("year@4999.table") for w in s.wrong)
