@@ -55,11 +55,19 @@ def corpus_folder() -> Path:
     return shared_folder() / "draft-corpus"
 
 
+#: spellings of one unit (the truths write some units out): the same unit, not a wrong one
+SPELLINGS = {"hours": "h", "hour": "h", "hrs": "h", "ohm": "Ω", "ohms": "Ω", "k-ohm": "kΩ", "kohm": "kΩ",
+             "seconds": "s", "sec": "s", "minutes": "min", "volts": "V",
+             "amps": "A", "watts": "W", "degc": "°C", "℃": "°C"}
+
+
 def _si(scale: float, unit: str | None) -> tuple[float, str | None]:
-    """(scale, unit) with an SI prefix folded into the scale: (1, 'kWh') -> (1000, 'wh')."""
+    """(scale, unit) with an SI prefix folded into the scale: (1, 'kWh') -> (1000, 'wh'); a unit's
+    spelled-out forms first read as its symbol (Hours = h, k-ohm = kΩ)."""
     if unit is None:
         return scale, None
     u = unit.strip()
+    u = SPELLINGS.get(u.lower(), u)
     if len(u) > 1 and u[0] in PREFIX and u[1:].lower() in BASES:
         return scale * PREFIX[u[0]], u[1:].lower()
     return scale, u.lower()

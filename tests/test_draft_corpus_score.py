@@ -60,3 +60,11 @@ def test_a_register_of_another_table_at_the_address_is_not_this_one() -> None:
     # with no input register of its own in the truth, the drafted one is the holding one in the wrong table
     s = draftcorpus.score_draft("doc", both[:1], [{"name": "code", "address": 4999, "table": "input"}], [])
     assert s.found == 1 and any(w.startswith("year@4999.table") for w in s.wrong)
+
+
+def test_a_unit_spelled_out_is_the_same_unit() -> None:
+    s = draftcorpus.score_draft("doc", [truth("t", 1, unit="Hours"), truth("r", 2, unit="k-ohm")],
+                                [{"name": "t", "address": 1, "unit": "h"}, {"name": "r", "address": 2, "unit": "kΩ"}], [])
+    assert s.exact == 2 and s.wrong == []
+    s = draftcorpus.score_draft("doc", [truth("t", 1, unit="Hours")], [{"name": "t", "address": 1, "unit": "s"}], [])
+    assert s.wrong == ["t@1.unit: drafted 's', truth 'Hours'"]
