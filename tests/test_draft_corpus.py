@@ -25,10 +25,10 @@ pytestmark = pytest.mark.corpus
 FLOORS: dict[str, tuple[int, int, int]] = {
     "carlo_gavazzi_em24_din_v4.pdf": (0, 1, 0),
     "deye_sg0x_3p_hybrid_v105.docx": (9, 3, 0),
-    "deye_sun_1p_hybrid_v118.pdf": (0, 0, 37),
+    "deye_sun_1p_hybrid_v118.pdf": (0, 0, 0),
     "huawei_smartlogger3000.pdf": (0, 0, 0),
     "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 89),
-    "mennekes_amtron_compact20.pdf": (0, 0, 14),
+    "mennekes_amtron_compact20.pdf": (0, 0, 6),
     "mennekes_amtron_hcc3.pdf": (6, 0, 0),
     "schrack_cion.pdf": (0, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (96, 3, 4),

@@ -177,3 +177,20 @@ def test_iec_hex_addresses_and_a_cell_whose_two_forms_disagree(tmp_path: Path) -
     (skip,) = result.skipped
     assert skip.reason == "address '16#2138 = 08510': 16#2138 is 8504, the decimal beside it says 8510: the two " \
                           "forms disagree"
+
+
+def test_a_headerless_page_of_addresses_is_listed_row_by_row(tmp_path: Path) -> None:
+    """A table with no header row (its header on an earlier page, over other columns) is not read under a
+    guessed header: each of its address rows is listed as skipped with the reason."""
+    from drivemap.onboard.draft.rows import grid_raws
+    from drivemap.onboard.draft.tables import Row, Table
+
+    rows = [Row(["060", "Day active energy", "", "R"], 10, 1, table="p.10 table 1"),
+            Row(["", "continued text", "", ""], 10, 2, table="p.10 table 1"),
+            Row(["061", "Day reactive energy", "", "R"], 10, 3, table="p.10 table 1"),
+            Row(["079", "Grid frequency", "", "R"], 10, 4, table="p.10 table 1")]
+    raws, skipped = grid_raws(Table(None, rows, 10, None, "", label="p.10 table 1"), None, None)
+    assert raws == [] and [s.text.split(" | ")[0] for s in skipped] == ["060", "061", "079"]
+    assert all(s.reason.startswith("table without a header row: its columns are not known") for s in skipped)
+    text = Table(None, [Row(["Note", "a remark"], 10, 1), Row(["See", "page 3"], 10, 2)], 10, None, "")
+    assert grid_raws(text, None, None) == ([], [])  # no addresses: no register table, nothing listed

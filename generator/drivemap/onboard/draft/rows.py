@@ -348,7 +348,7 @@ def grid_raws(table: Table, kind: str | None, access: str | None,
     if not layouts:
         layout = content_layout(rows)
         if layout is None:
-            return [], _no_address(table)
+            return [], _no_address(table) or _headerless(table)
         layouts = [layout]
     raws: list[Raw] = []
     skipped: list[Skipped] = []
@@ -360,6 +360,22 @@ def grid_raws(table: Table, kind: str | None, access: str | None,
         raws += reader.raws
         skipped += reader.skipped
     return raws, skipped if raws else []  # rows of a table that is no register table are not listed
+
+
+def _headerless(table: Table) -> list[Skipped]:
+    """A table with no header row whose first column holds addresses on most rows (a page of a register
+    table whose header is on an earlier page, in other columns): each such row listed, none guessed."""
+    addressed = [r for r in table.rows if r.cells and _ADDRESSY.fullmatch(r.cells[0].strip())
+                 and parse_address(r.cells[0]) is not None]
+    if len(addressed) < 2 or len(addressed) < len([r for r in table.rows if r.cells and r.cells[0].strip()]) // 2:
+        return []
+    return [Skipped(r.where(), " | ".join(c for c in r.cells if c.strip()),
+                    "table without a header row: its columns are not known (the header may be on an earlier "
+                    "page, over other columns); not drafted") for r in addressed]
+
+
+#: a cell that is an address and nothing else (0x1A, 1A2BH, 0060, 40001)
+_ADDRESSY = re.compile(r"(?:0[xX])?[0-9A-Fa-f]{2,6}[hH]?")
 
 
 def _no_address(table: Table) -> list[Skipped]:
