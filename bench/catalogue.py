@@ -18,9 +18,15 @@ import tempfile
 from collections import Counter
 from pathlib import Path
 
-from common import ROOT  # noqa: F401 - puts the repository on sys.path
+from common import (  # noqa: E402
+    ROOT,  # noqa: F401 - puts the repository on sys.path
+    Row,
+    Section,
+)
 
 from drivemap.onboard.importers.catalogue import SOURCES, Outcome, Pair, build
+
+TITLE = "Catalogue (import, compare)"
 
 
 def shared_dir() -> Path:
@@ -52,6 +58,27 @@ def report(outcomes: list[Outcome], found: list[Pair]) -> str:
                   "imported map(s)):"]
     lines += [f"  {p.a:34s} {p.b:34s} {p.disagreements:4d}  ({p.rule})" for p in found]
     return "\n".join(lines)
+
+
+def section(quick: bool = False) -> Section:
+    """The bench section: per source, files imported to a map that validates and files that end in one
+    located error (no traceback either way), and the pairs compared (``quick`` changes nothing: one pass)."""
+    sec = Section(TITLE)
+    found: list[Pair] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        outcomes = run(Path(tmp), found)
+    for source in SOURCES:
+        mine = [o for o in outcomes if o.source == source]
+        maps, errors = sum(1 for o in mine if o.written), sum(1 for o in mine if o.error)
+        sec.rows.append(Row(TITLE, f"{source}: files that import or end in one located error",
+                            (maps + errors) / len(mine) if mine else None, "= 1.00 (no traceback)",
+                            maps + errors == len(mine), f"{len(mine)} files: {maps} maps, {errors} located errors"))
+    maps = sum(1 for o in outcomes if o.written)
+    sec.rows.append(Row(TITLE, "catalogue maps imported", None, ">= 100", maps >= 100, f"{maps} maps"))
+    sec.rows.append(Row(TITLE, "maps of one device compared", None, "each pair", None,
+                        ", ".join(f"{p.a} / {p.b}: {p.disagreements}" for p in found)))
+    sec.detail += ["```", report(outcomes, found), "```"]
+    return sec
 
 
 def main() -> int:

@@ -10,7 +10,8 @@ gateway scale (20 lines x 10 drives to MQTT), (8) import time of generated clien
 recovery (`drivemap draft` on the seed manuals against the proven maps), (10) draft recovery on public documents
 (bench/public_docs.json; the documents from $DRIVEMAP_PUBLIC_DOCS, else ../shared/public-docs), (11) the draft
 corpus (shared/draft-corpus scored against its truth files), (12) the SunSpec probe of the Fronius simulator
-against the proven map, (13) against the baseline: (2) and (8) for the tree before the runtime's layer refactor and this tree, side by side in the same run (bench/baseline.py). Every figure is
+against the proven map, probe by bisection, scan among many maps, the catalogue (every shared definition file
+imported, the maps of one device compared), (13) against the baseline: (2) and (8) for the tree before the runtime's layer refactor and this tree, side by side in the same run (bench/baseline.py). Every figure is
 the median of several bounded rounds; only 127.0.0.1 and ptys are used.
 """
 
@@ -28,6 +29,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import baseline  # noqa: E402
+import catalogue as catalogue_bench  # noqa: E402
 import compiler_scaling  # noqa: E402
 import draft as draft_bench  # noqa: E402
 import draftcorpus  # noqa: E402
@@ -316,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="Markdown report (default: bench/RESULTS.md; none with --quick)")
     ap.add_argument("--only", action="append",
                     choices=["planning", "overhead", "wire", "simulator", "compiler", "exports", "gateway", "imports",
-                             "draft", "publicdocs", "corpus", "sunspec", "probe", "scan", "baseline"],
+                             "draft", "publicdocs", "corpus", "sunspec", "probe", "scan", "catalogue", "baseline"],
                     help="run only these sections (repeatable)")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else (None if args.quick else HERE / "RESULTS.md")
@@ -338,6 +340,7 @@ def main(argv: list[str] | None = None) -> int:
         ("sunspec", sunspecprobe.TITLE, lambda: sunspecprobe.run(args.quick)),
         ("probe", probe_bench.TITLE, lambda: probe_bench.run(args.quick)),
         ("scan", scan_bench.TITLE, lambda: scan_bench.run(args.quick)),
+        ("catalogue", catalogue_bench.TITLE, lambda: catalogue_bench.section(args.quick)),
         ("baseline", baseline.TITLE, lambda: baseline.run(args.quick)),
     ]
     sections: list[Section] = []
