@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -130,7 +131,10 @@ def _not_modicon(source: Source) -> str | None:
     return None
 
 
-def _raws(source: Source, table: Table, plain: str | None = None) -> tuple[list[Raw], list[Skipped]]:
+def _raws(source: Source, table: Table, not_modicon: str | None = None,
+          ranges: Sequence[tuple[int, int, str, str]] = ()) -> tuple[list[Raw], list[Skipped]]:
+    """The rows of one table; ``not_modicon``: why 3xxxx/4xxxx numbers are plain addresses here
+    (:func:`_not_modicon`); ``ranges``: the document's address-range statements (:func:`_range_kinds`)."""
     doc_kind = _document_kind(source.text)
     kind = table_kind(table.context.splitlines()[-1] if table.context else "") or table_kind(table.context) \
         or _nearest_kind(table.context) or doc_kind
@@ -139,13 +143,12 @@ def _raws(source: Source, table: Table, plain: str | None = None) -> tuple[list[
         raws, skipped = matrix_raws(table, kind)
     else:
         raws, skipped = loose_raws(table, kind, access) if table.loose else grid_raws(table, kind, access,
-                                                                                     plain is None)
-    if plain is not None:
+                                                                                     not_modicon is None)
+    if not_modicon is not None:
         for raw in raws:
             if 30001 <= raw.address <= 49999:
-                raw.notes.append(f"address {raw.address} as printed, not a Modicon number: {plain}")
-    if any(r.table is None for r in raws):
-        _kinds_by_range(raws, _range_kinds(source.text))
+                raw.notes.append(f"address {raw.address} as printed, not a Modicon number: {not_modicon}")
+    _kinds_by_range(raws, ranges)
     return raws, skipped
 
 
@@ -172,7 +175,7 @@ def _range_kinds(text: str) -> list[tuple[int, int, str, str]]:
     return found
 
 
-def _kinds_by_range(raws: list[Raw], ranges: list[tuple[int, int, str, str]]) -> None:
+def _kinds_by_range(raws: list[Raw], ranges: Sequence[tuple[int, int, str, str]]) -> None:
     """A row whose table nothing near it states takes the table of the document's range statement that
     holds its address (only where the statements holding it agree)."""
     for raw in raws:
@@ -239,9 +242,9 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
     groups: list[dict[str, Any]] = []
     found: list[tuple[str, int]] = []
     names: set[str] = set()
-    not_modicon = _not_modicon(source)
+    not_modicon, ranges = _not_modicon(source), _range_kinds(source.text)  # document-wide: read once
     for table in source.tables:
-        raws, skip = _raws(source, table, not_modicon)
+        raws, skip = _raws(source, table, not_modicon, ranges)
         _assumed(raws, hints)
         skipped += skip
         if not raws:
