@@ -90,6 +90,27 @@ _PARAMS = _Prototype.__dataclass_params__  # type: ignore[attr-defined]
 _FIELD = dataclasses.fields(_Prototype)[0]._field_type  # type: ignore[attr-defined]
 
 
+class _LazyFields:
+    """``__dataclass_fields__`` of a record or snapshot class, made when first read (by
+    ``dataclasses.fields``, ``replace``, ``asdict``, ``is_dataclass``): making a ``Field`` per
+    annotation costs about 2 µs, which thousands of classes paid at import though few are ever
+    asked. The dict it makes replaces it on the class, so it is made once."""
+
+    def __init__(self, owner: type, notes: dict[str, Any], default: Any) -> None:
+        self.owner, self.notes, self.default = owner, notes, default
+
+    def __get__(self, obj: object, objtype: type | None = None) -> dict[str, dataclasses.Field[Any]]:
+        owner = self.owner
+        made: dict[str, dataclasses.Field[Any]] = dict(getattr(owner.__bases__[0], "__dataclass_fields__", {}))
+        for name, note in self.notes.items():
+            f: Any = dataclasses.field() if self.default is dataclasses.MISSING else dataclasses.field(default=self.default)
+            f.name, f.type, f.kw_only = name, note, False
+            f._field_type = _FIELD
+            made[name] = f
+        setattr(owner, "__dataclass_fields__", made)  # noqa: B010 - replaces this descriptor
+        return made
+
+
 def _plain(cls: type) -> dict[str, Any] | None:
     """The annotations of a class whose fields :func:`record` can list itself (no base class but
     ``object``, no ``ClassVar``/``InitVar``, no defaults), else None (the dataclass does it)."""
@@ -117,14 +138,8 @@ def record(cls: C) -> C:
         dc = dataclasses.dataclass(init=False, repr=False, eq=False)(cls)
         names = tuple(f.name for f in dataclasses.fields(dc))
     else:
-        fields: dict[str, dataclasses.Field[Any]] = {}
-        for name, note in notes.items():
-            f = dataclasses.field()
-            f.name, f.type, f.kw_only = name, note, False
-            f._field_type = _FIELD
-            fields[name] = f
-        names = tuple(fields)
-        dc.__dataclass_fields__ = fields
+        names = tuple(notes)
+        dc.__dataclass_fields__ = _LazyFields(dc, notes, dataclasses.MISSING)
         dc.__dataclass_params__ = _PARAMS
         setattr(dc, "__match_args__", names)  # noqa: B010 - a dunder mypy will not see assigned
     dc.__record_fields__ = names
@@ -188,20 +203,15 @@ def snapshot(*, init: bool = False, repr: bool = False, frozen: bool = True) -> 
                 or any("ClassVar" in str(t) or "InitVar" in str(t) for t in notes.values())):
             made: Any = dataclasses.dataclass(frozen=True, repr=False, init=False)(cls)
             return made  # type: ignore[no-any-return]
-        fields: dict[str, dataclasses.Field[Any]] = dict(base[0].__dataclass_fields__)  # type: ignore[attr-defined]
-        for name, note in notes.items():
-            f: Any = dataclasses.field(default=None)
-            f.name, f.type, f.kw_only = name, note, False
-            f._field_type = _FIELD
-            fields[name] = f
-        compared = tuple(f.name for f in fields.values() if f._field_type is _FIELD and f.compare)  # type: ignore[attr-defined]
+        inherited = base[0].__dataclass_fields__  # type: ignore[attr-defined]
+        compared = tuple(f.name for f in inherited.values() if f._field_type is _FIELD and f.compare) + tuple(notes)
         dc: Any = cls
-        dc.__dataclass_fields__ = fields
+        dc.__dataclass_fields__ = _LazyFields(dc, dict(notes), None)
         dc.__dataclass_params__ = _SNAPSHOT_PARAMS
         values = attrgetter(*compared) if len(compared) > 1 else (lambda obj: tuple(getattr(obj, n) for n in compared))
         dc.__snapshot_values__ = staticmethod(values)
         if "__match_args__" not in own:
-            setattr(dc, "__match_args__", tuple(f.name for f in fields.values() if f.init))  # noqa: B010
+            setattr(dc, "__match_args__", tuple(n for n, f in inherited.items() if f.init) + tuple(notes))  # noqa: B010
         for name, method in _SNAPSHOT_METHODS.items():
             setattr(dc, name, method)
         return cls
