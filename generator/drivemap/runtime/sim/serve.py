@@ -14,7 +14,9 @@ more than the 3.5-character silence without forming a frame are dropped, as a de
 With realistic timing, a reply leaves the simulator's processing time after the request arrived:
 on a serial line counted from the moment the framer found the complete request (on TCP from the
 moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.bus.sleep_until`), since
-``asyncio.sleep`` alone wakes up to a millisecond late.
+``asyncio.sleep`` alone wakes up to a millisecond late. On a serial line the reply is written to the
+port the moment it is ready (:func:`_write_at_once`), as a device's UART starts sending, not one
+event-loop turn later through pymodbus's writer callback.
 
 Use from code::
 
@@ -60,12 +62,26 @@ _RTU_MAX = 256
 
 
 class _Arrival:
-    """When the serial framer of one server last found a complete request (0.0: not yet, or taken)."""
+    """When the serial framer of one server last found a complete request (0.0: not yet, or taken),
+    and how far the reply's way to the port (pymodbus's server after ``datastore_update``: framing,
+    CRC, the write) is measured to take: ``lead``, what the wait ends early so that the reply reaches
+    the port when it is due (``due``), learnt from each reply written (:func:`_write_at_once`)."""
 
-    __slots__ = ("at",)
+    __slots__ = ("at", "due", "lead")
+
+    #: the most the wait ends early (s): the reply's way to the port is tens of microseconds
+    MAX_LEAD = 0.0002
 
     def __init__(self) -> None:
         self.at = 0.0
+        self.due = 0.0
+        self.lead = 0.0
+
+    def written(self, now: float) -> None:
+        """A reply reached the port at ``now``: move the lead by half of how late (or early) it was."""
+        if self.due:
+            self.lead = min(max(self.lead + 0.5 * (now - self.due), 0.0), self.MAX_LEAD)
+            self.due = 0.0
 
     def take(self, now: float, within: float) -> float:
         """The arrival time of the request being handled (``now`` when unknown or stale)."""
@@ -128,7 +144,9 @@ class _SimRequest(ModbusPDU):
         if response is None:
             raise _NoReply(f"unit {device_id}: no reply")
         if delay > 0:
-            await sleep_until(arrived + delay)
+            due = arrived + delay
+            await sleep_until(due - self.arrival.lead)
+            self.arrival.due = due
         return _SimResponse(response)
 
 
@@ -298,6 +316,41 @@ class _WatchAscii(FramerAscii):
         return stop, dev_id, tid, frame
 
 
+def _write_at_once(transport: Any, arrival: _Arrival) -> None:
+    """Make pymodbus's serial transport write a reply to the port when it is handed over.
+
+    pymodbus's ``SerialTransport.write`` queues the bytes and writes them from a writer callback,
+    one event-loop turn later: about 0.1 ms that a device's reply does not wait (bench section 3).
+    Here the bytes go to the port at once, with the same non-blocking write pymodbus makes; what
+    the port does not take, or anything while bytes are still queued, goes through pymodbus's queue
+    as before (so the order of replies is kept), and a port error closes the transport as
+    pymodbus does. Without a port (polling transports on Windows) nothing changes. Each write tells
+    ``arrival`` when a reply reached the port, so the next reply's wait can end that much earlier."""
+    import serial  # pyserial: present wherever a serial server runs
+
+    port = getattr(transport, "sync_serial", None)
+    queued = transport.write
+    if port is None or getattr(transport, "force_poll", True):
+        return
+
+    def write(data: bytes) -> None:
+        if transport.intern_write_buffer or transport.sync_serial is not port:
+            queued(data)
+            return
+        arrival.written(time.monotonic())
+        try:
+            sent = port.write(data) or 0
+        except (BlockingIOError, InterruptedError):
+            sent = 0
+        except serial.SerialException as exc:
+            transport.close(exc=exc)
+            return
+        if sent < len(data):
+            queued(data[sent:])
+
+    transport.write = write
+
+
 def _silence_seconds(sim: Simulator, baudrate: int) -> float:
     """How long the line must be quiet before unfinished bytes are dropped: the map's silent interval
     (3.5 characters at ``baudrate``, or its floor above the baud rate the map names; Modbus over
@@ -409,6 +462,8 @@ class SimServer:
             sockets = getattr(server.transport, "sockets", None) or []
             name = sockets[0].getsockname() if sockets else self.tcp
             self.address = (str(name[0]), int(name[1]))
+        else:
+            _write_at_once(server.transport, arrival)
         self._ticker = asyncio.create_task(self._tick_forever())
 
     async def _tick_forever(self) -> None:
