@@ -124,9 +124,13 @@ class _OptionParser(argparse.ArgumentParser):
 
 
 def entry_options(exporter: Exporter, table: Mapping[str, Any]) -> dict[str, Any]:
-    """The ``options`` table of an ``[[tool.drivemap.exports]]`` entry, read exactly as the same
-    options on ``drivemap export``'s command line: keys are the long option names (``ha-version``
-    or ``ha_version``), ``true`` stands for a flag, a list for a repeatable option."""
+    """The ``options`` table of an ``[[tool.drivemap.exports]]`` entry, read as the same options on
+    ``drivemap export``'s command line: keys are the long option names (``ha-version`` or
+    ``ha_version``), ``true`` stands for a flag, a list for a repeatable option. The exporter's
+    ``options_class`` reads it directly (the schema its command line is built from); a plugin that
+    adds its own arguments instead has the table read through its parser."""
+    if type(exporter).add_arguments is Exporter.add_arguments:
+        return exporter.options_class.from_table(table).values()
     parser = _OptionParser(prog=exporter.name, add_help=False)
     exporter.add_arguments(parser)
     flags = {a.dest: a for a in parser._actions if a.option_strings}

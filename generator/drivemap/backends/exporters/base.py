@@ -18,10 +18,11 @@ from collections.abc import Iterable, Sequence
 from typing import ClassVar, Protocol, runtime_checkable
 
 from drivemap.backends.common import OptionError, Options
+from drivemap.backends.options import ExporterOptions, NoOptions, option
 from drivemap.diagnostics import Problem
 from drivemap.model.nodes import Model
 
-__all__ = ["Exporter", "MultiDevice", "OptionError", "Options", "Problem"]
+__all__ = ["Exporter", "ExporterOptions", "MultiDevice", "OptionError", "Options", "Problem", "option"]
 
 
 @runtime_checkable
@@ -38,6 +39,12 @@ class Exporter:
 
     ``suffix`` is the extension of a single-file output (``drivemap export -o`` names the file);
     ``multi_file`` exporters write a folder (``-o DIR``).
+
+    ``options_class`` declares the exporter's own options: a frozen dataclass of
+    :class:`~drivemap.backends.options.ExporterOptions` whose fields are made by
+    :func:`~drivemap.backends.options.option`. drivemap reads it from ``drivemap export``'s command
+    line and from a committed export's ``options`` table with the same names and checks, and the
+    exporter reads it typed: ``self.options_class.from_values(options.values)``.
     """
 
     name: ClassVar[str] = ""
@@ -46,9 +53,15 @@ class Exporter:
     multi_file: ClassVar[bool] = False
     #: writes several devices of one line into one output (:class:`MultiDevice`: implements ``render_line``)
     multi_device: ClassVar[bool] = False
+    #: this exporter's options (see the class docstring)
+    options_class: ClassVar[type[ExporterOptions]] = NoOptions
 
     def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-        """Add this exporter's own options (use ``--long-names``; their ``dest`` keys reach ``Options.values``)."""
+        """Add this exporter's own options to ``drivemap export``'s parser: ``options_class``'s.
+
+        A plugin may instead override this and read its options from ``Options.values`` by their
+        ``dest`` names; a committed export's ``options`` table is then read through this parser."""
+        self.options_class.add_arguments(parser)
 
     def validate(self, model: Model, options: Options | None = None) -> Iterable[Problem]:
         """Exporter-side checks of a map that passed the front end (schema and semantic checks), on its

@@ -14,12 +14,12 @@ formula (it starts with ``=``, ``+``, ``-``, ``@``) gets a leading apostrophe.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
+from dataclasses import dataclass
 from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.exporters.base import Exporter, ExporterOptions, OptionError, Options, option
 from drivemap.backends.views.common import review_text
 from drivemap.backends.views.integrations import comment_safe
 from drivemap.model.nodes import Cell, Model
@@ -119,17 +119,22 @@ def _row(model: Model, cell: Cell) -> dict[str, str]:
     }
 
 
+@dataclass(frozen=True)
+class CsvOptions(ExporterOptions):
+    delimiter: str = option("comma", choices=sorted(_DELIMITERS), help="field separator")
+    bom: bool = option(False, help="start with a UTF-8 byte order mark (for Excel)")
+
+
 class CsvExporter(Exporter):
     name = "csv"
     help = "CSV register list for PLC tools and spreadsheets (one row per register element)"
     suffix = ".csv"
 
-    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-        parser.add_argument("--delimiter", default="comma", choices=sorted(_DELIMITERS), help="field separator")
-        parser.add_argument("--bom", action="store_true", help="start with a UTF-8 byte order mark (for Excel)")
+    options_class = CsvOptions
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
-        delimiter = options.get("delimiter", "comma")
+        own = CsvOptions.from_values(options.values)
+        delimiter = own.delimiter or "comma"
         if delimiter not in _DELIMITERS:
             raise OptionError(f"--delimiter: one of {', '.join(sorted(_DELIMITERS))}")
         out = io.StringIO()
@@ -142,4 +147,4 @@ class CsvExporter(Exporter):
         shared = _map_cells(model)
         for cell in cells:
             writer.writerow(_row(model, cell) | shared)
-        return {f"{model.name}.csv": ("\ufeff" if options.get("bom") else "") + out.getvalue()}
+        return {f"{model.name}.csv": ("\ufeff" if own.bom else "") + out.getvalue()}

@@ -21,12 +21,12 @@ from the map (``command_throttle``, ``turnaround_time``, ``send_wait_time``, ``m
 
 from __future__ import annotations
 
-import argparse
 import re
-from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.exporters.base import Exporter, OptionError, Options, option
+from drivemap.backends.options import SERIAL_GROUP, SelectionOptions, SerialOptions
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.common import provenance, review_lines
@@ -83,46 +83,49 @@ def text(value: str) -> str:
     return Literal(value) if "$" in value else value
 
 
+@dataclass(frozen=True)
+class EsphomeOptions(SelectionOptions, SerialOptions):
+    name: str | None = option(help="ESPHome node name (default: the model id)")
+    board: str = option("esp32dev", help="ESP32 board (default esp32dev)")
+    tx_pin: str = option("GPIO17", help="UART TX pin (default GPIO17)")
+    rx_pin: str = option("GPIO16", help="UART RX pin (default GPIO16)")
+    flow_control_pin: str | None = option(metavar="PIN", help="RS-485 DE/RE pin")
+    no_network: bool = option(False, help="leave out wifi:, api: and ota: (which read !secret wifi_ssid / wifi_password)")
+    esphome_version: str | None = option(
+        metavar="YYYY.M", help=f"write only what this ESPHome release accepts (default: {NEWEST[0]}.{NEWEST[1]}, "
+                               f"the newest known; oldest supported: {OLDEST[0]}.{OLDEST[1]})")
+    method: str | None = option(choices=("rtu",), group=SERIAL_GROUP, help="framing")
+
+
 class EsphomeExporter(Exporter):
     name = "esphome"
     help = "ESPHome device YAML: uart, modbus, modbus_controller and its entities, batched as drivemap plans"
     suffix = ".yaml"
 
-    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-        parser.add_argument("--name", default=None, help="ESPHome node name (default: the model id)")
-        parser.add_argument("--board", default="esp32dev", help="ESP32 board (default esp32dev)")
-        parser.add_argument("--tx-pin", default="GPIO17", help="UART TX pin (default GPIO17)")
-        parser.add_argument("--rx-pin", default="GPIO16", help="UART RX pin (default GPIO16)")
-        parser.add_argument("--flow-control-pin", default=None, metavar="PIN", help="RS-485 DE/RE pin")
-        parser.add_argument("--no-network", action="store_true",
-                            help="leave out wifi:, api: and ota: (which read !secret wifi_ssid / wifi_password)")
-        parser.add_argument("--esphome-version", default=None, metavar="YYYY.M",
-                            help=f"write only what this ESPHome release accepts (default: {NEWEST[0]}.{NEWEST[1]}, "
-                                 f"the newest known; oldest supported: {OLDEST[0]}.{OLDEST[1]})")
-        iv.add_selection_arguments(parser)
-        iv.add_serial_arguments(parser, modes=("rtu",))
+    options_class = EsphomeOptions
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
-        values = options.values
-        node = values.get("name") or model.name.replace("_", "-")
+        own = EsphomeOptions.from_values(options.values)
+        node = own.name or model.name.replace("_", "-")
         if not re.fullmatch(r"[a-z0-9][a-z0-9-]{0,30}", str(node)):
             raise OptionError(f"--name: {node!r} must be lower-case letters, digits and '-' (at most 31)")
+        values = own.values()
         sel = iv.select(model, values)
         line = iv.serial_settings(model, values, modes=("rtu",))
-        version = esphome_version(values.get("esphome_version"))
+        version = esphome_version(own.esphome_version)
         build = _Build(model, sel, version >= REUSE_RANGES)
         doc: dict[str, Any] = {
             "esphome": {"name": node},
-            "esp32": {"board": str(values.get("board") or "esp32dev"), "framework": {"type": "esp-idf"}},
+            "esp32": {"board": own.board or "esp32dev", "framework": {"type": "esp-idf"}},
             "logger": {},
         }
-        if not values.get("no_network"):
+        if not own.no_network:
             doc.update({"wifi": {"ssid": Secret("wifi_ssid"), "password": Secret("wifi_password")},
                         "api": {}, "ota": [{"platform": "esphome"}]})
-        doc["uart"] = [{"id": "modbus_uart", "tx_pin": str(values.get("tx_pin") or "GPIO17"),
-                        "rx_pin": str(values.get("rx_pin") or "GPIO16"), "baud_rate": line.baudrate,
+        doc["uart"] = [{"id": "modbus_uart", "tx_pin": own.tx_pin or "GPIO17",
+                        "rx_pin": own.rx_pin or "GPIO16", "baud_rate": line.baudrate,
                         "data_bits": line.data_bits, "parity": _PARITY[line.parity], "stop_bits": line.stop_bits}]
-        doc["modbus"] = [self._modbus(model, values, build)]
+        doc["modbus"] = [self._modbus(model, own, build)]
         doc["modbus_controller"] = build.controllers()
         for platform in _PLATFORMS:
             entries = [i.config for i in build.items if i.platform == platform]
@@ -136,11 +139,11 @@ class EsphomeExporter(Exporter):
         return {f"{model.name}.esphome.yaml": header(lines) + dump(doc)}
 
     @staticmethod
-    def _modbus(model: Model, values: Mapping[str, Any], build: _Build) -> dict[str, Any]:
+    def _modbus(model: Model, own: EsphomeOptions, build: _Build) -> dict[str, Any]:
         t = model.protocol.timing
         bus: dict[str, Any] = {"id": "modbus_bus", "uart_id": "modbus_uart"}
-        if values.get("flow_control_pin"):
-            bus["flow_control_pin"] = str(values["flow_control_pin"])
+        if own.flow_control_pin:
+            bus["flow_control_pin"] = own.flow_control_pin
         if t.response_timeout_ms is not None:
             bus["send_wait_time"] = f"{iv.timing_ms(t.response_timeout_ms)}ms"
         gap = build.throttle() if build.reuse else t.inter_frame_gap_ms

@@ -24,13 +24,14 @@ release's names where they differ (``KEYS``).
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, OptionError, Options
+from drivemap.backends.exporters.base import Exporter, OptionError, Options, option
+from drivemap.backends.options import SelectionOptions, SerialOptions
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.common import provenance, review_lines
@@ -121,21 +122,22 @@ def jinja_literal(value: Any) -> str:
     return "".join(out)
 
 
+@dataclass(frozen=True)
+class HomeAssistantOptions(SelectionOptions, SerialOptions):
+    hub_name: str | None = option(help="name of the modbus hub (default: the model id)")
+    tcp: str | None = option(metavar="HOST:PORT", exclusive="where", help="Modbus TCP (a gateway or the device)")
+    rtu_over_tcp: str | None = option(metavar="HOST:PORT", exclusive="where", help="RTU frames over TCP")
+    serial: str | None = option(metavar="DEV", exclusive="where", help="serial device (default: /dev/ttyUSB0)")
+    ha_version: str | None = option(
+        metavar="X.Y", help=f"write the key names of this Home Assistant release (default: {CURRENT[0]}.{CURRENT[1]})")
+
+
 class HomeAssistantExporter(Exporter):
     name = "homeassistant"
     help = "Home Assistant package: a modbus: hub (serial or TCP) with sensors and switches, template labels and bits"
     suffix = ".yaml"
 
-    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-        parser.add_argument("--hub-name", default=None, help="name of the modbus hub (default: the model id)")
-        where = parser.add_mutually_exclusive_group()
-        where.add_argument("--tcp", default=None, metavar="HOST:PORT", help="Modbus TCP (a gateway or the device)")
-        where.add_argument("--rtu-over-tcp", default=None, metavar="HOST:PORT", help="RTU frames over TCP")
-        where.add_argument("--serial", default=None, metavar="DEV", help="serial device (default: /dev/ttyUSB0)")
-        parser.add_argument("--ha-version", default=None, metavar="X.Y",
-                            help=f"write the key names of this Home Assistant release (default: {CURRENT[0]}.{CURRENT[1]})")
-        iv.add_selection_arguments(parser)
-        iv.add_serial_arguments(parser)
+    options_class = HomeAssistantOptions
 
     multi_device = True
 
@@ -144,10 +146,10 @@ class HomeAssistantExporter(Exporter):
         return render_line(devices, options)
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
-        values = options.values
-        version = _version(values.get("ha_version"))
-        sel = iv.select(model, values)
-        build = _Build(model, sel, keys_for(version), values)
+        own = HomeAssistantOptions.from_values(options.values)
+        version = _version(own.ha_version)
+        sel = iv.select(model, own.values())
+        build = _Build(model, sel, keys_for(version), own)
         hub = build.hub()
         doc: dict[str, Any] = {"modbus": [hub]}
         if build.templates_sensor or build.templates_binary or build.templates_select:
@@ -174,8 +176,8 @@ class HomeAssistantExporter(Exporter):
 class _Build:
     """The entities of one export (kept apart from the exporter class so each step stays short)."""
 
-    def __init__(self, model: Model, sel: iv.Selection, keys: Mapping[str, str], values: Mapping[str, Any]) -> None:
-        self.model, self.sel, self.keys, self.values = model, sel, keys, values
+    def __init__(self, model: Model, sel: iv.Selection, keys: Mapping[str, str], own: HomeAssistantOptions) -> None:
+        self.model, self.sel, self.keys, self.own = model, sel, keys, own
         self.sensors: list[dict[str, Any]] = []
         self.switches: list[dict[str, Any]] = []
         self.binary_sensors: list[dict[str, Any]] = []
@@ -188,14 +190,14 @@ class _Build:
     # ---------------------------------------------------------------- the hub
 
     def hub(self) -> dict[str, Any]:
-        name = self.values.get("hub_name") or self.model.name
-        hub: dict[str, Any] = {"name": str(name)}
-        if self.values.get("tcp") or self.values.get("rtu_over_tcp"):
-            host, port = iv.tcp_endpoint(self.values.get("tcp") or self.values["rtu_over_tcp"])
-            hub.update({"type": "tcp" if self.values.get("tcp") else "rtuovertcp", "host": host, "port": port})
+        own = self.own
+        hub: dict[str, Any] = {"name": own.hub_name or self.model.name}
+        if own.tcp or own.rtu_over_tcp:
+            host, port = iv.tcp_endpoint(own.tcp or own.rtu_over_tcp or "")
+            hub.update({"type": "tcp" if own.tcp else "rtuovertcp", "host": host, "port": port})
         else:
-            line = iv.serial_settings(self.model, self.values)
-            hub.update({"type": "serial", "method": line.mode, "port": self.values.get("serial") or "/dev/ttyUSB0",
+            line = iv.serial_settings(self.model, own.values())
+            hub.update({"type": "serial", "method": line.mode, "port": own.serial or "/dev/ttyUSB0",
                         "baudrate": line.baudrate, "bytesize": line.data_bits, "parity": _PARITY[line.parity],
                         "stopbits": line.stop_bits})
         t = self.model.protocol.timing
@@ -322,7 +324,7 @@ class _Build:
         if needs_template(reg):
             self._template(point, name, places)
         elif reg.unit and not reg.enum and not reg.bits:
-            entry.update(_unit_keys(reg.unit, _version(self.values.get("ha_version"))))
+            entry.update(_unit_keys(reg.unit, _version(self.own.ha_version)))
         entry["scan_interval"] = point.interval
         return entry
 
@@ -362,7 +364,7 @@ class _Build:
         entry: dict[str, Any] = {"name": self.entity_name(point), "unique_id": slug(self.entity_name(point)),
                                  "state": state, "availability": f"{{{{ {' and '.join(available)} }}}}"}
         if reg.unit and not reg.enum and not reg.bits and reg.type != "string":
-            entry.update(_unit_keys(reg.unit, _version(self.values.get("ha_version"))))
+            entry.update(_unit_keys(reg.unit, _version(self.own.ha_version)))
         self.templates_sensor.append(entry)
 
     def _switches(self, point: iv.Point) -> None:
@@ -417,7 +419,7 @@ class _Build:
             "options": f"{{{{ {jinja_literal([text for _, text in pairs])} }}}}",
             "availability": f"{{{{ has_value('{source}') }}}}",
             "select_option": [{self.keys["action"]: "modbus.write_register", "data": {
-                "hub": str(self.values.get("hub_name") or self.model.name), "slave": self.sel.unit,
+                "hub": self.own.hub_name or self.model.name, "slave": self.sel.unit,
                 "address": point.address, "value": f"{{{{ {jinja_literal(writes)}[option] }}}}"}}],
         })
 
@@ -508,26 +510,25 @@ ENTITY_KEYS = ("sensors", "binary_sensors", "switches")
 
 def render_line(devices: Sequence[tuple[Model, int | None]], options: Options) -> dict[str, str]:
     """One package for several (model, unit id) devices on one line (see the module docstring)."""
-    if options.values.get("unit") is not None:
+    line = HomeAssistantOptions.from_values(options.values)
+    if line.unit is not None:
         raise OptionError("--unit: give each device's unit as MODEL:UNIT (e.g. ev:1 vfd1000:2)")
-    if options.values.get("name_prefix") is not None:
+    if line.name_prefix is not None:
         raise OptionError("--name-prefix: with several devices each entity name starts with its model id")
-    version = _version(options.values.get("ha_version"))
+    version = _version(line.ha_version)
     names = [m.name for m, _ in devices]
     builds: list[tuple[Model, _Build, dict[str, Any]]] = []
     units: dict[int, str] = {}
     for model, unit in devices:
-        values = dict(options.values, unit=unit)
-        if names.count(model.name) > 1:
-            values["name_prefix"] = f"{model.name}_{unit}"
-        build = _Build(model, iv.select(model, values), keys_for(version), values)
+        own = replace(line, unit=unit, name_prefix=f"{model.name}_{unit}" if names.count(model.name) > 1 else None)
+        build = _Build(model, iv.select(model, own.values()), keys_for(version), own)
         chosen = build.sel.unit
         if chosen in units:
             raise OptionError(f"unit {chosen} is given to both {units[chosen]} and {model.name}: every device "
                               "on one line needs its own unit id (write MODEL:UNIT)")
         units[chosen] = model.name
         builds.append((model, build, build.hub()))
-    hub = _merged_hub(builds, options)
+    hub = _merged_hub(builds, line)
     templates: dict[str, list[Any]] = {"sensor": [], "binary_sensor": []}
     notes: list[str] = []
     for model, build, _ in builds:
@@ -552,10 +553,10 @@ def render_line(devices: Sequence[tuple[Model, int | None]], options: Options) -
     return {f"{'+'.join(dict.fromkeys(names))}.homeassistant.yaml": header(lines) + dump(doc)}
 
 
-def _merged_hub(builds: list[tuple[Model, _Build, dict[str, Any]]], options: Options) -> dict[str, Any]:
+def _merged_hub(builds: list[tuple[Model, _Build, dict[str, Any]]], line: HomeAssistantOptions) -> dict[str, Any]:
     first_model, _, first = builds[0]
     hub: dict[str, Any] = {key: value for key, value in first.items() if key not in ENTITY_KEYS}
-    hub["name"] = str(options.values.get("hub_name") or "_".join(dict.fromkeys(m.name for m, _, _ in builds)))
+    hub["name"] = line.hub_name or "_".join(dict.fromkeys(m.name for m, _, _ in builds))
     for model, _, other in builds[1:]:
         differ = [f"{key} {first.get(key)!r} ({first_model.name}) vs {other.get(key)!r} ({model.name})"
                   for key in LINE_KEYS if first.get(key) != other.get(key)]

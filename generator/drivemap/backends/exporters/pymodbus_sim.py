@@ -21,12 +21,13 @@ layout (high word and high byte first) go in ``float32``/``float64``; any other 
 
 from __future__ import annotations
 
-import argparse
 import json
 import struct
+from dataclasses import dataclass
 from typing import Any
 
-from drivemap.backends.exporters.base import Exporter, Options
+from drivemap.backends.exporters.base import Exporter, Options, option
+from drivemap.backends.options import SerialOptions
 from drivemap.backends.views import integrations as iv
 from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.common import provenance, review_lines
@@ -76,23 +77,25 @@ def _image(model: Model, unit: int, pages: dict[str, int]) -> tuple[Any, dict[st
     return spec, raws
 
 
+@dataclass(frozen=True)
+class PymodbusSimOptions(SerialOptions):
+    tcp: str | None = option(metavar="HOST:PORT", exclusive="where", help="serve Modbus TCP here (default 127.0.0.1:5020)")
+    serial: str | None = option(metavar="DEV", exclusive="where", help="serve on this serial device instead")
+    unit: int | None = option(help="unit id served (default: 1, or the map's lowest)")
+    page: tuple[str, ...] | None = option(
+        metavar="SELECTOR=VALUE", help="the page served at paged addresses (default: the selector's default)")
+
+
 class PymodbusSimExporter(Exporter):
     name = "pymodbus-sim"
     help = "JSON configuration of pymodbus's simulator (pymodbus.simulator --json_file) serving the device image"
     suffix = ".json"
 
-    def add_arguments(self, parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-        where = parser.add_mutually_exclusive_group()
-        where.add_argument("--tcp", default=None, metavar="HOST:PORT", help="serve Modbus TCP here (default 127.0.0.1:5020)")
-        where.add_argument("--serial", default=None, metavar="DEV", help="serve on this serial device instead")
-        parser.add_argument("--unit", type=int, default=None, help="unit id served (default: 1, or the map's lowest)")
-        parser.add_argument("--page", action="append", default=None, metavar="SELECTOR=VALUE",
-                            help="the page served at paged addresses (default: the selector's default)")
-        iv.add_serial_arguments(parser)
+    options_class = PymodbusSimOptions
 
     def render(self, model: Model, options: Options) -> dict[str, str]:
-        values = options.values
-        sel = iv.select(model, {"unit": values.get("unit"), "page": values.get("page")})
+        own = PymodbusSimOptions.from_values(options.values)
+        sel = iv.select(model, {"unit": own.unit, "page": own.page})
         pages = dict(sel.pages)
         device = self._device(model, sel, pages)
         doc = {
@@ -106,19 +109,19 @@ class PymodbusSimExporter(Exporter):
                 "pages": pages,
                 "not_served": [f"{name}: {why}" for name, why in sel.omitted],
             },
-            "server_list": {model.name: self._server(model, sel.unit, values)},
+            "server_list": {model.name: self._server(model, sel.unit, own)},
             "device_list": {model.name: device},
         }
         return {f"{model.name}.pymodbus-sim.json": json.dumps(doc, indent=2, ensure_ascii=False) + "\n"}
 
-    def _server(self, model: Model, unit: int, values: Any) -> dict[str, Any]:
+    def _server(self, model: Model, unit: int, own: PymodbusSimOptions) -> dict[str, Any]:
         server: dict[str, Any]
-        if values.get("serial"):
-            line = iv.serial_settings(model, values)
-            server = {"comm": "serial", "port": values["serial"], "framer": line.mode, "baudrate": line.baudrate,
+        if own.serial:
+            line = iv.serial_settings(model, own.values())
+            server = {"comm": "serial", "port": own.serial, "framer": line.mode, "baudrate": line.baudrate,
                       "bytesize": line.data_bits, "parity": _PARITY[line.parity], "stopbits": line.stop_bits}
         else:
-            host, port = iv.tcp_endpoint(values.get("tcp") or "127.0.0.1:5020")
+            host, port = iv.tcp_endpoint(own.tcp or "127.0.0.1:5020")
             server = {"comm": "tcp", "host": host, "port": port, "framer": "socket"}
         server["device_id"] = unit
         server["broadcast_enable"] = model.protocol.broadcast_address == 0

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from drivemap.backends.common import OptionError
+from drivemap.backends.options import DEFAULT_SCAN_S, DEFAULT_SETTINGS_S
 from drivemap.model.nodes import AllowedValue, Cell, Model, Port, Register
 from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
 from drivemap.runtime.spec import RegisterSpec
@@ -30,6 +31,8 @@ from drivemap.vocab.units import (
 )
 
 __all__ = [
+    "DEFAULT_SCAN_S",
+    "DEFAULT_SETTINGS_S",
     "device_class_known",
     "DEVICE_CLASSES",
     "DEVICE_CLASS_SINCE",
@@ -45,9 +48,6 @@ __all__ = [
     "tcp_endpoint",
     "unit_for",
 ]
-
-DEFAULT_SCAN_S = 15
-DEFAULT_SETTINGS_S = 300
 
 
 def display_decimals(reg: Register) -> int | None:
@@ -164,22 +164,6 @@ class Selection:
 # ---------------------------------------------------------------- options shared by the tools
 
 
-def add_selection_arguments(parser: Any) -> None:
-    parser.add_argument("--unit", type=int, default=None, help="unit id of the device (default: 1, or the map's lowest)")
-    parser.add_argument("--only", action="append", default=None, metavar="GROUP",
-                        help="export only the registers of this group (repeatable)")
-    parser.add_argument("--page", action="append", default=None, metavar="SELECTOR=VALUE",
-                        help="the page a page selector shows (default: its map default, else its lowest page)")
-    parser.add_argument("--scan-interval", type=int, default=None, metavar="SECONDS",
-                        help=f"polling interval of live groups (default {DEFAULT_SCAN_S})")
-    parser.add_argument("--settings-interval", type=int, default=None, metavar="SECONDS",
-                        help=f"polling interval of groups that hold only writable settings (default {DEFAULT_SETTINGS_S})")
-    parser.add_argument("--interval", action="append", default=None, metavar="GROUP=SECONDS",
-                        help="polling interval of one group (repeatable)")
-    parser.add_argument("--name-prefix", default=None, metavar="TEXT",
-                        help="prefix of every entity name (default: the model id)")
-
-
 def int_option(values: Mapping[str, Any], key: str, default: int, low: int = 1, high: int = 86400) -> int:
     value = values.get(key)
     if value is None:
@@ -294,16 +278,6 @@ class SerialSettings:
     parity: str               # none | even | odd
     data_bits: int
     stop_bits: int
-
-
-def add_serial_arguments(parser: Any, *, modes: Sequence[str] = ("rtu", "ascii")) -> None:
-    g = parser.add_argument_group("serial line (the map's defaults where it gives them)")
-    g.add_argument("--port", default=None, metavar="NAME", help="which port of the map (default: its first that fits)")
-    g.add_argument("--method", default=None, choices=list(modes), help="framing")
-    g.add_argument("--baudrate", type=int, default=None)
-    g.add_argument("--parity", default=None, choices=["none", "even", "odd"])
-    g.add_argument("--bytesize", type=int, default=None, choices=[7, 8])
-    g.add_argument("--stopbits", type=int, default=None, choices=[1, 2])
 
 
 def _port(model: Model, name: str | None, modes: Sequence[str]) -> Port:
