@@ -20,7 +20,7 @@ from typing import Any
 from common import ROOT, Row, Section
 
 from drivemap.backends.exporters.base import Options
-from drivemap.backends.exporters.esphome import EsphomeExporter
+from drivemap.backends.exporters.esphome import REUSE_RANGES, EsphomeExporter, esphome_version
 from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
 from drivemap.compiler import load_model
 from drivemap.model.spec import spec_from_model
@@ -59,7 +59,8 @@ def esphome(model: Any) -> tuple[int, int, int]:
                    for e in doc.get(p) or () if not e.get("internal"))
     items = esp.items_of(doc)
     words = {i.word for i in items if not i.name.startswith("gap_")}
-    return entities, len(esp.ranges(items)), len(words)
+    # the export is written for the newest ESPHome (EsphomeExporter's default): its range builder counts
+    return entities, len(esp.update_ranges(doc, reuse=esphome_version(None) >= REUSE_RANGES)), len(words)
 
 
 def targets(model: Any) -> list[tuple[str, int]]:

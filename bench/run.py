@@ -114,7 +114,9 @@ Counted from the exported files (`bench/exports.py`), for every readable element
 `plan_reads` for those elements. **Home Assistant**: each modbus sensor entry polls on its own (an
 array that fits one read is one entry with `virtual_count`); switches without `verify` and
 template entities read nothing. **ESPHome**: the ranges ESPHome's own range builder (ported in
-`tests/esphome_ranges.py`) makes from the file, every update (skip_updates ignored).
+`tests/esphome_ranges.py`) makes from the file, every update, for the release the export is
+written for (the newest: since 2026.9 one controller per update interval, ranges joined by
+`reuse_previous_range`; before, one controller, `force_new_range`, skip_updates ignored).
 Where ESPHome needs more reads than drivemap, the contiguous run is longer than the device's
 maximum and the word where drivemap splits it holds an entity that cannot carry `register_count`
 (a `number`, or several entities): only that word can start ESPHome's new range, which costs one

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Range", "SensorItem", "items_of", "ranges"]
+__all__ = ["Range", "SensorItem", "items_of", "ranges", "ranges_reuse", "update_ranges"]
 
 TYPE_REGISTERS = {"RAW": 1, "U_WORD": 1, "S_WORD": 1, "U_DWORD": 2, "U_DWORD_R": 2, "S_DWORD": 2,
                   "S_DWORD_R": 2, "U_QWORD": 4, "U_QWORD_R": 4, "S_QWORD": 4, "S_QWORD_R": 4, "FP32": 2,
@@ -233,3 +233,16 @@ def ranges_reuse(items: list[SensorItem]) -> list[Range]:
     for item in sensors:
         item.start_address, item.offset = b.resolved[item.seq]
     return b.out
+
+
+def update_ranges(doc: dict[str, Any], reuse: bool) -> list[Range]:
+    """Every range a device YAML makes ESPHome read: before 2026.9 (``reuse`` False) one controller's
+    ``create_register_ranges_()``; since then (``reuse_previous_range``) each controller's, one per
+    update interval."""
+    items = items_of(doc)
+    if not reuse:
+        return ranges(items)
+    by_controller: dict[str, list[SensorItem]] = {}
+    for item in items:
+        by_controller.setdefault(item.controller, []).append(item)
+    return [r for group in by_controller.values() for r in ranges_reuse(group)]

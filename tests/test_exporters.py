@@ -158,14 +158,9 @@ def test_option_errors_are_usage_errors(argv: list[str], message: str) -> None:
 
 
 def _esphome_ranges(doc: dict[str, Any], version: str) -> list[esp.Range]:
-    items = esp.items_of(doc)
-    if version == "2026.6":
-        return esp.ranges(items)
-    assert not any(k in str(doc) for k in ("register_count", "force_new_range", "skip_updates", "command_throttle"))
-    by_controller: dict[str, list[esp.SensorItem]] = {}
-    for item in items:
-        by_controller.setdefault(item.controller, []).append(item)
-    return [r for group in by_controller.values() for r in esp.ranges_reuse(group)]
+    if version != "2026.6":
+        assert not any(k in str(doc) for k in ("register_count", "force_new_range", "skip_updates", "command_throttle"))
+    return esp.update_ranges(doc, reuse=version != "2026.6")
 
 
 @pytest.mark.parametrize("version", ["2026.6", "2026.10"])
