@@ -194,3 +194,4 @@ def test_a_headerless_page_of_addresses_is_listed_row_by_row(tmp_path: Path) -> 
     assert all(s.reason.startswith("table without a header row: its columns are not known") for s in skipped)
     text = Table(None, [Row(["Note", "a remark"], 10, 1), Row(["See", "page 3"], 10, 2)], 10, None, "")
     assert grid_raws(text, None, None) == ([], [])  # no addresses: no register table, nothing listed
+

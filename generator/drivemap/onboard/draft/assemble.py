@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,7 +11,15 @@ from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
-from drivemap.onboard.draft.rows import grid_raws, loose_raws, plain_addresses, table_access, table_kind
+from drivemap.onboard.draft.rows import (
+    grid_raws,
+    loose_raws,
+    offset_rows,
+    offsets_header,
+    plain_addresses,
+    table_access,
+    table_kind,
+)
 from drivemap.onboard.draft.tables import Drafted, Skipped, Source, Table
 
 #: Protocol facts the draft cannot read from register tables; written as placeholders and listed.
@@ -131,6 +139,19 @@ def _not_modicon(source: Source) -> str | None:
     return None
 
 
+def _tables(source: Source, skipped: list[Skipped]) -> Iterator[Table]:
+    """The document's tables to read. A table without a header of its own that follows one printing
+    offsets, not addresses (the same table on the next page), is not read: its rows go to ``skipped``."""
+    offsets: str | None = None  # the header of the table before, when it prints offsets
+    for table in source.tables:
+        listed = offset_rows(table, offsets) if offsets is not None else []
+        if listed:
+            skipped += listed
+            continue
+        offsets = offsets_header(table)
+        yield table
+
+
 def _raws(source: Source, table: Table, not_modicon: str | None = None,
           ranges: Sequence[tuple[int, int, str, str]] = ()) -> tuple[list[Raw], list[Skipped]]:
     """The rows of one table; ``not_modicon``: why 3xxxx/4xxxx numbers are plain addresses here
@@ -243,7 +264,7 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
     found: list[tuple[str, int]] = []
     names: set[str] = set()
     not_modicon, ranges = _not_modicon(source), _range_kinds(source.text)  # document-wide: read once
-    for table in source.tables:
+    for table in _tables(source, skipped):
         raws, skip = _raws(source, table, not_modicon, ranges)
         _assumed(raws, hints)
         skipped += skip

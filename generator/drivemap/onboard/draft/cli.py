@@ -214,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
             why = f" ({count} row{'s' if count != 1 else ''} skipped: {result.skipped[0].reason})" if count else ""
             sheets = [t.label for t in source.tables if t.label.startswith("sheet ")]
             tried = f"; tried {', '.join(sheets)} (--sheet NAME picks one)" if sheets else ""
+            offsets = [s for s in result.skipped if "from a base address" in s.reason]
+            if offsets:  # register tables were found; their numbers are not addresses
+                raise DraftError(f"no register drafted: {len(offsets)} rows of register tables print offsets from "
+                                 f"a base address, not addresses (first: {offsets[0].where}: {offsets[0].reason})")
             raise DraftError(f"no register table found: no table with an address column{why}{tried}")
         tell(f"checking the map of {len(result.registers):,} registers")
         text, errors = settle(result, _header(source.name, source.sha256, target), display(target))

@@ -35,6 +35,16 @@ _ROLES: tuple[tuple[str, str], ...] = (
     ("description", r"descr|decrip|content|definition|meaning|note|remark|comment|detail|data|說明|说明|內容|内容|含义|含義|意义"),
 )
 _RADIX_HEX = re.compile(r"hex|\(h\)|16\s*进制|16\s*進位|十六", re.I)
+#: an address column headed as an offset (``Offset``, ``偏移``, ``Index``) and not as an address: its numbers
+#: count from a base the rows do not give (a block's start address), in words or in bytes
+_RELATIVE = re.compile(r"offset|偏移|\bindex\b", re.I)
+_ABSOLUTE = re.compile(r"addr|地址|位址|register|寄存器|modbus|pdu", re.I)
+
+
+def relative_header(header: str) -> bool:
+    """Whether an address column's header says its numbers are offsets, not addresses."""
+    return bool(_RELATIVE.search(header)) and not _ABSOLUTE.search(header)
+
 _RADIX_DEC = re.compile(r"\bdec|十进制|十進位|10\s*进制|10\s*進位", re.I)
 
 

@@ -8,6 +8,7 @@ Description``) or more text. Rows whose name says reserved/unused are skipped as
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 
 from drivemap.onboard.draft.cells import (
     Address,
@@ -19,7 +20,7 @@ from drivemap.onboard.draft.cells import (
     parse_enum,
     trailing_access,
 )
-from drivemap.onboard.draft.columns import Layout, content_layout, find_layouts, role_of
+from drivemap.onboard.draft.columns import Layout, content_layout, find_layouts, relative_header, role_of
 from drivemap.onboard.draft.fields import Raw
 from drivemap.onboard.draft.tables import Row, Skipped, Table
 from drivemap.onboard.draft.units import parse_scale
@@ -133,6 +134,8 @@ class GridReader:
         self.raws: list[Raw] = []
         self.skipped: list[Skipped] = []
         self.mode = "text"
+        #: the header of the column whose numbers are offsets from a base the rows do not give, if any
+        self.relative = _relative_header(table, layout, self.rows)
 
     def where(self, row: Row) -> str:
         return row.where()
@@ -200,6 +203,12 @@ class GridReader:
             elif not self.raws and len([c for c in row.cells if c.strip()]) >= 2:
                 self.skipped.append(Skipped(self.where(row), " | ".join(c for c in row.cells if c.strip()),
                                             "no address in the address column"))
+            return
+        if self.relative is not None:
+            self.skipped.append(Skipped(
+                self.where(row), " | ".join(c.strip() for c in row.cells if c.strip()),
+                f"not drafted: under {self.relative!r}, {text!r} is an offset from a base address the row does "
+                "not give (nor whether it counts words or bytes): the address is to be stated by a person"))
             return
         other = self.other_address(row, value)
         if other is not None:
@@ -352,6 +361,7 @@ def grid_raws(table: Table, kind: str | None, access: str | None,
         layouts = [layout]
     raws: list[Raw] = []
     skipped: list[Skipped] = []
+    offsets = False
     for layout in layouts:
         if "address" not in layout.roles and not {"hi_byte", "lo_byte"} <= set(layout.roles):
             continue
@@ -359,7 +369,56 @@ def grid_raws(table: Table, kind: str | None, access: str | None,
         reader.run()
         raws += reader.raws
         skipped += reader.skipped
-    return raws, skipped if raws else []  # rows of a table that is no register table are not listed
+        offsets = offsets or reader.relative is not None
+    # rows of a table that is no register table are not listed; a register table of offsets is one
+    return raws, skipped if raws or offsets else []
+
+
+def _relative_header(table: Table, layout: Layout, rows: Sequence[Row]) -> str | None:
+    """The address column's header when it says offset; or the next column's, when that one says
+    offset and holds the numbers on rows where the address column (a block's base, printed once
+    in a merged cell) is empty."""
+    col = layout.roles.get("address")
+    if col is None or layout.header_row is None:
+        return None
+    head = table.rows[layout.header_row:layout.header_row + layout.header_rows]
+
+    def header(i: int) -> str:
+        return " ".join(r.cells[i].strip() for r in head if i < len(r.cells) and r.cells[i].strip())
+
+    if relative_header(header(col)):
+        return header(col)
+    beside = header(col + 1)
+    if not relative_header(beside):
+        return None
+    under = [r for r in rows if col + 1 < len(r.cells) and not r.cells[col].strip()
+             and parse_address(r.cells[col + 1]) is not None]
+    return beside if len(under) >= 3 else None
+
+
+def offsets_header(table: Table) -> str | None:
+    """The header under which a grid table prints offsets instead of addresses (see :class:`GridReader`)."""
+    if table.loose or table.matrix:
+        return None
+    for layout in find_layouts([r.cells for r in table.rows]):
+        start = (layout.header_row or 0) + (0 if layout.header_row is None else layout.header_rows)
+        found = _relative_header(table, layout, table.rows[start:])
+        if found is not None:
+            return found
+    return None
+
+
+def offset_rows(table: Table, header: str) -> list[Skipped]:
+    """The rows of a table without a header of its own that follows one printing offsets under
+    ``header`` (the same table on the next page): each row with an address-like number listed, none
+    drafted, since its numbers are offsets too. [] when the table has a header of its own."""
+    if table.loose or table.matrix or find_layouts([r.cells for r in table.rows]):
+        return []
+    return [Skipped(r.where(), " | ".join(c.strip() for c in r.cells if c.strip()),
+                    f"not drafted: this table continues one whose numbers under {header!r} are offsets from a "
+                    "base address the rows do not give: the address is to be stated by a person")
+            for r in table.rows if any(parse_address(c) is not None and _ADDRESSY.fullmatch(c.strip())
+                                       for c in r.cells[:2])]
 
 
 def _headerless(table: Table) -> list[Skipped]:
