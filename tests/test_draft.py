@@ -81,6 +81,11 @@ def test_addresses_enums_bits_types_names() -> None:
     assert parse_bits("bit0: run, bit1: fault") == [(0, "run"), (1, "fault")]
     assert parse_type("Float") == "f32" and parse_type("signed", 2) == "s32" and parse_type("UINT16") == "u16"
     assert parse_type("") is None
+    # a length resizes a type word without a width, never one that states it: "UINT32" with a length of 4
+    # (bytes) is u32, not u64; with a length that fits neither words nor bytes the two cells contradict
+    assert parse_type("unsigned", 4) == "u64" and parse_type("float", 4) == "f64"
+    assert parse_type("UINT32", 4) == "u32" and parse_type("UINT32", 2) == "u32" and parse_type("INT16", 2) == "s16"
+    assert parse_type("UINT32", 3) is None and parse_type("DINT", 1) is None and parse_type("float32", 1) is None
     assert snake("Phase 1 line to neutral volts", "x") == "phase_1_line_to_neutral_volts"
     assert snake("馬達狀態", "reg_0000") == "reg_0000"
 

@@ -122,11 +122,20 @@ def parse_type(text: str, words: int | None = None) -> str | None:
     # a type token broken over two lines or spaced: "UINT 16", "Int1 6", "U 32"
     low = re.sub(r"\b(u?int|float|real|[us])\s?(\d)\s?(\d)\b", r"\1\2\3", low)
     for pattern, rtype in _TYPE_WORDS:
-        if re.search(pattern, low):
+        found = re.search(pattern, low)
+        if found:
             if words is not None and rtype in _WIDTH and _WIDTH[rtype] != words and rtype != "bool":
-                return _resize(rtype, words)
+                if not _SIZED.search(found.group(0)):
+                    return _resize(rtype, words)
+                # the token states its width: a length of twice its words counts bytes; any other, a contradiction
+                return rtype if words == 2 * _WIDTH[rtype] else None
             return rtype
     return None
+
+
+#: a type token that states its width itself (``UINT32``, ``float64``, ``DINT``, ``double``): a length
+#: column cannot resize it
+_SIZED = re.compile(r"\d|dword|udint|\bdint|ulint|\blint|lreal|double")
 
 
 def _resize(rtype: str, words: int) -> str | None:
