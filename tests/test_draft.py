@@ -472,3 +472,18 @@ def test_coil_and_discrete_input_tables(tmp_path: Path) -> None:
     assert all("type" not in r and "scale" not in r for r in regs.values())
     codes = {f["code"] for f in yaml.safe_load(out.read_text(encoding="utf-8"))["protocol"]["function_codes"]}
     assert {1, 2} <= codes
+
+
+def test_a_measured_value_takes_no_value_list_from_its_text() -> None:
+    """A row whose unit column states a resolution with a unit (``0.1kW``) is a measured value: numbered
+    lines in its free text (often the next row's description, printed above that row's number) are not
+    its value list, and its scale is the unit column's. A row with no unit keeps its value list."""
+    from drivemap.onboard.draft.fields import Context, Raw, draft_fields
+
+    ctx = Context("doc.pdf", lambda _: False)
+    text = "0: two phase\n1: three phase"
+    measured = draft_fields(Raw(5000, "input", "p.6 row 20", cells={"type": "U16", "unit": "0.1kW"}, text=text), ctx)
+    assert "enum" not in measured.entry and measured.entry["scale"] == 0.1 and measured.entry["unit"] == "kW"
+    assert any("not read as this register's" in n for n in measured.notes)
+    listed = draft_fields(Raw(5001, "input", "p.6 row 27", cells={"type": "U16", "unit": ""}, text=text), ctx)
+    assert [v for v, _ in listed.entry["enum"]] == [0, 1]  # type: ignore[union-attr]
