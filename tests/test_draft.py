@@ -485,5 +485,7 @@ def test_a_measured_value_takes_no_value_list_from_its_text() -> None:
     measured = draft_fields(Raw(5000, "input", "p.6 row 20", cells={"type": "U16", "unit": "0.1kW"}, text=text), ctx)
     assert "enum" not in measured.entry and measured.entry["scale"] == 0.1 and measured.entry["unit"] == "kW"
     assert any("not read as this register's" in n for n in measured.notes)
+    remark = draft_fields(Raw(5018, "input", "p.7 row 2", cells={"type": "U16", "unit": "0.1V", "description": "Refer to Output type (address: 5002) 0: phase voltage; 2: line voltage"}), ctx)
+    assert "enum" not in remark.entry and remark.entry["scale"] == 0.1
     listed = draft_fields(Raw(5001, "input", "p.6 row 27", cells={"type": "U16", "unit": ""}, text=text), ctx)
     assert [v for v, _ in listed.entry["enum"]] == [0, 1]  # type: ignore[union-attr]

@@ -304,8 +304,7 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         return Drafted(entry, raw.where, missing, notes)
     rtype = _type_fields(raw, ctx, entry, missing, notes)
     bits = raw.bits or parse_bits(raw.text) or []
-    cell_enum = next((e for e in (parse_enum(raw.cells.get(k, "")) for k in ("range", "description")) if e), None)
-    enum = [] if bits else (raw.enum or cell_enum or _text_enum(raw, notes))
+    enum = [] if bits else (raw.enum or _text_enum(raw, notes))
     if bits:
         entry["bits"] = bits
         missing = [m for m in missing if m != "type"]
@@ -322,14 +321,16 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
 
 
 def _text_enum(raw: Raw, notes: list[str]) -> list[tuple[int, str]]:
-    """A value list in the row's free text, unless the unit column states a resolution with a unit
-    (``0.1kW``): a measured value, whose text's numbered lines (often the next row's description, printed
-    above that row's number) are no value list of this register."""
-    enum = parse_enum(raw.text) or []
+    """A value list in the row's range or description cell or its free text, unless the unit column
+    states a resolution with a unit (``0.1kW``): a measured value, whose numbered lines are no value list
+    of its own (the next row's description printed above that row's number; a remark on the values of
+    another register: "Refer to Output type (address: 5002) 0: phase voltage; ...")."""
+    enum = next((e for e in (parse_enum(raw.cells.get(k, "")) for k in ("range", "description")) if e), None) \
+        or parse_enum(raw.text) or []
     unit_cell = raw.cells.get("unit", "")
     stated = parse_scale(unit_cell, unit_cell=True) if enum and unit_cell else None
     if stated is not None and stated.scale is not None and stated.unit:
-        notes.append(f"values listed in the text not read as this register's: the unit column says {unit_cell.strip()!r}")
+        notes.append(f"values listed in the row not read as this register's: the unit column says {unit_cell.strip()!r}")
         return []
     return enum
 
