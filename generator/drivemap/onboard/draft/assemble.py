@@ -139,6 +139,43 @@ def _not_modicon(source: Source) -> str | None:
     return None
 
 
+#: Fields whose value two rows of one register may state differently (the others are merged by the writer).
+_CONTRADICTABLE = ("type", "scale")
+
+
+def _contradictions(registers: list[Drafted]) -> None:
+    """Two readings of one printed row (one page, table and address: a page's grid read as two tables
+    whose columns split differently) that state different types or scales: neither is taken. The field is
+    left open on each (``review:``) with a note naming both readings and what each says. Rows of
+    different pages at one address are different registers (pages, sections), not readings of one row."""
+    by_place: dict[tuple[object, object, str], list[Drafted]] = {}
+    for d in registers:
+        page = re.match(r"p\.(\d+)\b", d.where)
+        if page is not None:
+            by_place.setdefault((d.entry.get("table"), d.entry.get("address"), page.group(1)), []).append(d)
+    for same in by_place.values():
+        if len(same) < 2:
+            continue
+        for key in _CONTRADICTABLE:
+            said = {(d.where, str(d.entry[key])) for d in same if key in d.entry and key not in _review_of(d)}
+            if len({value for _, value in said}) < 2:
+                continue
+            text = "; ".join(f"{where}: {value}" for where, value in sorted(said))
+            for d in same:
+                d.entry.pop(key, None)
+                review = _review_of(d)
+                if key not in review:
+                    review.append(key)
+                d.entry["review"] = [f for f in ("table", "type", "word_order", "scale") if f in review] + \
+                    [f for f in review if f not in ("table", "type", "word_order", "scale")]
+                d.notes.append(f"{key} left open: the document states it differently ({text})")
+
+
+def _review_of(d: Drafted) -> list[str]:
+    listed = d.entry.get("review")
+    return [str(f) for f in listed] if isinstance(listed, list) else []
+
+
 def _tables(source: Source, skipped: list[Skipped]) -> Iterator[Table]:
     """The document's tables to read. A table without a header of its own that follows one printing
     offsets, not addresses (the same table on the next page), is not read: its rows go to ``skipped``."""
@@ -294,6 +331,7 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
         for d in drafts:
             _finish(d, source.name, names)
         registers += drafts
+    _contradictions(registers)
     data = _document(source, model, groups, registers)
     if hints.said():
         data["device"]["notes"] += ("; assumed by the user, not read from the document: " + ", ".join(hints.said())

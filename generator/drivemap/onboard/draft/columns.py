@@ -29,7 +29,7 @@ _ROLES: tuple[tuple[str, str], ...] = (
     ("access", r"access|^r\s*/\s*w|^w\s*/\s*r$|read\s*/\s*write|^rw$|attribute|读写|讀寫|属性|屬性|permission"),
     ("bit", r"^bits?$|^位$"),
     ("param", r"^id$|^p_?$|^no\.?$|param(eter)?\s*(no|id|number|code|#)|参数号|參數號|参数编号|參數編號"),
-    ("address", r"addr|register|^reg\b|reg\.|寄存器|暂存器|暫存器|位址|地址|modbus|offset|编号|編號|pdu|"
+    ("address", r"addr|\badr|register|^reg\b|reg\.|寄存器|暂存器|暫存器|位址|地址|modbus|offset|编号|編號|pdu|"
                 r"^coils?$|^discrete\s+inputs?$|^线圈$|^線圈$"),
     ("name", r"name|parameter|function|item|measur|signal|variable|quantity|object|名稱|名称|功能|项目|項目|参数|參數"),
     ("description", r"descr|decrip|content|definition|meaning|note|remark|comment|detail|data|說明|说明|內容|内容|含义|含義|意义"),
@@ -38,7 +38,7 @@ _RADIX_HEX = re.compile(r"hex|\(h\)|16\s*进制|16\s*進位|十六", re.I)
 #: an address column headed as an offset (``Offset``, ``偏移``, ``Index``) and not as an address: its numbers
 #: count from a base the rows do not give (a block's start address), in words or in bytes
 _RELATIVE = re.compile(r"offset|偏移|\bindex\b", re.I)
-_ABSOLUTE = re.compile(r"addr|地址|位址|register|寄存器|modbus|pdu", re.I)
+_ABSOLUTE = re.compile(r"addr|\badr\b|地址|位址|register|寄存器|modbus|pdu", re.I)
 
 
 def relative_header(header: str) -> bool:

@@ -1,4 +1,4 @@
-"""Draft and offsets: a register table that prints offsets from a base address, not addresses."""
+"""Draft, row by row: offsets that are no addresses, and two readings of one row that disagree."""
 
 from __future__ import annotations
 
@@ -27,3 +27,26 @@ def test_offsets_are_listed_not_drafted_as_addresses() -> None:
     head[0].cells[1], body[1].cells[0] = "Register address", ""
     result = draft(Source("meter.pdf", "0" * 64, tables[:1], ""), "meter")
     assert [r.entry["address"] for r in result.registers] == [0, 4, 8, 12]
+
+
+def test_two_readings_of_one_row_that_disagree_leave_the_field_open() -> None:
+    """One printed row read twice (a page's grid seen as two tables whose columns split differently:
+    ``u | int16`` against ``uint16``) states two types: neither is taken. Rows of different pages at one
+    address are different registers (pages, sections) and keep their own."""
+    from drivemap.onboard.draft.assemble import _contradictions
+    from drivemap.onboard.draft.tables import Drafted
+
+    def reg(where: str, rtype: str) -> Drafted:
+        return Drafted({"table": "holding", "address": 778, "type": rtype}, where)
+
+    same_page = [reg("p.4 table 1 row 29", "s16"), reg("p.4 table 2 row 7", "u16")]
+    _contradictions(same_page)
+    for d in same_page:
+        assert "type" not in d.entry and d.entry["review"] == ["type"]
+        assert any("p.4 table 1 row 29: s16; p.4 table 2 row 7: u16" in n for n in d.notes)
+    pages = [reg("p.11 line 1056", "s16"), reg("p.12 line 1186", "u16")]
+    _contradictions(pages)
+    assert [d.entry["type"] for d in pages] == ["s16", "u16"] and all("review" not in d.entry for d in pages)
+    agree = [reg("p.4 table 1 row 29", "u16"), reg("p.4 table 2 row 7", "u16")]
+    _contradictions(agree)
+    assert [d.entry["type"] for d in agree] == ["u16", "u16"]
