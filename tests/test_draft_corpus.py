@@ -32,7 +32,7 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "mennekes_amtron_hcc3.pdf": (6, 0, 0),
     "schrack_cion.pdf": (0, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (98, 1, 4),
-    "sungrow_sh_hybrid_protocol_v1111.pdf": (63, 4, 0),
+    "sungrow_sh_hybrid_protocol_v1111.pdf": (65, 1, 0),
     "webasto_live.pdf": (17, 0, 0),
 }
 

@@ -50,3 +50,17 @@ def test_two_readings_of_one_row_that_disagree_leave_the_field_open() -> None:
     agree = [reg("p.4 table 1 row 29", "u16"), reg("p.4 table 2 row 7", "u16")]
     _contradictions(agree)
     assert [d.entry["type"] for d in agree] == ["u16", "u16"]
+
+
+def test_a_span_with_a_full_width_tilde_is_one_register_of_two_words() -> None:
+    """``5004～5005`` (full-width tilde, as Chinese typesetting prints it) reads as ``5004~5005``."""
+    from drivemap.onboard.draft.cells import is_address_range
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    assert is_address_range("0x10～0x1F") and is_address_range("0x10~0x1F")
+    rows = [Row(["No.", "Name", "Register", "Data type", "Unit"], 6, 1),
+            Row(["11.", "Total Output Energy", "5004～5005", "U32", "0.1kWh"], 6, 2),
+            Row(["12.", "Daily Output Energy", "5006", "U16", "0.1kWh"], 6, 3)]
+    result = draft(Source("inverter.pdf", "0" * 64, [Table(None, rows, 6, None, "", label="p.6 table 1")], ""), "inv")
+    total = next(r.entry for r in result.registers if r.entry.get("label") == "Total Output Energy")
+    assert (total["address"], total["type"], total["scale"], total["unit"]) == (5004, "u32", 0.1, "kWh")

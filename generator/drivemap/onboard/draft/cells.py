@@ -14,7 +14,7 @@ _PLAIN = re.compile(r"^\d{1,6}$")
 #: IEC 61131-3 hex literal, with the decimal a vendor prints beside it: ``16#2136``, ``16#2136 = 08502``
 _IEC_HEX = re.compile(r"^16#([0-9A-Fa-f]{1,5})(?:\s*[=/(]\s*(\d{1,6})\)?)?$")
 _BARE_HEX = re.compile(r"^[0-9A-Fa-f]{2,5}$")
-_ADDR_RANGE = re.compile(r"^(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?\s*(?:~|-|–|to)\s*(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?$")
+_ADDR_RANGE = re.compile(r"^(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?\s*(?:~|～|-|–|to)\s*(?:0[xX])?[0-9A-Fa-f]{2,5}[hH]?$")
 
 
 @dataclass(frozen=True)

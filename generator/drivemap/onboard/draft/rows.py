@@ -162,7 +162,7 @@ class GridReader:
     def _pair(self, text: str) -> tuple[int | None, str | None, str]:
         """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
         pair = parse_address_pair(text)
-        span = re.fullmatch(r"\s*(\d{1,6})\s*[-~–]\s*(\d{1,6})\s*", text)
+        span = re.fullmatch(r"\s*(\d{1,6})\s*[-~–～]\s*(\d{1,6})\s*", text)
         if pair is None and span is not None:  # "5031 - 5032": one value over the registers of the span
             first_a, last_a = parse_address(span.group(1)), parse_address(span.group(2))
             if first_a is not None and last_a is not None:
