@@ -64,3 +64,16 @@ def test_a_span_with_a_full_width_tilde_is_one_register_of_two_words() -> None:
     result = draft(Source("inverter.pdf", "0" * 64, [Table(None, rows, 6, None, "", label="p.6 table 1")], ""), "inv")
     total = next(r.entry for r in result.registers if r.entry.get("label") == "Total Output Energy")
     assert (total["address"], total["type"], total["scale"], total["unit"]) == (5004, "u32", 0.1, "kWh")
+
+
+def test_a_row_without_a_type_column_states_the_type_token_it_writes() -> None:
+    """A table without a type column: a row whose remark writes one type token (``S16``) states that type;
+    a row that writes two different ones states none."""
+    from drivemap.onboard.draft.fields import Context, Raw, draft_fields
+
+    ctx = Context("doc.docx", lambda _: False)
+    one = draft_fields(Raw(604, "holding", "table 9 row 4", cells={"unit": "1W", "description": "A phase power R 1W S16"}), ctx)
+    assert one.entry["type"] == "s16" and "type" not in (one.entry.get("review") or ())
+    assert any("the row says 'S16'" in n for n in one.notes)
+    two = draft_fields(Raw(605, "holding", "table 9 row 5", cells={"unit": "1W"}, text="low word U16, with 606 as S32"), ctx)
+    assert "type" not in two.entry and "type" in two.entry["review"]  # type: ignore[operator]

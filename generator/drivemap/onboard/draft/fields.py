@@ -58,9 +58,27 @@ class Raw:
     notes: list[str] = field(default_factory=list)
 
 
+#: a type written as a token of its own in a row without a type column (a remark's ``S16``, ``U32``)
+_TYPE_TOKEN = re.compile(r"(?<![A-Za-z0-9])(?:[US]|U?INT)(?:16|32|64)(?![A-Za-z0-9])")
+
+
+def _type_in_text(raw: Raw, words: int | None, notes: list[str]) -> str | None:
+    """The type a row without a type column states in its text: one distinct token (``S16``), else None."""
+    tokens = {t.upper() for t in _TYPE_TOKEN.findall(raw.text + " " + " ".join(raw.cells.values()))}
+    if len(tokens) != 1:
+        return None
+    token = tokens.pop()
+    rtype = parse_type(token, words)
+    if rtype is not None:
+        notes.append(f"type {rtype}: the row says {token!r} (no type column)")
+    return rtype
+
+
 def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list[str], notes: list[str]) -> str:
     words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
     rtype = parse_type(raw.cells.get("type", ""), words)
+    if rtype is None and not raw.cells.get("type", "").strip():
+        rtype = _type_in_text(raw, words, notes)
     if rtype is None and signed_hint(raw.text + " " + raw.cells.get("type", "")):
         rtype = "s16" if words in (None, 1) else None
     if rtype is None:
