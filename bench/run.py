@@ -243,14 +243,14 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   are within about 0.05 ms of bytes × 86.8 µs each; the relay is not where the time goes.
 * **Device**: the lean device turns around 0.15–0.35 ms late (two cross-process wake-ups through the
   relay on 2 shared cores: it waits exactly 4.00 ms from the moment it reads the request). The
-  generated simulator on pymodbus's serial server adds about 0.1–0.3 ms more: pymodbus's server
-  dispatch before the request reaches `_SimRequest.datastore_update` (the processing time now counts
-  from the moment the framer found the request) and the reply's write through the transport's
-  `add_writer` callback (`pymodbus/transport/serialtransport.py`, `write` → `intern_write_ready`: one
-  more event-loop turn). Before the fix the simulator waited with a bare `asyncio.sleep(0.004)` from
-  the start of `datastore_update`, which the event loop rounds up to the next millisecond (device
-  turnaround 5.2–5.3 ms before, 4.4–4.6 ms now); `generator/drivemap/runtime/sim/serve.py` now counts from the
-  request's arrival and waits precisely (`sleep_until`).
+  generated simulator on pymodbus's serial server now turns around within about 0.1 ms of it
+  (`generator/drivemap/runtime/sim/serve.py`): its processing time counts from the moment the framer
+  found the request and is waited precisely (`sleep_until`; a bare `asyncio.sleep(0.004)`, rounded up
+  by the event loop, gave 5.2–5.3 ms); the reply goes to the port when pymodbus hands it over
+  (`_write_at_once`, not one event-loop turn later through the transport's `add_writer` callback,
+  which cost 0.1–0.2 ms); and the wait ends early by the measured way from `datastore_update` to the
+  port (framing, CRC, the write; learnt per reply, at most 0.2 ms), so the reply reaches the port when
+  the map's timing says. What is left is the two wake-ups through the relay the lean device has too.
 * **Client, sync**: pymodbus's sync serial client notices the end of a reply only by polling
   `in_waiting` every `_recv_interval` = max(4 characters, 1 ms) and returns after a poll that sees no
   new byte (`pymodbus/client/serial.py`, `_wait_for_data`): the "reply end seen" column of the
@@ -272,14 +272,17 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   milliseconds and yields the rest, so "client work + quiet" is ≈ t3.5 + 0.05 ms. The request then
   takes 0.2–0.3 ms to reach the line: pymodbus builds the frame after the wait, and its serial
   transport writes through an `add_writer` callback (one more loop turn) before the relay reads it.
-* What stays out of reach on this machine: the goal allows 1.07 ms of overhead per transaction for
-  `read 16` and 0.79 ms for `write one`. The sync client's turnaround is now the async one's: about
-  0.25 ms of it is the wake-up of the client process after the relay writes the last byte (the bus
-  can count the t3.5 only from the moment it read that byte), then the t3.5, the sleep's overshoot
-  (≈ 0.05–0.1 ms) and pymodbus's send path to the line (0.15 ms). What remains on both is the device's turnaround (the
-  simulator 0.5-0.9 ms above t3.5 + processing, the lean device 0.2 ms), the request's way to the
-  line (0.15-0.4 ms) and the sleeps' overshoot on 2 cores shared with other work: the efficiencies
-  move by ±0.05 between runs with the machine's load (see the load average above), and both
+* What stays out of reach on this machine: the sync goal (0.95) allows 0.51 ms of overhead per
+  transaction for `read 16` and 0.38 ms for `write one` (the async goal, 0.90: 1.07 and 0.79 ms).
+  A transaction crosses processes four times (client → relay → device → relay → client), each a
+  wake-up of about 0.1 ms on these 2 shared cores: the lean reference device with the same sync client
+  lands at 0.94–0.95, and the generated simulator now within about 0.01–0.02 of it. The client's own part
+  above t3.5 is the wake-up after the relay writes the last reply byte (the bus can count the t3.5
+  only from the moment it read that byte) and its request's way to the relay; watching the line for
+  the last byte instead of blocking was tried and changed nothing (client turnaround 1.94–1.95 ms
+  either way). Closing the rest would mean sending before the t3.5 after the last byte the client
+  saw, or a device replying before its processing time: neither is done. The efficiencies move by
+  ±0.05 between runs with the machine's load (see the load average above), and both
   clients land at 0.75-0.88 in a loaded run."""
 
 
