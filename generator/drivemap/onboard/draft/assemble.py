@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivemap.frontend.formats import CURRENT
-from drivemap.onboard.draft.fields import Context, Raw, draft_fields, factor_direction
+from drivemap.onboard.draft.fields import REVIEWED, Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
 from drivemap.onboard.draft.rows import (
@@ -166,8 +166,7 @@ def _contradictions(registers: list[Drafted]) -> None:
                 review = _review_of(d)
                 if key not in review:
                     review.append(key)
-                d.entry["review"] = [f for f in ("table", "type", "word_order", "scale") if f in review] + \
-                    [f for f in review if f not in ("table", "type", "word_order", "scale")]
+                d.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
                 d.notes.append(f"{key} left open: the document states it differently ({text})")
 
 
