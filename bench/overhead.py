@@ -32,6 +32,8 @@ from typing import Any
 from common import Row, Section, median, profile_text, spread
 from servers import Child
 
+from drivemap.runtime.client.machinery import without_programs
+
 MODEL = "vfd1000"
 GOAL = 1.10
 #: Stricter goals for the two most common reads (typed read of 8 contiguous registers, one element).
@@ -171,7 +173,7 @@ def outside_execute(fn: Callable[[], Any], pm_client: Any, calls: int, rounds: i
 
 def _outside_rows(sec: Section, client: Any, general: Any, raw: Any, reg: Any, rounds: int) -> None:
     """Per-call µs outside ``execute()``: typed read of 8 contiguous registers / one, raw alike, and the
-    same calls on a client whose reads all take the general path (``_PROGRAMS = False``): what the
+    same calls on a client whose reads all take the general path (``machinery.without_programs``): what the
     compiled read programs save, measured round by round beside them."""
     eight = run8(client.SPEC)
 
@@ -187,7 +189,7 @@ def _outside_rows(sec: Section, client: Any, general: Any, raw: Any, reg: Any, r
     }
     sec.detail += ["", "Time per call outside pymodbus's `execute()` (µs; median over rounds, min–max of the "
                    "round medians); *general path*: the same client class with its read programs off "
-                   "(`_PROGRAMS = False`), every read planned, decoded and checked the general way:", "",
+                   "(`without_programs`), every read planned, decoded and checked the general way:", "",
                    "| call | drivemap µs | general path µs | raw pymodbus µs | rounds |", "|---|---:|---:|---:|---:|"]
     for name, ours in ours_calls.items():
         a, g, b = [], [], []
@@ -331,7 +333,7 @@ def _sync_part(sec: Section, client_mod: Any, host: str, port: int, reg: Any, re
             ours_fn = ops[op][0]
             sec.profiles.append(f"sync `{op}`: cProfile of 200 calls of the generated client (top by own time):"
                                 f"\n\n```\n{profile_text(lambda f=ours_fn: [f() for _ in range(200)])}\n```")
-        general_cls = type("GeneralPathClient", (client_mod.Client,), {"_PROGRAMS": False})
+        general_cls = without_programs(client_mod.Client)
         with general_cls.tcp(host, port, 1, timeout=2.0) as general:
             _outside_rows(sec, client, general, raw, reg, max(rounds, 5))
         raw.close()

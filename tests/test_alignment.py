@@ -78,7 +78,7 @@ def test_reset_is_written_whole_and_misaligned_writes_are_refused() -> None:
         with package("sdm630").Client.tcp(host, port, 1, timeout=2.0) as client:
             client.reset.execute()
             assert client.stats.by_function.get(0x10) == 1
-            core = client._core
+            core = client._drivemap.core
             with pytest.raises(MisalignedRequest, match="write holding 0xF010 x1"):
                 core._write_request("holding", 0xF010, [0])
             assert client.stats.transactions == 1

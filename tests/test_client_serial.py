@@ -131,7 +131,7 @@ def test_broadcast_two_units_one_line(monkeypatch: pytest.MonkeyPatch, mode: str
             with pytest.raises(BroadcastRead):
                 bc.read_by_name("digital_speed_ram[0]")
             with pytest.raises(AccessError):
-                bc._write_raw_items([(("motor_state", 0), 1)])
+                bc._drivemap.write_raw_items([(("motor_state", 0), 1)])
             assert len(line.captured("to_device")) == sent
 
 

@@ -70,7 +70,7 @@ def test_every_attribute_of_a_generated_client_is_reserved(model: str) -> None:
     try:
         client = package.Client(bus, unit=package.SPEC.protocol.unit_min or 1)
         client.plan()  # fills the per-class caches (attributes set on first use)
-        client._snapshot({})
+        client._drivemap.snapshot({})
         attributes = {n for n in dir(client) if not n.startswith("__")}
     finally:
         bus.close()

@@ -231,7 +231,7 @@ def test_refused_words_are_found_by_splitting_and_never_spanned_again() -> None:
         before = stats.transactions
         snap = drive.read_all()  # the holes are known: no refusal, no split
         assert stats.split_reads == 2 and stats.extra_requests == 16
-        assert stats.transactions - before == len(drive._core.plan_with_holes(drive._core.tables.all_keys))
+        assert stats.transactions - before == len(drive._drivemap.core.plan_with_holes(drive._drivemap.core.tables.all_keys))
         assert stats.exceptions == 10
         assert same(snap.net_energy, VALUES["net_energy"]) and same(snap.phase_currents, VALUES["phase_currents"])
         # a single register next to a hole is read alone, not merged across it

@@ -20,8 +20,8 @@ from typing import Any
 import pytest
 
 import drivemap.runtime.client.async_client as aclient_mod
-import drivemap.runtime.client.base as common_mod
 import drivemap.runtime.client.sync_client as client_mod
+from drivemap.runtime.client.machinery import without_programs
 from drivemap.runtime.client.sansio import Core
 from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
@@ -35,20 +35,7 @@ vfd = package("vfd1000")
 
 def general_only(cls: Any) -> Any:
     """``cls`` without read or write programs: every call takes the general path."""
-
-    def _compiled(klass: Any, *args: Any, **kwargs: Any) -> None:
-        return None
-
-    def _element_writer(self: Any, acc: Any) -> Any:
-        real = common_mod.element_writer
-        common_mod.element_writer = lambda *a: None
-        try:
-            return cls._element_writer(self, acc)
-        finally:
-            common_mod.element_writer = real
-
-    return type(f"General{cls.__name__}", (cls,), {"_compiled": classmethod(_compiled),
-                                                  "_element_writer": _element_writer})
+    return without_programs(cls)
 
 
 @pytest.fixture
@@ -95,13 +82,13 @@ def test_clean_reads_and_writes_take_the_program(paths: dict[str, int]) -> None:
         drive.comm_error_action.write(drive.comm_error_action.read())
         assert drive.digital_speed_ram.read() == tuple(sim.get(f"digital_speed_ram[{i}]") for i in range(8))
         assert paths == {"read_raw": 0, "write_raw": 0, "replay": 0, "run": 0}
-        program = drive._programs[(drive.motor_speed, drive.alarm_no, drive.motor_state)]
+        program = drive._drivemap.programs[(drive.motor_speed, drive.alarm_no, drive.motor_state)]
         assert program.__code__.co_filename == "<drivemap read program snapshot>"
         assert drive.motor_speed._program.__code__.co_filename == "<drivemap read program value>"
         assert drive.digital_speed_ram._program.__code__.co_filename == "<drivemap read program tuple>"
     with tcp_server("vfd1000") as (sim, host, port), vfd.Client.tcp(host, port, timeout=2.0) as drive:
         drive.read_all()
-        assert drive._all_program.__code__.co_filename == "<drivemap read program snapshot>"
+        assert drive._drivemap.all_program.__code__.co_filename == "<drivemap read program snapshot>"
         assert paths == {"read_raw": 0, "write_raw": 0, "replay": 0, "run": 0}
 
 

@@ -180,7 +180,7 @@ def perform(model: Model, ex: Example, client: Any) -> Any:
             pdu = WriteSingleRegisterRequest(address=model.registers[0].address, registers=[0])
             pdu.dev_id = meaning.unit
             reply = client.bus.exchange(Exchange(meaning.unit, pdu, model.protocol.timing, True, 0.0))
-            client._core.raise_for(reply, 0x06)  # the device's exception, as the client raises it
+            client._drivemap.core.raise_for(reply, 0x06)  # the device's exception, as the client raises it
             return None
         acc = client.accessor(name)
         default = model.cell(name).register.default_at(model.cell(name).index)

@@ -195,7 +195,7 @@ def identify(bus: Bus, target: Target, unit: int, reads: Bus | SharedReads | Non
     for req in client.plan(keys):
         fit.requests += 1
         try:
-            raws = run(reads or bus, client._core.read_raw([k for k, _ in req.cells], (req,), checked=True))  # type: ignore[arg-type]
+            raws = run(reads or bus, client._drivemap.core.read_raw([k for k, _ in req.cells], (req,), checked=True))  # type: ignore[arg-type]
         except DeviceException as exc:
             fit.problems.append(f"identity: exception {exc.code:02X}h to a read of 0x{req.address:04X}+{req.count}")
             continue

@@ -41,4 +41,4 @@ def restore(session: Session, saved: dict[str, int]) -> None:
     for name, raw in saved.items():
         if session.core.pages.get(name, raw) != raw:
             reg = session.target.model.register(name)
-            session.call(f"restoring {name}", session.client._write_raw_items, [((reg.name, 0), raw)])
+            session.call(f"restoring {name}", session.client._drivemap.write_raw_items, [((reg.name, 0), raw)])

@@ -66,7 +66,7 @@ class Session:
 
     @property
     def core(self) -> Core:
-        core: Core = self.client._core
+        core: Core = self.client._drivemap.core
         return core
 
     def call(self, what: str, func: Any, *args: Any) -> Any:
@@ -79,7 +79,7 @@ class Session:
         """Raw values of ``keys`` in the fewest requests the map allows (the client's planner), with
         the scale-factor registers of scaled ones read in the same pass (``fmt.decode`` needs them)."""
         factors = {self.target.codecs[name].scale_key for name, _ in keys} - {None} - set(keys)
-        return self.client._read_raw_keys(tuple(keys) + tuple(sorted(factors)))  # type: ignore[no-any-return]
+        return self.client._drivemap.read_raw_keys(tuple(keys) + tuple(sorted(factors)))  # type: ignore[no-any-return]
 
     def read_request(self, request: ReadRequest) -> dict[Key, int]:
         """Raw values of one planned request, exactly as planned."""
@@ -101,7 +101,7 @@ def check_identity(session: Session) -> tuple[Mismatch, ...]:
     spec = session.target.spec
     if not spec.identity:
         return ()
-    raws = session.call("reading the identity registers", session.client._read_raw_keys, identity_keys(spec))
+    raws = session.call("reading the identity registers", session.client._drivemap.read_raw_keys, identity_keys(spec))
     return identity_mismatches(spec, raws, session.target.codecs)
 
 

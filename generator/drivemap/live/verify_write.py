@@ -103,7 +103,7 @@ def round_trip(session: Session, reg: Register, index: int, what: str, raw: int,
     name = reg.element_name(index)
     address = reg.element_address(index)
     try:
-        session.client._write_raw_items([(key, raw)])
+        session.client._drivemap.write_raw_items([(key, raw)])
     except (DeviceException, DriveTimeout) as exc:
         results.add(Finding("write-safe", "disagree", name, address, reg.line, f"accepts {what} (raw {raw})",
                             f"refuses it: {failure_text(session, exc)}",
@@ -127,7 +127,7 @@ def restore(session: Session, reg: Register, index: int, original: int, results:
     key = (reg.name, index)
     name = reg.element_name(index)
     try:
-        session.client._write_raw_items([(key, original)])
+        session.client._drivemap.write_raw_items([(key, original)])
         back = session.read_keys([key])[key]
     except (DeviceException, DriveTimeout) as exc:
         back, problem = None, failure_text(session, exc)

@@ -84,7 +84,7 @@ def cmd_write(args: argparse.Namespace) -> int:
     if args.dry_run:
         return dry_run(target, resolve_link(args, target), items, args.apply, args.switch_pages)
     with session_for(args, target, identity="refuse") as session:
-        session.call(f"writing {', '.join(a.text for a in assignments)}", session.client._write_raw_items, items)
+        session.call(f"writing {', '.join(a.text for a in assignments)}", session.client._drivemap.write_raw_items, items)
         if args.apply:
             session.call("sending the Configuration command", session.client.apply_configuration)
         back = {} if args.no_read_back else read_back(session, assignments)

@@ -61,12 +61,7 @@ RESERVED = Reserved(
         'bool', 'float', 'int', 'str', 'tuple',
     }),
     client=frozenset({
-        'CODECS', 'EXCEPTIONS', 'SNAPSHOT', 'SPEC', '_ACCESSOR_CLASSES', '_ASYNC', '_BUS', '_PROGRAMS',
-        '_all_program', '_bind', '_by_name_value', '_compiled', '_core', '_defaults', '_element_program',
-        '_element_writer', '_general', '_is_protocol', '_keys', '_owns_bus', '_plan_cache', '_plan_for',
-        '_plans', '_programs', '_read_all_program', '_read_program', '_read_raw_keys', '_readers',
-        '_register_names', '_register_order', '_registers_declared', '_setup', '_shape', '_snapshot',
-        '_snapshot_defaults', '_snapshot_program', '_snapshot_table', '_table', '_write_raw_items', 'accessor',
+        'CODECS', 'EXCEPTIONS', 'SNAPSHOT', 'SPEC', '_drivemap', '_is_protocol', 'accessor',
         'apply_configuration', 'broadcast', 'bus', 'close', 'connect', 'holes', 'loopback', 'page_policy',
         'pending_configuration', 'pending_power_cycle', 'plan', 'read', 'read_all', 'read_by_name',
         'read_modify_write', 'read_registers', 'registers', 'rtu_over_tcp', 'serial', 'stats', 'tcp', 'unit',

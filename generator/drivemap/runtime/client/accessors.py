@@ -132,11 +132,11 @@ class ReadOnly(ElementBase[T]):
     def read(self) -> T:
         program = self._program
         if program is None:
-            program = self._program = self._owner._element_program(self)
+            program = self._program = self._owner._drivemap.element_program(self)
         return program(self._owner)  # type: ignore[no-any-return]
 
     def read_raw(self) -> int:
-        return self._owner._read_raw_keys(self._keys)[self._key]  # type: ignore[no-any-return]
+        return self._owner._drivemap.read_raw_keys(self._keys)[self._key]  # type: ignore[no-any-return]
 
 
 class WriteOnly(ElementBase[T]):
@@ -145,11 +145,11 @@ class WriteOnly(ElementBase[T]):
     def write(self, value: T) -> None:
         writer = self._writer
         if writer is None:
-            writer = self._writer = self._owner._element_writer(self)
+            writer = self._writer = self._owner._drivemap.element_writer(self)
         writer(self._owner, value)
 
     def write_raw(self, raw: int) -> None:
-        self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
+        self._owner._drivemap.write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
 
 
 class ReadWrite(ReadOnly[T], WriteOnly[T]):
@@ -166,7 +166,7 @@ class Command(WriteOnly[T]):
 
     def execute(self) -> None:
         """Send the command (write the map's command value)."""
-        self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+        self._owner._drivemap.write_raw_items([(self._key, _command_value(self.spec))])
 
 
 class ReadWriteCommand(ReadWrite[T], Command[T]):
@@ -247,13 +247,13 @@ class _ReadArrayMixin(ArrayBase[T, E_co]):
     def read(self) -> tuple[T, ...]:
         program = self._program
         if program is None:
-            program = self._program = self._owner._element_program(self)
+            program = self._program = self._owner._drivemap.element_program(self)
         return program(self._owner)  # type: ignore[no-any-return]
 
 
 def _refuse_open(owner: Any, name: str, keys: Sequence[Key]) -> None:
     """:class:`OpenForReview` for a register open for review (``review:``), before its values are looked at."""
-    core = owner._core
+    core = owner._drivemap.core
     if name in core.tables.under_review:
         core.check_write(keys[0])
 
@@ -264,7 +264,7 @@ class _WriteArrayMixin(ArrayBase[T, E_co]):
         if len(values) != len(self):
             raise InvalidValue(f"{self.name}: expected {len(self)} values, got {len(values)}")
         _refuse_open(self._owner, self.spec.name, self.keys)
-        self._owner._write_raw_items([(k, encode_for_write(self.codec, v)) for k, v in zip(self.keys, values, strict=True)])
+        self._owner._drivemap.write_raw_items([(k, encode_for_write(self.codec, v)) for k, v in zip(self.keys, values, strict=True)])
 
 
 class ReadOnlyArray(_ReadArrayMixin[T, ReadOnly[T]]):
@@ -285,11 +285,11 @@ class AsyncReadOnly(ElementBase[T]):
     async def read(self) -> T:
         program = self._program
         if program is None:
-            program = self._program = self._owner._element_program(self)
+            program = self._program = self._owner._drivemap.element_program(self)
         return await program(self._owner)  # type: ignore[no-any-return]
 
     async def read_raw(self) -> int:
-        return (await self._owner._read_raw_keys(self.keys))[self.key]  # type: ignore[no-any-return]
+        return (await self._owner._drivemap.read_raw_keys(self.keys))[self.key]  # type: ignore[no-any-return]
 
 
 class AsyncWriteOnly(ElementBase[T]):
@@ -298,11 +298,11 @@ class AsyncWriteOnly(ElementBase[T]):
     async def write(self, value: T) -> None:
         writer = self._writer
         if writer is None:
-            writer = self._writer = self._owner._element_writer(self)
+            writer = self._writer = self._owner._drivemap.element_writer(self)
         await writer(self._owner, value)
 
     async def write_raw(self, raw: int) -> None:
-        await self._owner._write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
+        await self._owner._drivemap.write_raw_items([(self.key, RawCodec(self.spec).encode(raw))])
 
 
 class AsyncReadWrite(AsyncReadOnly[T], AsyncWriteOnly[T]):
@@ -317,7 +317,7 @@ class AsyncCommand(AsyncWriteOnly[T]):
 
     async def execute(self) -> None:
         """Send the command (write the map's command value)."""
-        await self._owner._write_raw_items([(self._key, _command_value(self.spec))])
+        await self._owner._drivemap.write_raw_items([(self._key, _command_value(self.spec))])
 
 
 class AsyncReadWriteCommand(AsyncReadWrite[T], AsyncCommand[T]):
@@ -328,7 +328,7 @@ class _AsyncReadArrayMixin(ArrayBase[T, E_co]):
     async def read(self) -> tuple[T, ...]:
         program = self._program
         if program is None:
-            program = self._program = self._owner._element_program(self)
+            program = self._program = self._owner._drivemap.element_program(self)
         return await program(self._owner)  # type: ignore[no-any-return]
 
 
@@ -337,7 +337,7 @@ class _AsyncWriteArrayMixin(ArrayBase[T, E_co]):
         if len(values) != len(self):
             raise InvalidValue(f"{self.name}: expected {len(self)} values, got {len(values)}")
         _refuse_open(self._owner, self.spec.name, self.keys)
-        await self._owner._write_raw_items([(k, encode_for_write(self.codec, v))
+        await self._owner._drivemap.write_raw_items([(k, encode_for_write(self.codec, v))
                                             for k, v in zip(self.keys, values, strict=True)])
 
 

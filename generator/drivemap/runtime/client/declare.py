@@ -13,8 +13,8 @@ The descriptor is typed by the client it is read from (``drive.motor_speed`` is 
 :class:`~drivemap.runtime.client.accessors.ReadOnly` of a ``Client``, an
 :class:`~drivemap.runtime.client.accessors.AsyncReadOnly` of an ``AsyncClient``; the way pymodbus's
 ``ModbusClientMixin[T]`` writes its request API once), carries the register's docstring (so
-``help(Client)`` and editors show it), and makes the accessor on first use: the client class says
-which accessor class a kind of register gets (``_ACCESSOR_CLASSES``), the accessor is cached in
+``help(Client)`` and editors show it), and makes the accessor on first use: the client's machinery says
+which accessor class a kind of register gets (``ClientMachinery.ACCESSORS``), the accessor is cached in
 the instance, so later reads of ``drive.motor_speed`` are plain attribute lookups.
 
 :func:`codecs_for` makes every register's codec from the spec and the package's value classes

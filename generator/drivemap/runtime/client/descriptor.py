@@ -1,7 +1,7 @@
 """The register descriptor every client class declares its registers with (:class:`Reg`).
 
 Its kinds of accessor (read-only, array, command ...) are in :mod:`.declare`; the client bases find a
-class's registers by this class (:meth:`~.base.ClientCommon._registers_declared`), so it sits below both.
+class's registers by this class (:meth:`~.machinery.ClassMachinery.registers`), so it sits below both.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ class Reg(Generic[T]):
         return f"<{type(self).__name__} {self.name}>"
 
     def _bind(self, client: Any) -> Any:
-        accessor = client._ACCESSOR_CLASSES[self.kind](client, client.CODECS[self.name])
+        accessor = client._drivemap.ACCESSORS[self.kind](client, client.CODECS[self.name])
         accessor.__doc__ = self.__doc__
         client.__dict__[self.name] = accessor  # later lookups find the accessor, not this descriptor
         return accessor

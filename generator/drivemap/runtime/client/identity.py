@@ -96,7 +96,7 @@ def _raise(spec: DeviceSpec, unit: int, found: tuple[Mismatch, ...]) -> None:
 
 def _client(client_or_session: Any) -> Any:
     """A generated client, or the client of anything that holds one (a live session: ``.client``)."""
-    return client_or_session if hasattr(client_or_session, "_core") else client_or_session.client
+    return client_or_session if hasattr(client_or_session, "_drivemap") else client_or_session.client
 
 
 def check_identity(client_or_session: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
@@ -105,10 +105,10 @@ def check_identity(client_or_session: Any, *, raise_on_mismatch: bool = True) ->
     (``raise_on_mismatch=False``: return the mismatches instead); () when it is, or when the map
     names no identity. Transport errors and exception replies propagate as from any read."""
     client = _client(client_or_session)
-    spec: DeviceSpec = client._core.spec
+    spec: DeviceSpec = client.SPEC
     if not spec.identity:
         return ()
-    raws = client._read_raw_keys(identity_keys(spec))
+    raws = client._drivemap.read_raw_keys(identity_keys(spec))
     found = identity_mismatches(spec, raws, getattr(client, "CODECS", None))
     if raise_on_mismatch:
         _raise(spec, client.unit, found)
@@ -118,10 +118,10 @@ def check_identity(client_or_session: Any, *, raise_on_mismatch: bool = True) ->
 async def check_identity_async(client_or_session: Any, *, raise_on_mismatch: bool = True) -> tuple[Mismatch, ...]:
     """:func:`check_identity` for a generated async client (or anything holding one as ``.client``)."""
     client = _client(client_or_session)
-    spec: DeviceSpec = client._core.spec
+    spec: DeviceSpec = client.SPEC
     if not spec.identity:
         return ()
-    raws = await client._read_raw_keys(identity_keys(spec))
+    raws = await client._drivemap.read_raw_keys(identity_keys(spec))
     found = identity_mismatches(spec, raws, getattr(client, "CODECS", None))
     if raise_on_mismatch:
         _raise(spec, client.unit, found)

@@ -194,9 +194,10 @@ def _function(kind: str, plan: Sequence[ReadRequest], tables: SpecTables, build:
     src = _Source()
     src.add(0, "def make(EXS, GENERAL, FALLBACK):")
     src.add(1, f"{'async ' if asynchronous else ''}def program(client):")
-    src.add(2, "core = client._core")
+    src.add(2, "parts = client._drivemap")
+    src.add(2, "core = parts.core")
     src.add(2, f"if core.holes: return {aw}GENERAL(client)")
-    src.add(2, "bus = client.bus")
+    src.add(2, "bus = parts.bus")
     if asynchronous:  # what ``async with bus.lock`` does, without its __aenter__/__aexit__ coroutines
         src.add(2, "lock = bus.lock")
         src.add(2, "await lock.acquire()")

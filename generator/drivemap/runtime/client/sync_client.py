@@ -45,8 +45,9 @@ from drivemap.runtime.client.accessors import (
     encode_for_write,
 )
 from drivemap.runtime.client.async_client import AsyncClientBase
-from drivemap.runtime.client.base import ClientCommon, Program, S, broadcast_refusal, broadcast_unit
+from drivemap.runtime.client.base import ClientCommon, S, broadcast_refusal, broadcast_unit
 from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
+from drivemap.runtime.client.machinery import ClientMachinery, Program, register_flavour
 from drivemap.runtime.client.planner import Key, ReadRequest
 from drivemap.runtime.client.review import refuse_open
 from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
@@ -56,16 +57,55 @@ T = TypeVar("T")
 _run = run
 
 
-class ClientBase(ClientCommon[S, Bus]):
-    """Synchronous client of one unit on a :class:`Bus`."""
+class SyncMachinery(ClientMachinery):
+    """A sync client's working parts: operations of the core run on a :class:`Bus`, the bus lock held."""
 
-    _ACCESSOR_CLASSES = {
+    ACCESSORS = {
         "r": ReadOnly, "w": WriteOnly, "rw": ReadWrite, "cmd": Command, "rwcmd": ReadWriteCommand,
         "r[]": ReadOnlyArray, "w[]": WriteOnlyArray, "rw[]": ReadWriteArray,
     }
-
-    _BUS = Bus
+    BUS = Bus
     bus: Bus
+
+    def read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
+        core = self.core
+        core.check_readable(keys)
+        plan = self.plan_for(keys)
+        with self.bus.lock:
+            return _run(self.bus, core.read_raw(keys, plan, checked=True))
+
+    def write_raw_items(self, items: Sequence[RawItem]) -> None:
+        with self.bus.lock:
+            _run(self.bus, self.core.write_raw(items))
+
+    def general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
+                finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:
+        """The general read of ``keys`` (the core's operation; with holes, the client's plan), and
+        the same after a read program's replies (the bus lock held): see :mod:`.programs`."""
+        visit = how == "visit"
+
+        def operation(core: Core, now: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
+            return core.read_visiting_pages(keys, now) if visit else core.read_raw(keys, now, checked=True)
+
+        def general(client: ClientBase[Any]) -> Any:
+            parts = client._drivemap
+            core = parts.core
+            now = core.plan_with_holes(keys) if core.holes else plan
+            with parts.bus.lock:
+                return finish(client, _run(parts.bus, operation(core, now)))
+
+        def fallback(client: ClientBase[Any], replies: Sequence[ModbusPDU]) -> Any:
+            parts = client._drivemap
+            return finish(client, run_replay(parts.bus, operation(parts.core, plan), replies))
+
+        return general, fallback
+
+
+class ClientBase(ClientCommon[S, Bus]):
+    """Synchronous client of one unit on a :class:`Bus`."""
+
+    bus: Bus
+    _drivemap: SyncMachinery
 
     @classmethod
     def broadcast(cls, bus: Bus, *, page_policy: PagePolicy = "raise") -> ClientBase[Any]:
@@ -84,24 +124,12 @@ class ClientBase(ClientCommon[S, Bus]):
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # plumbing used by accessors
-    def _read_raw_keys(self, keys: Sequence[Key]) -> dict[Key, int]:
-        core = self._core
-        core.check_readable(keys)
-        plan = self._plan_for(keys)
-        with self.bus.lock:
-            return _run(self.bus, core.read_raw(keys, plan, checked=True))
-
-    def _write_raw_items(self, items: Sequence[RawItem]) -> None:
-        with self.bus.lock:
-            _run(self.bus, self._core.write_raw(items))
-
-    # public API
     def read(self, *accessors: Readable) -> S:
         """Read the given registers together, in the fewest requests the map allows."""
-        program = self._programs.get(accessors)
+        parts = self._drivemap
+        program = parts.programs.get(accessors)
         if program is None:
-            program = self._read_program(accessors)
+            program = parts.read_program(accessors)
         return program(self)  # type: ignore[no-any-return]
 
     def read_all(self) -> S:
@@ -110,27 +138,8 @@ class ClientBase(ClientCommon[S, Bus]):
         Paged registers: with ``page_policy="raise"`` (the default) it switches the page selector to
         each page it needs and then puts it back to the page it found (also when a read fails);
         with ``"switch"`` it leaves the last page selected."""
-        return (self._all_program or self._read_all_program())(self)  # type: ignore[no-any-return]
-
-    def _general(self, keys: tuple[Key, ...], plan: tuple[ReadRequest, ...], how: str,
-                 finish: Callable[[Any, dict[Key, int]], Any]) -> tuple[Program, Callable[..., Any]]:
-        """The general read of ``keys`` (the core's operation; with holes, the client's plan), and
-        the same after a read program's replies (the bus lock held): see :mod:`.programs`."""
-        visit = how == "visit"
-
-        def operation(core: Core, now: tuple[ReadRequest, ...]) -> Op[dict[Key, int]]:
-            return core.read_visiting_pages(keys, now) if visit else core.read_raw(keys, now, checked=True)
-
-        def general(client: ClientBase[Any]) -> Any:
-            core = client._core
-            now = core.plan_with_holes(keys) if core.holes else plan
-            with client.bus.lock:
-                return finish(client, _run(client.bus, operation(core, now)))
-
-        def fallback(client: ClientBase[Any], replies: Sequence[ModbusPDU]) -> Any:
-            return finish(client, run_replay(client.bus, operation(client._core, plan), replies))
-
-        return general, fallback
+        parts = self._drivemap
+        return (parts.all_program or parts.read_all_program())(self)  # type: ignore[no-any-return]
 
     def write_many(self, items: Iterable[tuple[WriteOnly[Any] | ReadWrite[Any], Any]]) -> None:
         """Write several registers in the order given; one that continues the previous one goes out in the
@@ -138,13 +147,13 @@ class ClientBase(ClientCommon[S, Bus]):
 
         If it takes several requests and one fails, :class:`PartialWrite` says what was written."""
         items = list(items)
-        refuse_open(self._core, (acc.key for acc, _ in items))
-        self._write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
+        refuse_open(self._drivemap.core, (acc.key for acc, _ in items))
+        self._drivemap.write_raw_items([(acc.key, encode_for_write(acc.codec, value)) for acc, value in items])
 
     def read_by_name(self, name: str) -> Any:
         """``client.read_by_name("digital_speed[0]")``: the engineering value (tuple for a whole array)."""
         acc = self.accessor(name)
-        self._core.check_readable(acc.keys)
+        self._drivemap.core.check_readable(acc.keys)
         return acc.read()
 
     def write_by_name(self, name: str, value: Any) -> None:
@@ -153,15 +162,15 @@ class ClientBase(ClientCommon[S, Bus]):
         if isinstance(acc, ArrayBase):
             if not hasattr(acc, "write"):
                 raise ReadOnlyRegister(f"{name} is read-only")
-            self._core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
-            self._write_raw_items([(k, self._by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
+            self._drivemap.core.check_write(acc.keys[0])  # open for review: refused before the values are looked at
+            self._drivemap.write_raw_items([(k, self._drivemap.by_name_value(acc, v)) for k, v in zip(acc.keys, value, strict=True)])
             return
-        self._core.check_write(acc.key)
-        self._write_raw_items([(acc.key, self._by_name_value(acc, value))])
+        self._drivemap.core.check_write(acc.key)
+        self._drivemap.write_raw_items([(acc.key, self._drivemap.by_name_value(acc, value))])
 
     def read_modify_write(self, accessor: ReadWrite[T], update: Callable[[T], T]) -> T:
         """Read a register, apply ``update`` to its value and write the result, holding the bus."""
-        self._core.check_write(accessor.key)
+        self._drivemap.core.check_write(accessor.key)
         with self.bus.lock:
             value = accessor.read()
             new = update(value)
@@ -171,21 +180,23 @@ class ClientBase(ClientCommon[S, Bus]):
     def apply_configuration(self) -> None:
         """Send the map's configuration command; clears :attr:`pending_configuration`."""
         with self.bus.lock:
-            _run(self.bus, self._core.apply_configuration())
+            _run(self.bus, self._drivemap.core.apply_configuration())
 
     def loopback(self, data: int = 0xA537) -> int:
         """Diagnostics 08h sub-function 0: the device echoes ``data``."""
         with self.bus.lock:
-            return _run(self.bus, self._core.loopback(data))
+            return _run(self.bus, self._drivemap.core.loopback(data))
 
     def read_registers(self, table: str, address: int, count: int) -> list[int]:
         """``count`` words (0/1 per coil or discrete input) of ``table`` from ``address``, as the
         device sends them, in one request; checked before the wire (:mod:`drivemap.runtime.client.rawio`)."""
-        rawio.check_read(self._core.spec, table, address, count, self._core.broadcast)
-        op = rawio.read_registers(self._core, table, address, count)
+        rawio.check_read(self._drivemap.core.spec, table, address, count, self._drivemap.core.broadcast)
+        op = rawio.read_registers(self._drivemap.core, table, address, count)
         with self.bus.lock:
             return _run(self.bus, op)
 
+
+register_flavour(ClientBase, SyncMachinery)
 
 __all__ = [
     "AsyncBus",
