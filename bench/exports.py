@@ -24,7 +24,7 @@ from drivemap.backends.exporters.esphome import REUSE_RANGES, EsphomeExporter, e
 from drivemap.backends.exporters.homeassistant import HomeAssistantExporter
 from drivemap.compiler import load_model
 from drivemap.model.spec import spec_from_model
-from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.protocol.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import SERIAL  # what the maps leave open on their serial line
 

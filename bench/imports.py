@@ -30,7 +30,7 @@ GOAL_S = 0.25  # 10k registers, cached (issue 37)
 CHILD = """
 import importlib, json, sys, time
 sys.path.insert(0, sys.argv[1])
-import drivemap.runtime.client.sync_client, drivemap.runtime.sim.simulator  # shared by every map: not counted
+import drivemap.runtime.client.api.sync_client, drivemap.runtime.sim.simulator  # shared by every map: not counted
 t0 = time.perf_counter()
 mod = importlib.import_module(sys.argv[2] + ".client")
 t1 = time.perf_counter()

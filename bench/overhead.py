@@ -32,7 +32,7 @@ from typing import Any
 from common import Row, Section, median, profile_text, spread
 from servers import Child
 
-from drivemap.runtime.client.machinery import without_programs
+from drivemap.runtime.client.api.machinery import without_programs
 
 MODEL = "vfd1000"
 GOAL = 1.10
@@ -212,10 +212,10 @@ Where the time goes (profiles below). The fault-free calls run compiled programs
 accessors, per element and for `read_all`, the plan's request PDUs are prepared once and one
 straight-line function sends them, accepts a reply that is a plain success of the size asked,
 decodes each cell with the codec's arithmetic inlined and builds a snapshot holding only the
-fields read (`generator/drivemap/runtime/client/programs.py`); a plain register's write request is
+fields read (`generator/drivemap/runtime/client/protocol/programs.py`); a plain register's write request is
 prepared once and a value the codec would take unchanged is checked by one range test
-(`generator/drivemap/runtime/client/writes.py`). Both run on `Bus.transact`
-(`generator/drivemap/runtime/client/bus.py`: the caller holds the lock; timeout, attempts and quiet time
+(`generator/drivemap/runtime/client/protocol/writes.py`). Both run on `Bus.transact`
+(`generator/drivemap/runtime/client/transport/bus.py`: the caller holds the lock; timeout, attempts and quiet time
 are cached per transaction shape; a register read's reply is checked inline). Any other reply
 (exception, split, retry) hands the replies so far to the core's general operation, unchanged.
 With `execute()` replaced by a stub that returns a prepared reply (no socket, no trace hooks) a

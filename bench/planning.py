@@ -5,7 +5,7 @@ Four counts per model, all for the same target set (every readable register elem
 * **drivemap** — the number of read requests ``Client.read_all()`` actually sends to the
   generated simulator over TCP (``client.stats``), page-switch writes counted apart; it is
   checked against ``len(Client.plan())``.
-* **lower bound** — computed here, independently of ``generator/drivemap/runtime/client/planner.py``, from the
+* **lower bound** — computed here, independently of ``generator/drivemap/runtime/client/protocol/planner.py``, from the
   ``SPEC`` alone (see :func:`lower_bound`): an exact dynamic programme over the targets of each
   page context, combined as ``max(relaxed single line, sum over page contexts)`` per connected
   address run, which no valid plan can beat.

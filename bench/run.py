@@ -98,7 +98,7 @@ Ratio = time per operation of the generated client / raw pymodbus for the same r
 (median of the per-round ratios; rounds interleave the two clients and alternate their order).
 The model is vfd1000 (no EEPROM write delay, no broadcast gap). Inter-frame gaps and silent
 intervals are serial-line rules: the bus does not keep them on Modbus TCP
-(`generator/drivemap/runtime/client/busbase.py`, `quiet_after`).""",
+(`generator/drivemap/runtime/client/transport/busbase.py`, `quiet_after`).""",
     "Simulator throughput (TCP loopback)": "",
     "Wire efficiency (paced virtual serial line, 115200 8N1)": """\
 Efficiency = achieved requests/s ÷ physical limit. Goals apply to the generated client (`sync`,
@@ -128,7 +128,7 @@ the runtime and pymodbus imported first and not counted): **cold** with `python 
 round. What an import does is linear in the registers: compiling the source (cold only);
 constructing the spec (`runtime/spec.py`: the register descriptions fill their `__dict__` at
 once, about 2 µs each, where the frozen dataclass's own `__init__` took about 11 µs); one class
-per bit-field record type (`@record`, `runtime/client/records.py`: methods shared by every record,
+per bit-field record type (`@record`, `runtime/client/values/records.py`: methods shared by every record,
 `__dataclass_fields__` made when first read; the synthetic maps have one per 5 registers); the
 `Snapshot` (`@snapshot`, no `__init__` of one parameter per register).""",
     "Gateway scale (20 lines x 10 drives, MQTT)": """\
@@ -255,9 +255,9 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   `in_waiting` every `_recv_interval` = max(4 characters, 1 ms) and returns after a poll that sees no
   new byte (`pymodbus/client/serial.py`, `_wait_for_data`): the "reply end seen" column of the
   `raw-sync` rows, 1.4–2.1 ms at 115200 Bd. drivemap's sync serial bus no longer goes through that
-  poll: `generator/drivemap/runtime/client/serialrx.py` (`SerialReceiver`, installed as the pymodbus client's
+  poll: `generator/drivemap/runtime/client/transport/serialrx.py` (`SerialReceiver`, installed as the pymodbus client's
   `recv`, pymodbus unpatched) reads the reply length the request implies as it arrives (inter-character
-  timeout); with the stale-reply guard (the default, `generator/drivemap/runtime/client/staleguard.py`) it
+  timeout); with the stale-reply guard (the default, `generator/drivemap/runtime/client/transport/staleguard.py`) it
   hands every chunk before the reply to the guard with its arrival time and then listens for the
   guard's settle time, max(4 characters, 1 ms), after the last byte, so a frame that follows the
   reply is seen (the guard keeps the last of frames that come back to back). So the `sync` rows'
@@ -268,7 +268,7 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   earlier version of this text said no change above pymodbus could remove the sync loss; that was wrong.
 * **Client, async**: the reply is seen within ≈ 0.2 ms (event loop reader). The bus's quiet time
   used to be an `asyncio.sleep` that the loop rounds up to whole milliseconds (≈ +0.7 ms, still
-  visible in the `raw-async` rows); `generator/drivemap/runtime/client/bus.py` `sleep_until` now sleeps whole
+  visible in the `raw-async` rows); `generator/drivemap/runtime/client/transport/bus.py` `sleep_until` now sleeps whole
   milliseconds and yields the rest, so "client work + quiet" is ≈ t3.5 + 0.05 ms. The request then
   takes 0.2–0.3 ms to reach the line: pymodbus builds the frame after the wait, and its serial
   transport writes through an `add_writer` callback (one more loop turn) before the relay reads it.

@@ -23,7 +23,7 @@ read from the client -> last byte handed to the device), device turnaround (-> f
 read from the device), reply on the wire (-> last byte handed to the client) and client
 turnaround (-> first byte of the next request), the last one split again at the moment pymodbus
 hands the complete reply to its framer (``trace_packet``) and the moment it hands over the next
-request. The generated sync client reads replies with ``drivemap.runtime.client.serialrx`` (not pymodbus's
+request. The generated sync client reads replies with ``drivemap.runtime.client.transport.serialrx`` (not pymodbus's
 polling receive) and, with the stale-reply guard on (the default), hands a reply over after the
 guard's settle time of silence; the bus counts its t3.5 from the reply's last byte, so that wait
 overlaps the t3.5 rather than adding to it.

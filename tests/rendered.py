@@ -1,7 +1,7 @@
 """Tests only: a map's generated package as ``drivemap build`` would write it, rendered and run in memory.
 
 The tools themselves never run rendered text (they use ``drivemap.model.spec.spec_from_model`` and
-``drivemap.runtime.client.dynamic.client_package``); the tests use this to exercise the generated
+``drivemap.runtime.client.api.dynamic.client_package``); the tests use this to exercise the generated
 code of the synthetic maps in ``tests/maps`` without writing a package to disk. The modules are
 registered under ``drivemap_rendered_<model>``, a name no build writes.
 """

@@ -112,7 +112,7 @@ def _client_attributes(client_tree: ast.Module) -> set[str]:
     ``__init__`` and the runtime's methods assign to ``self`` or ``cls``."""
     from pathlib import Path
 
-    from drivemap.runtime.client import sync_client as runtime
+    from drivemap.runtime.client.api import sync_client as runtime
 
     names: set[str] = set()
     modules: dict[str, dict[str, ast.ClassDef]] = {}  # runtime module -> its classes (the bases live in several)

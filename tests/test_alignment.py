@@ -13,7 +13,7 @@ from dataclasses import replace
 import pytest
 
 from drivemap.runtime.alignment import aligned_limit, violation
-from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.protocol.planner import plan_reads
 from drivemap.runtime.errors import MisalignedRequest
 from drivemap.runtime.spec import AlignmentSpec
 from tests.helpers_client import package, simulator, tcp_server

@@ -153,7 +153,7 @@ def test_wire_calls_compare_names_what_differs() -> None:
 def test_wire_calls_are_counted_not_timed(monkeypatch: pytest.MonkeyPatch) -> None:
     """Section 3's rows counted on this tree: the counts do not depend on how many transactions are
     counted, and one more call on the request path, or a longer settle time, shows in every row it touches."""
-    from drivemap.runtime.client import busbase, staleguard
+    from drivemap.runtime.client.transport import busbase, staleguard
 
     first, second = wirecalls.measure(6), wirecalls.measure(10)
     assert wirecalls.compare(first, second)[2:6] == wirecalls.compare(first, first)[2:6]

@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, WriteSingleRegisterRequest
 
-from drivemap.runtime.client.bus import DEFAULT_BROADCAST_GAP_MS, AsyncBus, Bus, Exchange
+from drivemap.runtime.client.transport.bus import DEFAULT_BROADCAST_GAP_MS, AsyncBus, Bus, Exchange
 from drivemap.runtime.spec import TimingSpec
 from tests.helpers_client import TIMEOUT, package, serial_server, tcp_server
 from tests.test_client_tcp import rtu_over_tcp_server

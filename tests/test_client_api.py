@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime.client import bus as bus_module
+from drivemap.runtime.client.transport import bus as bus_module
 from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,

@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 from pymodbus.framer import FramerAscii, FramerRTU
 
-from drivemap.runtime.client.bus import DEFAULT_RETRIES
+from drivemap.runtime.client.transport.bus import DEFAULT_RETRIES
 from drivemap.runtime.errors import DeviceException, DriveTimeout, PartialWrite
 from drivemap.runtime.spec import DeviceSpec, FunctionSpec
 from drivemap.testing.vserial import FrameFault, VirtualSerialLine

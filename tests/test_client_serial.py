@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime.client import bus as bus_module
+from drivemap.runtime.client.transport import bus as bus_module
 from drivemap.runtime.errors import AccessError, BroadcastRead, DriveTimeout, NotBroadcastable, ValueOutOfRange
 from tests.helpers_client import MODELS, TIMEOUT, package, serial_server
 

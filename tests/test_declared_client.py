@@ -20,9 +20,9 @@ from drivemap.backends.views.spec import print_spec
 from drivemap.compiler import compile_map
 from drivemap.model.spec import spec_from_model
 from drivemap.runtime import spec as spec_module
-from drivemap.runtime.client.accessors import AsyncReadOnly, ReadOnly, ReadWriteArray
-from drivemap.runtime.client.declare import ReadOnlyReg, Reg
-from drivemap.runtime.client.dynamic import client_package
+from drivemap.runtime.client.api.accessors import AsyncReadOnly, ReadOnly, ReadWriteArray
+from drivemap.runtime.client.api.declare import ReadOnlyReg, Reg
+from drivemap.runtime.client.api.dynamic import client_package
 from drivemap.runtime.package import load_package
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,7 +76,7 @@ def test_docstrings_carry_only_the_lines_that_apply() -> None:
 
 
 def test_each_register_is_declared_once_and_bound_lazily() -> None:
-    from drivemap.runtime.client.bus import Bus
+    from drivemap.runtime.client.transport.bus import Bus
     from drivemap_models.ev import AsyncClient, Client
     from drivemap_models.ev import client as module
 
@@ -94,7 +94,7 @@ def test_each_register_is_declared_once_and_bound_lazily() -> None:
 
 
 async def test_the_async_client_binds_async_accessors() -> None:
-    from drivemap.runtime.client.bus import AsyncBus
+    from drivemap.runtime.client.transport.bus import AsyncBus
     from drivemap_models.ev import AsyncClient
 
     drive = AsyncClient(AsyncBus.tcp("127.0.0.1", 1))
@@ -103,7 +103,7 @@ async def test_the_async_client_binds_async_accessors() -> None:
 
 @pytest.mark.parametrize("name", MODELS)
 def test_the_runtime_builds_the_same_client_from_the_spec(name: str) -> None:
-    from drivemap.runtime.client.bus import Bus
+    from drivemap.runtime.client.transport.bus import Bus
 
     built = importlib.import_module(f"drivemap_models.{name}")
     dynamic = client_package(built.SPEC, f"drivemap_test_dynamic_{name}")
@@ -153,8 +153,8 @@ def test_no_module_executes_generated_text() -> None:
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("exec", "compile"):
                 found.append(f"{path.relative_to(ROOT)}:{node.func.id}")
-    assert found == ["generator/drivemap/runtime/client/programs.py:exec",
-                     "generator/drivemap/runtime/client/programs.py:compile"]
+    assert found == ["generator/drivemap/runtime/client/protocol/programs.py:exec",
+                     "generator/drivemap/runtime/client/protocol/programs.py:compile"]
 
 
 def test_reg_descriptor_refuses_nothing_it_should_not() -> None:

@@ -17,7 +17,7 @@ from drivemap.cli import main
 from drivemap.compiler import load_model
 from drivemap.live.fmt import Row
 from drivemap.model.nodes import Model
-from drivemap.runtime.client.codec import display_text
+from drivemap.runtime.client.values.codec import display_text
 from tests.exporter_helpers import parse, render
 from tests.helpers_client import tcp_server
 from tests.helpers_live import run

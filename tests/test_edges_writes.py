@@ -13,7 +13,7 @@ import pytest
 from helpers_client import package, tcp_server
 from helpers_live import no_traceback, run
 
-from drivemap.runtime.client.codec import STEP_TOLERANCE, shortest_f32_text
+from drivemap.runtime.client.values.codec import STEP_TOLERANCE, shortest_f32_text
 from drivemap.runtime.errors import InexactValue
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -36,7 +36,7 @@ def test_client_refuses_a_value_between_two_steps_and_accepts_binary_float_decim
 
 def test_client_refuses_what_an_f32_cannot_hold_and_takes_what_it_prints() -> None:
     """One rule for every client (the gateway's too): the single nearest the value must read as it."""
-    from drivemap.runtime.client.codec import IeeeCodec
+    from drivemap.runtime.client.values.codec import IeeeCodec
     from drivemap.runtime.spec import RegisterSpec
 
     codec = IeeeCodec(RegisterSpec(name="setpoint", address=0, type="f32", unit="Hz"))
@@ -180,7 +180,7 @@ def test_client_names_take_ascii_digits_only() -> None:
 
 
 def test_large_raw_values_are_judged_at_the_floats_own_precision() -> None:
-    from drivemap.runtime.client.steps import exact_raw
+    from drivemap.runtime.client.values.steps import exact_raw
     from drivemap.runtime.spec import RegisterSpec
 
     energy = RegisterSpec(name="energy", address=0, type="u64", scale=0.001)

@@ -23,7 +23,7 @@ from drivemap.backends.views.integrations import comment_safe
 from drivemap.cli import main
 from drivemap.compiler import load_model
 from drivemap.model.spec import spec_from_model
-from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.protocol.planner import plan_reads
 from tests import esphome_ranges as esp
 from tests.exporter_helpers import (
     HOSTILE,

@@ -12,7 +12,7 @@ import pytest
 from drivemap.gateway.device import Device
 from drivemap.gateway.payload import MAX_PAYLOAD_BYTES
 from drivemap.gateway.service import Gateway
-from drivemap.runtime.client.steps import shortest_f32
+from drivemap.runtime.client.values.steps import shortest_f32
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, ValueOutOfRange
 from tests.helpers_gateway import write_config
 

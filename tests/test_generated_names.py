@@ -18,7 +18,7 @@ import pytest
 
 from drivemap.backends.python.names import exception_classes
 from drivemap.compiler import compile_map, map_paths
-from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.transport.bus import Bus
 from drivemap.vocab.reserved import reserved
 
 ROOT = Path(__file__).resolve().parent.parent

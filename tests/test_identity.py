@@ -16,7 +16,7 @@ from helpers_client import package, simulator, tcp_server
 from helpers_live import ROOT, no_traceback, run
 
 from drivemap.compiler import compile_map
-from drivemap.runtime.client.identity import check_identity, check_identity_async
+from drivemap.runtime.client.api.identity import check_identity, check_identity_async
 from drivemap.runtime.errors import IdentityMismatch
 
 SHIPPED = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))

@@ -23,7 +23,7 @@ from typing import Any
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.protocol.planner import plan_reads
 from drivemap.runtime.errors import DeviceException, InvalidValue, ScaleUnavailable, ValueOutOfRange
 from tests.allkinds_frames import cases
 from tests.allkinds_server import (

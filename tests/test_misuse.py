@@ -28,7 +28,7 @@ from typing import Any
 import pytest
 
 from drivemap.runtime.client import ReadWriteCommand
-from drivemap.runtime.client.bus import AsyncBus, Bus
+from drivemap.runtime.client.transport.bus import AsyncBus, Bus
 from drivemap.runtime.errors import (
     DriveError,
     IndexOutOfRange,

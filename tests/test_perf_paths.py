@@ -15,8 +15,8 @@ from pymodbus.pdu.register_message import (
     WriteSingleRegisterRequest,
 )
 
-from drivemap.runtime.client.records import record
-from drivemap.runtime.client.serialrx import SerialReceiver, reply_length
+from drivemap.runtime.client.transport.serialrx import SerialReceiver, reply_length
+from drivemap.runtime.client.values.records import record
 from drivemap.runtime.errors import DeviceException
 from drivemap.testing.vserial import FrameFault
 from tests.helpers_client import TIMEOUT, package, serial_server

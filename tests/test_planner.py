@@ -1,6 +1,6 @@
 """The read planner is optimal: read_all() uses exactly the lower-bound number of requests.
 
-The lower bound is computed here independently of drivemap.runtime.client.planner: an exhaustive search
+The lower bound is computed here independently of drivemap.runtime.client.protocol.planner: an exhaustive search
 (memoised on the set of covered targets) that always branches on the leftmost uncovered target and
 tries every window, in every page context, that can cover it. It shares only the *rules* with the
 planner (max quantity, never span an address that is not a readable register or a readable
@@ -152,7 +152,7 @@ def _spec(registers: list[Any], reserved: tuple[Any, ...] = (), max_quantity: in
 
 def test_pages_share_unpaged_neighbours() -> None:
     """Greedy per page would need 3 requests; the exact plan needs 2 (+ the selector)."""
-    from drivemap.runtime.client.planner import plan_reads
+    from drivemap.runtime.client.protocol.planner import plan_reads
     from drivemap.runtime.spec import PageSpec, RegisterSpec
 
     regs = [RegisterSpec("sel", 100, access="rw"),
@@ -184,7 +184,7 @@ def test_all_random_maps_match_lower_bound() -> None:
 def _random_maps_match_lower_bound(trials: int) -> None:
     import random
 
-    from drivemap.runtime.client.planner import plan_reads
+    from drivemap.runtime.client.protocol.planner import plan_reads
     from drivemap.runtime.spec import PageSpec, RegisterSpec, ReservedSpec
 
     rng = random.Random(1234)

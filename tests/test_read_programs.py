@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
-import drivemap.runtime.client.async_client as aclient_mod
-import drivemap.runtime.client.sync_client as client_mod
-from drivemap.runtime.client.machinery import without_programs
-from drivemap.runtime.client.sansio import Core
+import drivemap.runtime.client.api.async_client as aclient_mod
+import drivemap.runtime.client.api.sync_client as client_mod
+from drivemap.runtime.client.api.machinery import without_programs
+from drivemap.runtime.client.protocol.sansio import Core
 from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
 from tests.allkinds_server import MODEL, PKG, REFUSED, plain_server, server_tables

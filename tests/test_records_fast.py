@@ -10,8 +10,8 @@ from typing import Any, ClassVar
 
 import pytest
 
-from drivemap.runtime.client.accessors import SnapshotBase
-from drivemap.runtime.client.records import record, snapshot
+from drivemap.runtime.client.api.accessors import SnapshotBase
+from drivemap.runtime.client.values.records import record, snapshot
 
 
 class Mode(enum.IntEnum):

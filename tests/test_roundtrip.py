@@ -40,7 +40,7 @@ from drivemap.compiler import compile_map, map_paths
 from drivemap.frontend import frames
 from drivemap.model.nodes import Example, Model
 from drivemap.model.spec import spec_from_model
-from drivemap.runtime.client.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
+from drivemap.runtime.client.values.codec import EnumCodec, FieldsCodec, FlagCodec, unwrap
 from drivemap.runtime.errors import DeviceException, TransportError
 from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.serve import ThreadedSimServer
@@ -175,7 +175,7 @@ def perform(model: Model, ex: Example, client: Any) -> Any:
         if name is None:  # no writable register on the page the map covers: the printed reply's 06h by hand
             from pymodbus.pdu.register_message import WriteSingleRegisterRequest
 
-            from drivemap.runtime.client.exchange import Exchange
+            from drivemap.runtime.client.transport.exchange import Exchange
 
             pdu = WriteSingleRegisterRequest(address=model.registers[0].address, registers=[0])
             pdu.dev_id = meaning.unit

@@ -1,5 +1,5 @@
-"""The sync serial receiver (:mod:`drivemap.runtime.client.serialrx`) reads the replies on the default path,
-with the stale-reply guard (:mod:`drivemap.runtime.client.staleguard`) on or automatic.
+"""The sync serial receiver (:mod:`drivemap.runtime.client.transport.serialrx`) reads the replies on the default path,
+with the stale-reply guard (:mod:`drivemap.runtime.client.transport.staleguard`) on or automatic.
 
 Every test checks :attr:`SerialReceiver.handled` (replies the receiver read itself, not through
 pymodbus's polling receive) besides the values and counters, for RTU and ASCII:
@@ -29,8 +29,8 @@ from typing import Any
 
 import pytest
 
-from drivemap.runtime.client import staleguard
-from drivemap.runtime.client.serialrx import SerialReceiver
+from drivemap.runtime.client.transport import staleguard
+from drivemap.runtime.client.transport.serialrx import SerialReceiver
 from drivemap.runtime.errors import DeviceException
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import FrameFault, VirtualSerialLine

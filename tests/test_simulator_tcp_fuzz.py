@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from drivemap.runtime.client.bus import DEFAULT_RESPONSE_TIMEOUT_S
+from drivemap.runtime.client.transport.bus import DEFAULT_RESPONSE_TIMEOUT_S
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.runtime.spec import DeviceSpec
 

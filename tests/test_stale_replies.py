@@ -16,7 +16,7 @@ values change before every read, so a duplicate taken for an answer shows as a w
 
 The paced line and its simulator run in a process of their own (as a device does), so the client's
 timing is not bent by the line emulation sharing its interpreter.
-* :func:`~drivemap.runtime.client.staleguard.last_reply` keeps the last of several complete frames.
+* :func:`~drivemap.runtime.client.transport.staleguard.last_reply` keeps the last of several complete frames.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import pytest
 from pymodbus.framer import FramerAscii, FramerRTU
 from pymodbus.pdu import DecodePDU
 
-from drivemap.runtime.client import staleguard
+from drivemap.runtime.client.transport import staleguard
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import VirtualSerialLine
 from tests.helpers_client import package, simulator

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.transport.bus import Bus
 from drivemap.runtime.errors import InvalidValue
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap_models.ev import Client

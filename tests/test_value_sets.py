@@ -122,7 +122,7 @@ def test_csv_and_docs_list_the_values() -> None:
 
 
 def test_codecs_of_every_kind_keep_to_the_set() -> None:
-    from drivemap.runtime.client.codec import FloatCodec, IntCodec, OptionalCodec, StringCodec
+    from drivemap.runtime.client.values.codec import FloatCodec, IntCodec, OptionalCodec, StringCodec
     from drivemap.runtime.spec import RegisterSpec
 
     scaled = FloatCodec(RegisterSpec("ramp", 1, scale=0.1, unit="s", values=((0.5, None), (1.0, "slow"))))

@@ -20,8 +20,8 @@ A map goes ``frontend -> model``; :func:`drivemap.model.spec.spec_from_model` gi
 :class:`~drivemap.runtime.spec.DeviceSpec`, which the simulator, the live verbs, the gateway and the
 exporters use directly (nothing executes rendered text). ``drivemap build`` writes the same spec
 printed (``spec.py``), a typed client that declares each register once
-(:mod:`drivemap.runtime.client.declare`) and a few-line ``simulator.py``;
-:mod:`drivemap.runtime.client.dynamic` builds the equal client classes from a spec at run time.
+(:mod:`drivemap.runtime.client.api.declare`) and a few-line ``simulator.py``;
+:mod:`drivemap.runtime.client.api.dynamic` builds the equal client classes from a spec at run time.
 See ``docs/architecture.md``.
 """
 

@@ -7,7 +7,7 @@ evidence: manual; kind: drive
         snap = drive.read_all()
 """
 
-from drivemap.runtime.client.bus import AsyncBus, Bus
+from drivemap.runtime.client.transport.bus import AsyncBus, Bus
 from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,

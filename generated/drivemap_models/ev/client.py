@@ -14,8 +14,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from drivemap.runtime.client import AsyncBus, AsyncClientBase, Bus, ClientBase, PagePolicy, SnapshotBase
-from drivemap.runtime.client.codec import Codec, DriveEnum
-from drivemap.runtime.client.declare import (
+from drivemap.runtime.client.api.declare import (
     BroadcastArrayReg,
     BroadcastCommandReg,
     BroadcastReg,
@@ -26,7 +25,8 @@ from drivemap.runtime.client.declare import (
     ReadWriteReg,
     codecs_for,
 )
-from drivemap.runtime.client.records import record, snapshot
+from drivemap.runtime.client.values.codec import Codec, DriveEnum
+from drivemap.runtime.client.values.records import record, snapshot
 from drivemap.runtime.errors import DeviceException
 
 from .spec import SPEC

@@ -14,14 +14,14 @@ from collections.abc import Mapping
 from typing import Any
 
 from drivemap.runtime.client import AsyncClientBase, ClientBase, SnapshotBase
-from drivemap.runtime.client.codec import Codec, DriveEnum
-from drivemap.runtime.client.declare import (
+from drivemap.runtime.client.api.declare import (
     ReadOnlyReg,
     ReadWriteCommandReg,
     ReadWriteReg,
     codecs_for,
 )
-from drivemap.runtime.client.records import snapshot
+from drivemap.runtime.client.values.codec import Codec, DriveEnum
+from drivemap.runtime.client.values.records import snapshot
 from drivemap.runtime.errors import DeviceException
 
 from .spec import SPEC

@@ -28,7 +28,7 @@ from drivemap.device.errors import (
     LiveError,
 )
 from drivemap.device.target import Target
-from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.transport.bus import Bus
 from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 
 PARITIES = {"none": "none", "n": "none", "even": "even", "e": "even", "odd": "odd", "o": "odd"}

@@ -6,7 +6,7 @@ the same f32), strings as text, coils and bools as true/false, a not-available v
 registers as the member's name (``FORWARD_RUNNING``; an undocumented raw value as ``UNKNOWN_<n>``),
 bit-field registers as an object of their fields (single bits true/false, enumerated fields by name,
 wider fields as integers), arrays as lists of those. A value topic shows a number as the runtime
-shows it (:func:`drivemap.runtime.client.display.register_text`: ``4.00`` at the map's precision 2);
+shows it (:func:`drivemap.runtime.client.values.display.register_text`: ``4.00`` at the map's precision 2);
 precision is for people, JSON and OPC UA carry the value whole.
 
 Commands are parsed and checked here, before they are queued: the register must exist, be
@@ -44,9 +44,17 @@ from drivemap.gateway.payload import (
 )
 from drivemap.gateway.valuesets import set_value
 from drivemap.model.nodes import Model, Register
-from drivemap.runtime.client.codec import BoolCodec, EnumCodec, FieldsCodec, FlagCodec, StringCodec, check_raw, unwrap
-from drivemap.runtime.client.display import display_text, register_text
-from drivemap.runtime.client.review import sign_checked
+from drivemap.runtime.client.protocol.review import sign_checked
+from drivemap.runtime.client.values.codec import (
+    BoolCodec,
+    EnumCodec,
+    FieldsCodec,
+    FlagCodec,
+    StringCodec,
+    check_raw,
+    unwrap,
+)
+from drivemap.runtime.client.values.display import display_text, register_text
 from drivemap.runtime.errors import AccessError, InvalidValue, ReadOnlyRegister, UnknownRegister, ValueOutOfRange
 
 #: Payload that presses a command register (a Home Assistant button sends it).

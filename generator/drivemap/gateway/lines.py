@@ -1,6 +1,6 @@
 """One asyncio task per bus: polls on schedule, commands first, one transaction at a time.
 
-A :class:`Line` owns the :class:`~drivemap.runtime.client.bus.AsyncBus` of one configured bus and the
+A :class:`Line` owns the :class:`~drivemap.runtime.client.transport.bus.AsyncBus` of one configured bus and the
 devices on it. Its task loops: a queued command goes out before the next poll; otherwise the poll
 group due first is read with the generated client (one planned read: the planner's fewest
 requests for the group's registers), and the bus keeps the maps' timing and retries. Buses run in
@@ -23,7 +23,7 @@ from typing import Any, Protocol
 
 from drivemap.gateway.config import BusConfig
 from drivemap.gateway.device import Command, Device, PollState
-from drivemap.runtime.client.codec import OptionalCodec
+from drivemap.runtime.client.values.codec import OptionalCodec
 from drivemap.runtime.errors import DriveError, TransportError
 
 log = logging.getLogger("drivemap.gateway")

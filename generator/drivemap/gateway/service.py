@@ -2,7 +2,7 @@
 
 ``drivemap gateway CONFIG.yaml`` loads the configuration (:func:`drivemap.gateway.config.load_config`),
 builds each model's client package from its spec (:func:`drivemap.runtime.package.load_package`: no rendered code), one
-:class:`~drivemap.runtime.client.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
+:class:`~drivemap.runtime.client.transport.bus.AsyncBus` per configured bus with an ``AsyncClient`` per device on it,
 and runs every :class:`~drivemap.gateway.lines.Line` in parallel with the MQTT bridge and the OPC UA
 server until SIGINT/SIGTERM.
 """
@@ -18,7 +18,7 @@ from drivemap.gateway.device import Command, Device
 from drivemap.gateway.lines import Fanout, Line
 from drivemap.model.nodes import Model
 from drivemap.model.spec import spec_from_model
-from drivemap.runtime.client.bus import AsyncBus
+from drivemap.runtime.client.transport.bus import AsyncBus
 from drivemap.runtime.package import load_package
 
 log = logging.getLogger("drivemap.gateway")

@@ -5,7 +5,7 @@ A command names a value of the set by its option text (what the select sends), i
 value itself (``5``, ``5.0``); anything else is refused with
 :class:`~drivemap.runtime.errors.NotAllowedValue`, which lists the allowed values, before anything
 is queued. A number is matched with the runtime's tolerance
-(:func:`drivemap.runtime.client.display.is_allowed`) and replaced by the map's value, so the
+(:func:`drivemap.runtime.client.values.display.is_allowed`) and replaced by the map's value, so the
 gateway's exactness check and the codec's value-set check agree on what is in the set.
 """
 
@@ -17,7 +17,7 @@ from typing import Any
 
 from drivemap.gateway.payload import parse_json, show
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.display import allowed_text, is_allowed
+from drivemap.runtime.client.values.display import allowed_text, is_allowed
 from drivemap.runtime.errors import InvalidValue, NotAllowedValue
 from drivemap.runtime.spec import RegisterSpec
 

@@ -17,11 +17,11 @@ from pymodbus.pdu.register_message import ReadHoldingRegistersResponse, ReadInpu
 
 from drivemap.device.target import Target
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.bus import Bus
-from drivemap.runtime.client.exchange import Exchange
-from drivemap.runtime.client.identity import identity_keys, identity_mismatches
-from drivemap.runtime.client.planner import plan_reads
-from drivemap.runtime.client.sansio import Core, run
+from drivemap.runtime.client.api.identity import identity_keys, identity_mismatches
+from drivemap.runtime.client.protocol.planner import plan_reads
+from drivemap.runtime.client.protocol.sansio import Core, run
+from drivemap.runtime.client.transport.bus import Bus
+from drivemap.runtime.client.transport.exchange import Exchange
 from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout, TransportError
 
 #: Requests a fingerprint sends at most per map (the planner's first batches).

@@ -17,7 +17,7 @@ from rich.table import Table
 from drivemap.device.target import Target
 from drivemap.live.values import to_text
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.display import display_text
+from drivemap.runtime.client.values.display import display_text
 from drivemap.runtime.errors import ScaleUnavailable
 
 COLUMNS = ("name", "value", "unit", "meaning", "raw", "address", "param")
@@ -41,7 +41,7 @@ class Row:
 
     def value_text(self) -> str:
         """The value as people read it: the map's precision, else the shortest exact text
-        (:func:`drivemap.runtime.client.display.display_text`)."""
+        (:func:`drivemap.runtime.client.values.display.display_text`)."""
         if self.raw is None:
             return ""
         if self.value is None:

@@ -42,9 +42,9 @@ from drivemap.diagnostics import CompileError
 from drivemap.live.fingerprint import Fit, SharedReads, fingerprint, identify
 from drivemap.live.fmt import console
 from drivemap.live.session import read_words
-from drivemap.runtime.client.bus import Bus
-from drivemap.runtime.client.planner import read_function
-from drivemap.runtime.client.sync_client import Core
+from drivemap.runtime.client.api.sync_client import Core
+from drivemap.runtime.client.protocol.planner import read_function
+from drivemap.runtime.client.transport.bus import Bus
 from drivemap.runtime.errors import DeviceException, DriveTimeout, TransportError
 from drivemap.runtime.spec import DeviceSpec
 

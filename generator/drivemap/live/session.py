@@ -1,6 +1,6 @@
 """A connected client of one model on one link, and the reads the live verbs share.
 
-The reads go through the generated client's runtime (:mod:`drivemap.runtime.client.sync_client`): the same
+The reads go through the generated client's runtime (:mod:`drivemap.runtime.client.api.sync_client`): the same
 planner, codecs, page handling, timing and retries as a program using the client. Raw words for
 addresses the map does not name (reserved ranges, probes) go through :meth:`Bus.exchange`.
 """
@@ -16,11 +16,11 @@ from drivemap.device.connection import Link, open_bus, resolve_link, run
 from drivemap.device.errors import EXIT_IDENTITY, EXIT_INPUT, LiveError
 from drivemap.device.target import Target
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.bus import Bus, Exchange
-from drivemap.runtime.client.identity import Mismatch, identity_keys, identity_mismatches
-from drivemap.runtime.client.planner import Key, ReadRequest, read_function
-from drivemap.runtime.client.sansio import READ_REQUESTS, Core
-from drivemap.runtime.client.sansio import run as run_program
+from drivemap.runtime.client.api.identity import Mismatch, identity_keys, identity_mismatches
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest, read_function
+from drivemap.runtime.client.protocol.sansio import READ_REQUESTS, Core
+from drivemap.runtime.client.protocol.sansio import run as run_program
+from drivemap.runtime.client.transport.bus import Bus, Exchange
 from drivemap.runtime.errors import DriveError
 from drivemap.runtime.spec import READ_CODES
 

@@ -29,7 +29,9 @@ from typing import Any
 from drivemap.device.target import Target, locate_error
 from drivemap.diagnostics import CompileError
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.codec import (
+from drivemap.runtime.client.protocol.review import sign_checked
+from drivemap.runtime.client.protocol.sansio import Deferred
+from drivemap.runtime.client.values.codec import (
     BoolCodec,
     EnumCodec,
     FieldsCodec,
@@ -40,8 +42,6 @@ from drivemap.runtime.client.codec import (
     number_text,
     unwrap,
 )
-from drivemap.runtime.client.review import sign_checked
-from drivemap.runtime.client.sansio import Deferred
 from drivemap.runtime.errors import DriveError, InexactValue
 
 _NAME = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[([0-9]+)\])?$")

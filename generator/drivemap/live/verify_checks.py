@@ -15,7 +15,7 @@ from typing import Any
 from drivemap.live.fingerprint import unset_zero, value_problem
 from drivemap.live.session import Session
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.planner import Key, ReadRequest
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest
 from drivemap.runtime.errors import DeviceException, DriveError, DriveTimeout
 
 Cell = tuple[Register, int]
@@ -208,7 +208,7 @@ def check_reserved(session: Session, results: Results, pages: dict[str, int], ti
 
 
 def read_limit(session: Session) -> int:
-    from drivemap.runtime.client.planner import read_function
+    from drivemap.runtime.client.protocol.planner import read_function
 
     code = read_function(session.target.spec) or 0x03
     fc = session.target.spec.protocol.function(code)

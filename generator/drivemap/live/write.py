@@ -25,8 +25,8 @@ from drivemap.live.selection import positionals
 from drivemap.live.session import Session, check_unit, session_for
 from drivemap.live.values import Assignment, lookup, parse_assignments, to_text
 from drivemap.model.nodes import Register
-from drivemap.runtime.client.bus import Exchange
-from drivemap.runtime.client.sansio import Core, Deferred, Op
+from drivemap.runtime.client.protocol.sansio import Core, Deferred, Op
+from drivemap.runtime.client.transport.bus import Exchange
 from drivemap.runtime.errors import DriveError, OpenForReview
 
 REFLECT = {

@@ -14,9 +14,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from drivemap.runtime.client.bus import Bus
-from drivemap.runtime.client.exchange import Exchange
-from drivemap.runtime.client.sansio import READ_REQUESTS
+from drivemap.runtime.client.protocol.sansio import READ_REQUESTS
+from drivemap.runtime.client.transport.bus import Bus
+from drivemap.runtime.client.transport.exchange import Exchange
 from drivemap.runtime.errors import DriveTimeout
 from drivemap.runtime.spec import READ_CODES, TimingSpec
 

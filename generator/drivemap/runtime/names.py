@@ -1,7 +1,7 @@
 """How map names become Python names (pure rules the compiler and the runtime share).
 
 The python back end writes these names into generated clients; the runtime uses the same rules
-when it builds a client class from a spec (:func:`drivemap.runtime.client.dynamic.client_package`),
+when it builds a client class from a spec (:func:`drivemap.runtime.client.api.dynamic.client_package`),
 so both give the same classes.
 """
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import types
 
-from drivemap.runtime.client.dynamic import client_package
+from drivemap.runtime.client.api.dynamic import client_package
 from drivemap.runtime.sim.model import ModelSimulator, simulator_main
 from drivemap.runtime.spec import DeviceSpec
 

@@ -1,4 +1,4 @@
-"""An in-process loopback: a :class:`~drivemap.runtime.client.bus.Bus` whose line is a simulator's handler.
+"""An in-process loopback: a :class:`~drivemap.runtime.client.transport.bus.Bus` whose line is a simulator's handler.
 
 The request PDU a client builds is encoded by pymodbus, handed to the simulator's request handler
 (the same :meth:`Simulator.handle` its TCP and serial servers call) and the reply is decoded by
@@ -22,7 +22,7 @@ from typing import Any, Protocol
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.pdu import DecodePDU, ModbusPDU
 
-from drivemap.runtime.client.bus import Bus
+from drivemap.runtime.client.transport.bus import Bus
 
 __all__ = ["LoopbackClient", "loopback_bus"]
 

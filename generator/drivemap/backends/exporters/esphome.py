@@ -34,7 +34,7 @@ from drivemap.backends.views.esphome import Item, align
 from drivemap.backends.yamltext import Hex, Literal, LiteralMap, Secret, dump, header
 from drivemap.model.nodes import Model, Register
 from drivemap.model.spec import spec_from_model
-from drivemap.runtime.client.planner import plan_reads
+from drivemap.runtime.client.protocol.planner import plan_reads
 
 __all__ = ["REGISTER_TYPES", "VALUE_TYPES", "EsphomeExporter"]
 

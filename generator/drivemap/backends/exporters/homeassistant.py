@@ -37,8 +37,8 @@ from drivemap.backends.views.common import header as generated_header
 from drivemap.backends.views.common import provenance, review_lines
 from drivemap.backends.yamltext import Hex, dump, header
 from drivemap.model.nodes import READ_CODES, Model, Register
-from drivemap.runtime.client.codec import raw_to_words
-from drivemap.runtime.client.planner import MODBUS_MAX_READ
+from drivemap.runtime.client.protocol.planner import MODBUS_MAX_READ
+from drivemap.runtime.client.values.codec import raw_to_words
 
 __all__ = ["DATA_TYPES", "KEYS", "HomeAssistantExporter", "render_line"]
 

@@ -17,7 +17,7 @@ from drivemap.backends.python.names import FIXED_NAMES, exception_classes
 from drivemap.backends.python.names import bit_attribute as _attr
 from drivemap.backends.views.common import header, provenance
 from drivemap.model.nodes import Bit, Model, Register, camel
-from drivemap.runtime.client.declare import REG_CLASSES, broadcast_kind_of, kind_of
+from drivemap.runtime.client.api.declare import REG_CLASSES, broadcast_kind_of, kind_of
 
 
 def _num(value: float | None) -> str:

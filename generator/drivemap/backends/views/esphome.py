@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivemap.backends.yamltext import Hex
-from drivemap.runtime.client.planner import ReadRequest
+from drivemap.runtime.client.protocol.planner import ReadRequest
 
 #: ESPHome's ModbusRegisterType order (coil, discrete_input, holding, read): its ranges run per type.
 TABLE_ORDER = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}

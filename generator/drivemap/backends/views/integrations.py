@@ -18,7 +18,7 @@ from typing import Any
 from drivemap.backends.common import OptionError
 from drivemap.backends.options import DEFAULT_SCAN_S, DEFAULT_SETTINGS_S
 from drivemap.model.nodes import AllowedValue, Cell, Model, Port, Register
-from drivemap.runtime.client.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
+from drivemap.runtime.client.values.codec import FloatCodec, IeeeCodec, IntCodec, StringCodec, raw_to_words
 from drivemap.runtime.spec import RegisterSpec
 from drivemap.vocab.escape import comment_safe
 from drivemap.vocab.units import (

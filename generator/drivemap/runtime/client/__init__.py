@@ -1,9 +1,12 @@
-"""The client runtime: what generated clients import (bus, accessors, codecs, planning, the sans-I/O core).
+"""The client runtime, by layer as pymodbus is: :mod:`.values` (words <-> values), :mod:`.transport`
+(buses and exchanges), :mod:`.protocol` (the sans-I/O core, plans, programs) and :mod:`.api` (the
+client bases, accessors and descriptors generated clients are made of); each imports only the layers
+below it (an import-linter contract).
 
-The package re-exports the client classes of :mod:`.sync_client` (the import path generated code uses).
+The package re-exports the client classes of :mod:`.api.sync_client` (the import path generated code uses).
 """
 
-from drivemap.runtime.client.sync_client import (
+from drivemap.runtime.client.api.sync_client import (
     AsyncBus,
     AsyncClientBase,
     AsyncCommand,

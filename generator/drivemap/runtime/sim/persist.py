@@ -10,7 +10,7 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from drivemap.runtime.client.codec import raw_bounds
+from drivemap.runtime.client.values.codec import raw_bounds
 from drivemap.runtime.sim import state as simstate
 from drivemap.runtime.sim.unit import SimulatorError
 

@@ -27,8 +27,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from drivemap.runtime.client.steps import STEP_TOLERANCE, number_text
-from drivemap.runtime.client.words import raw_bounds
+from drivemap.runtime.client.values.steps import STEP_TOLERANCE, number_text
+from drivemap.runtime.client.values.words import raw_bounds
 from drivemap.runtime.sim.unit import SimulatorError, SimValue, from_value, to_value
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 

@@ -13,7 +13,7 @@ more than the 3.5-character silence without forming a frame are dropped, as a de
 
 With realistic timing, a reply leaves the simulator's processing time after the request arrived:
 on a serial line counted from the moment the framer found the complete request (on TCP from the
-moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.bus.sleep_until`), since
+moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.transport.bus.sleep_until`), since
 ``asyncio.sleep`` alone wakes up to a millisecond late. On a serial line the reply is written to the
 port the moment it is ready (:func:`_write_at_once`), as a device's UART starts sending, not one
 event-loop turn later through pymodbus's writer callback.
@@ -45,7 +45,7 @@ from pymodbus.pdu import DecodePDU, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import SimData, SimDevice
 
-from drivemap.runtime.client.bus import sleep_until
+from drivemap.runtime.client.transport.bus import sleep_until
 from drivemap.runtime.sim.listen import is_loopback, why_not_listening
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 from drivemap.runtime.sim.tcp import SimTcpServer

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivemap.runtime.alignment import violation
-from drivemap.runtime.client.quirks import encode_read_reply
+from drivemap.runtime.client.transport.quirks import encode_read_reply
 from drivemap.runtime.sim import state as simstate
 from drivemap.runtime.sim.cells import ReadPlan, Refused, Slot, cell_names, gap_words, packer, swapped, word_shift
 from drivemap.runtime.sim.dialect import CASES, FALLBACK, READ_TABLES, STANDARD_CODES, STANDARD_MAX_QUANTITY

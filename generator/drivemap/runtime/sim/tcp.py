@@ -43,7 +43,7 @@ from pymodbus.framer import FramerSocket
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 
-from drivemap.runtime.client.bus import sleep_until
+from drivemap.runtime.client.transport.bus import sleep_until
 from drivemap.runtime.sim.simulator import Simulator
 
 __all__ = [

@@ -1,6 +1,6 @@
 """One simulated unit: its raw register values, and the conversions between raw and engineering values.
 
-Raw values are ints for every type, as in the client (:mod:`drivemap.runtime.client.codec`): integers
+Raw values are ints for every type, as in the client (:mod:`drivemap.runtime.client.values.codec`): integers
 (signed for s16/s32/s64), IEEE-754 bit patterns, string bytes as one unsigned number, 0/1 for
 coils and discrete inputs. Engineering values are what a preset or a behaviour gives: numbers,
 text, true/false, None for a not-available value.
@@ -12,7 +12,7 @@ import math
 import struct
 from typing import TYPE_CHECKING, Any
 
-from drivemap.runtime.client.codec import join_words, raw_bounds, split_words
+from drivemap.runtime.client.values.codec import join_words, raw_bounds, split_words
 from drivemap.runtime.sim.view import SimValue
 from drivemap.runtime.spec import BitSpec, DeviceSpec, RegisterSpec
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from drivemap.runtime.client.codec import raw_bounds
-from drivemap.runtime.client.display import is_allowed
+from drivemap.runtime.client.values.codec import raw_bounds
+from drivemap.runtime.client.values.display import is_allowed
 from drivemap.runtime.sim.cells import Refused, Slot
 from drivemap.runtime.sim.unit import Unit, to_value, unwire_words
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec

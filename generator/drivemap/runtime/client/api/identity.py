@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from drivemap.runtime.client.codec import StringCodec, unwrap
+from drivemap.runtime.client.values.codec import StringCodec, unwrap
 from drivemap.runtime.errors import IdentityMismatch
 from drivemap.runtime.spec import DeviceSpec, IdentitySpec
 from drivemap.runtime.types import expected_text, show_value

@@ -3,7 +3,7 @@ compiled once
 (so a clean read costs little more than its wire time).
 
 For one tuple of keys (the elements a call reads) a program holds the plan's requests as
-prepared :class:`~drivemap.runtime.client.bus.Exchange` objects (one request PDU each, reused: the bus
+prepared :class:`~drivemap.runtime.client.transport.bus.Exchange` objects (one request PDU each, reused: the bus
 serialises its use), and one straight-line Python function (built from source once per client
 class and keys, :func:`compile_reader`) that sends them, checks each reply is a plain success of
 the size asked (function code echoed, one word per register asked), takes each cell's raw value
@@ -14,7 +14,7 @@ holding only the fields read, or returns the one value (tuple for an array).
 Anything else goes the general way, with the same result as before: a client that knows holes
 (adaptive reads) runs the general operation from the start; a reply that is not a plain success
 (an exception reply, a short reply) hands every reply received so far to the general operation
-(:func:`~drivemap.runtime.client.sansio.run_replay`), which decodes them, raises, splits or carries on
+(:func:`~drivemap.runtime.client.protocol.sansio.run_replay`), which decodes them, raises, splits or carries on
 exactly as if it had sent those requests itself. A plan with pages, bit reads (01h/02h), a
 function the map does not list or a decoding the program does not know never gets a program.
 Retries, rejected replies, timeouts and quiet times are the bus's, on both paths alike.
@@ -26,12 +26,12 @@ import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-from drivemap.runtime.client.codec import BoolCodec, Codec, EnumCodec, FloatCodec, IntCodec
-from drivemap.runtime.client.exchange import Exchange
-from drivemap.runtime.client.planner import Key, ReadRequest
-from drivemap.runtime.client.sansio import READ_REQUESTS
-from drivemap.runtime.client.tables import SpecTables
-from drivemap.runtime.client.words import words_to_raw
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest
+from drivemap.runtime.client.protocol.sansio import READ_REQUESTS
+from drivemap.runtime.client.protocol.tables import SpecTables
+from drivemap.runtime.client.transport.exchange import Exchange
+from drivemap.runtime.client.values.codec import BoolCodec, Codec, EnumCodec, FloatCodec, IntCodec
+from drivemap.runtime.client.values.words import words_to_raw
 
 #: Snapshot table entry per key (see ``ClientCommon._snapshot_table``): decode, field, index in an array.
 Entry = tuple["Callable[[int], Any] | None", "str | None", int]

@@ -1,5 +1,5 @@
 """The asyncio client base (:class:`AsyncClientBase`): the API of
-:class:`~drivemap.runtime.client.sync_client.ClientBase`, awaited, on an :class:`~drivemap.runtime.client.bus.AsyncBus`."""
+:class:`~drivemap.runtime.client.api.sync_client.ClientBase`, awaited, on an :class:`~drivemap.runtime.client.transport.bus.AsyncBus`."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ from typing import Any, Self, TypeVar
 
 from pymodbus.pdu import ModbusPDU
 
-from drivemap.runtime.client import rawio
-from drivemap.runtime.client.accessors import (
+from drivemap.runtime.client.api.accessors import (
     ArrayBase,
     AsyncCommand,
     AsyncReadOnly,
@@ -22,12 +21,13 @@ from drivemap.runtime.client.accessors import (
     Readable,
     encode_for_write,
 )
-from drivemap.runtime.client.base import ClientCommon, S, broadcast_refusal
-from drivemap.runtime.client.bus import AsyncBus
-from drivemap.runtime.client.machinery import ClientMachinery, Program, register_flavour
-from drivemap.runtime.client.planner import Key, ReadRequest
-from drivemap.runtime.client.review import refuse_open
-from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
+from drivemap.runtime.client.api.base import ClientCommon, S, broadcast_refusal
+from drivemap.runtime.client.api.machinery import ClientMachinery, Program, register_flavour
+from drivemap.runtime.client.protocol import rawio
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest
+from drivemap.runtime.client.protocol.review import refuse_open
+from drivemap.runtime.client.protocol.sansio import Core, Op, PagePolicy, RawItem, arun, arun_replay
+from drivemap.runtime.client.transport.bus import AsyncBus
 from drivemap.runtime.errors import ReadOnlyRegister
 
 T = TypeVar("T")

@@ -10,8 +10,8 @@ A client package declares each register once, on a class both its ``Client`` and
     class AsyncClient(Registers, AsyncClientBase[Snapshot]): ...
 
 The descriptor is typed by the client it is read from (``drive.motor_speed`` is a
-:class:`~drivemap.runtime.client.accessors.ReadOnly` of a ``Client``, an
-:class:`~drivemap.runtime.client.accessors.AsyncReadOnly` of an ``AsyncClient``; the way pymodbus's
+:class:`~drivemap.runtime.client.api.accessors.ReadOnly` of a ``Client``, an
+:class:`~drivemap.runtime.client.api.accessors.AsyncReadOnly` of an ``AsyncClient``; the way pymodbus's
 ``ModbusClientMixin[T]`` writes its request API once), carries the register's docstring (so
 ``help(Client)`` and editors show it), and makes the accessor on first use: the client's machinery says
 which accessor class a kind of register gets (``ClientMachinery.ACCESSORS``), the accessor is cached in
@@ -26,7 +26,8 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, Self, TypeVar, overload
 
-from drivemap.runtime.client.codec import (
+from drivemap.runtime.client.api.descriptor import Reg
+from drivemap.runtime.client.values.codec import (
     BoolCodec,
     Codec,
     EnumCodec,
@@ -40,12 +41,11 @@ from drivemap.runtime.client.codec import (
     ScaledCodec,
     StringCodec,
 )
-from drivemap.runtime.client.descriptor import Reg
 from drivemap.runtime.names import bit_attribute
 from drivemap.runtime.spec import FLOAT_TYPES, DeviceSpec, RegisterSpec
 
 if TYPE_CHECKING:
-    from drivemap.runtime.client.accessors import (
+    from drivemap.runtime.client.api.accessors import (
         AsyncCommand,
         AsyncReadOnly,
         AsyncReadOnlyArray,
@@ -63,8 +63,8 @@ if TYPE_CHECKING:
         WriteOnly,
         WriteOnlyArray,
     )
-    from drivemap.runtime.client.async_client import AsyncClientBase
-    from drivemap.runtime.client.sync_client import ClientBase
+    from drivemap.runtime.client.api.async_client import AsyncClientBase
+    from drivemap.runtime.client.api.sync_client import ClientBase
 
 __all__ = [
     "BroadcastArrayReg",

@@ -18,7 +18,7 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
   is discarded before the retry);
 * on a serial line, a reply that began before the request could have been answered (a copy
   delivered again by the line, a late reply) is dropped and counted in :attr:`Stats.stale`, and
-  the bus waits on for the real one (:mod:`drivemap.runtime.client.staleguard`; ``stale_guard=`` of
+  the bus waits on for the real one (:mod:`drivemap.runtime.client.transport.staleguard`; ``stale_guard=`` of
   :meth:`Bus.serial`);
 * on a serial line (RTU/ASCII) and on RTU over TCP, after every transaction the line stays quiet
   for ``inter_frame_gap_ms`` plus the silent interval (``silent_interval_chars`` at the line's baud
@@ -36,7 +36,7 @@ every request actually sent. Timing, from the map (:class:`TimingSpec`) of the c
 The quiet time counts from the end of the reply on the line, not from when the client has finished
 with it: the bus notes when pymodbus hands it the complete reply (its ``trace_packet`` hook), less
 the silence seen after the reply's last byte: the sync serial receiver
-(:mod:`drivemap.runtime.client.serialrx`) reports it; pymodbus's own receive hands a reply over only after
+(:mod:`drivemap.runtime.client.transport.serialrx`) reports it; pymodbus's own receive hands a reply over only after
 polling ``in_waiting`` once more without a new byte (``ModbusSerialClient._wait_for_data``), so
 that reply's last byte reached the port at least one poll interval (``_recv_interval``) earlier.
 Without a reply (timeouts, broadcasts, rejected replies) it counts from the end of the attempt.
@@ -59,8 +59,8 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.framer import FramerAscii, FramerType
 from pymodbus.pdu import ModbusPDU
 
-from drivemap.runtime.client import staleguard
-from drivemap.runtime.client.busbase import (
+from drivemap.runtime.client.transport import staleguard
+from drivemap.runtime.client.transport.busbase import (
     DEFAULT_BAUDRATE,
     DEFAULT_BROADCAST_GAP_MS,
     DEFAULT_RESPONSE_TIMEOUT_S,
@@ -70,8 +70,8 @@ from drivemap.runtime.client.busbase import (
     serial_kwargs,
     sleep_until,
 )
-from drivemap.runtime.client.exchange import Exchange, Stats, reply_mismatch
-from drivemap.runtime.client.serialrx import SerialReceiver
+from drivemap.runtime.client.transport.exchange import Exchange, Stats, reply_mismatch
+from drivemap.runtime.client.transport.serialrx import SerialReceiver
 from drivemap.runtime.errors import DriveTimeout, TransportError
 from drivemap.runtime.spec import SerialSpec
 

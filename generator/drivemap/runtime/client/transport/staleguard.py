@@ -11,7 +11,7 @@ complete here before::
 Bytes seen before that moment are stale,
 and so are the bytes that follow them with less than :data:`CONTINUATION_CHARS` characters of
 silence (the rest of that frame). They are dropped before pymodbus's framer sees them, counted
-(:attr:`drivemap.runtime.client.bus.Stats.stale`, once per transaction) and logged; the client goes on
+(:attr:`drivemap.runtime.client.transport.bus.Stats.stale`, once per transaction) and logged; the client goes on
 waiting for the real reply within the same timeout. Bytes that arrive while no request is
 outstanding (between transactions) are dropped and counted the same way.
 
@@ -44,7 +44,7 @@ half a character, plus the client's own work on the reply.
 The guard wraps hooks of a pymodbus serial client instance (the classes are untouched): the
 transaction manager's ``low_level_send`` (when the request left) and, for the sync client, ``recv``,
 or, for the asyncio client, ``datagram_received`` (every chunk as the event loop reads it). On the
-sync client, a receiver that reads the line itself (:class:`drivemap.runtime.client.serialrx.SerialReceiver`)
+sync client, a receiver that reads the line itself (:class:`drivemap.runtime.client.transport.serialrx.SerialReceiver`)
 hands every chunk it reads, with the moment it read it, to :meth:`StaleGuard.skip` until the reply
 begins, and waits :attr:`StaleGuard.settle_s` after it; on pymodbus's own receive the guard polls the
 line until the earliest possible reply, dropping what arrives before it.
@@ -218,7 +218,7 @@ def last_reply(framer: Any, data: bytes) -> tuple[bytes, bytes]:
 def guard_sync_client(client: Any, guard: StaleGuard, receiver: Any = None) -> None:
     """Install ``guard`` on a pymodbus ``ModbusSerialClient`` (instance hooks; the class is untouched).
 
-    ``receiver``: the :class:`~drivemap.runtime.client.serialrx.SerialReceiver` in ``client.recv``, if any; it
+    ``receiver``: the :class:`~drivemap.runtime.client.transport.serialrx.SerialReceiver` in ``client.recv``, if any; it
     gets the guard and, for the transactions it reads itself, drops stale bytes as they arrive."""
     if guard.mode is False:
         return

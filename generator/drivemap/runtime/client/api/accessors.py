@@ -3,7 +3,7 @@
 :class:`ReadOnly`, :class:`WriteOnly`, :class:`ReadWrite` and their ``Array`` and ``Async`` forms;
 read-only accessors have no ``write``. An accessor of a register scaled by a scale-factor register
 reads that register with it (``read_keys``) and defers the raw value of a write until the factor
-has been read (:class:`~drivemap.runtime.client.sansio.Deferred`).
+has been read (:class:`~drivemap.runtime.client.protocol.sansio.Deferred`).
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import dataclasses
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, ClassVar, Generic, TypeVar, overload
 
-from drivemap.runtime.client.codec import Codec, RawCodec
-from drivemap.runtime.client.planner import Key
-from drivemap.runtime.client.review import sign_checked
-from drivemap.runtime.client.sansio import Deferred
+from drivemap.runtime.client.protocol.planner import Key
+from drivemap.runtime.client.protocol.review import sign_checked
+from drivemap.runtime.client.protocol.sansio import Deferred
+from drivemap.runtime.client.values.codec import Codec, RawCodec
 from drivemap.runtime.errors import DriveError, IndexOutOfRange, InvalidValue, UnsupportedFunction
 from drivemap.runtime.spec import RegisterSpec
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from drivemap.runtime.client.steps import short_value, shortest_f32_text, unit_suffix
+from drivemap.runtime.client.values.steps import short_value, shortest_f32_text, unit_suffix
 from drivemap.runtime.errors import NotAllowedValue
 from drivemap.runtime.spec import RegisterSpec
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
-from drivemap.runtime.client.planner import Key, max_write_words, units
+from drivemap.runtime.client.protocol.planner import Key, max_write_words, units
 from drivemap.runtime.spec import READ_CODES, DeviceSpec, FunctionSpec, RegisterSpec
 
 

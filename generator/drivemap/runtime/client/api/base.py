@@ -1,7 +1,7 @@
 """What the sync and async client bases share (:class:`ClientCommon`): constructors, accessors by name,
 plans and the broadcast refusal; the working parts (snapshots, read programs) are in :mod:`.machinery`.
 
-:mod:`drivemap.runtime.client.sync_client` (sync) and :mod:`drivemap.runtime.client.async_client` (asyncio) build on it.
+:mod:`drivemap.runtime.client.api.sync_client` (sync) and :mod:`drivemap.runtime.client.api.async_client` (asyncio) build on it.
 """
 
 from __future__ import annotations
@@ -9,13 +9,13 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any, ClassVar, Generic, Self, TypeVar
 
-from drivemap.runtime.client.accessors import ArrayBase, SnapshotBase
-from drivemap.runtime.client.bus import Stats
-from drivemap.runtime.client.codec import Codec
-from drivemap.runtime.client.machinery import ClientMachinery, Program, class_machinery
-from drivemap.runtime.client.planner import Hole, Key, ReadRequest
-from drivemap.runtime.client.quirks import accept as accept_reply_quirks
-from drivemap.runtime.client.sansio import Core, PagePolicy
+from drivemap.runtime.client.api.accessors import ArrayBase, SnapshotBase
+from drivemap.runtime.client.api.machinery import ClientMachinery, Program, class_machinery
+from drivemap.runtime.client.protocol.planner import Hole, Key, ReadRequest
+from drivemap.runtime.client.protocol.sansio import Core, PagePolicy
+from drivemap.runtime.client.transport.bus import Stats
+from drivemap.runtime.client.transport.quirks import accept as accept_reply_quirks
+from drivemap.runtime.client.values.codec import Codec
 from drivemap.runtime.errors import (
     DeviceException,
     DriveError,

@@ -29,9 +29,9 @@ from typing import Any, Generic, TypeVar
 
 from pymodbus.client.mixin import ModbusClientMixin
 
-from drivemap.runtime.client.display import allowed_text, check_values, display_text, register_text
-from drivemap.runtime.client.enums import DriveEnum
-from drivemap.runtime.client.steps import (
+from drivemap.runtime.client.values.display import allowed_text, check_values, display_text, register_text
+from drivemap.runtime.client.values.enums import DriveEnum
+from drivemap.runtime.client.values.steps import (
     STEP_TOLERANCE,
     exact_f32,
     exact_raw,
@@ -42,7 +42,7 @@ from drivemap.runtime.client.steps import (
     shortest_f32_text,
     unit_suffix,
 )
-from drivemap.runtime.client.words import (
+from drivemap.runtime.client.values.words import (
     TYPE_BOUNDS,
     check_raw,
     join_words,

@@ -1,15 +1,15 @@
 """The client runtime that generated ``Client`` / ``AsyncClient`` classes build on.
 
-Protocol behaviour lives in :class:`~drivemap.runtime.client.sansio.Core`, written once as generators
+Protocol behaviour lives in :class:`~drivemap.runtime.client.protocol.sansio.Core`, written once as generators
 ("sans I/O"); :class:`ClientBase` runs its operations on a :class:`Bus`,
-:class:`~drivemap.runtime.client.async_client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
+:class:`~drivemap.runtime.client.api.async_client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
 caller's input happens before the first request is yielded, so a bad value never sends a byte.
 The fault-free path of reads and single writes runs compiled programs
-(:mod:`drivemap.runtime.client.programs`, :mod:`drivemap.runtime.client.writes`) that fall back to the same
+(:mod:`drivemap.runtime.client.protocol.programs`, :mod:`drivemap.runtime.client.protocol.writes`) that fall back to the same
 operations for everything else.
 
 Generated packages subclass the bases, declare one typed accessor per register
-(:mod:`drivemap.runtime.client.accessors`: :class:`ReadOnly`, :class:`WriteOnly`, :class:`ReadWrite` and
+(:mod:`drivemap.runtime.client.api.accessors`: :class:`ReadOnly`, :class:`WriteOnly`, :class:`ReadWrite` and
 their ``Array`` and ``Async`` forms; read-only accessors have no ``write``) and a frozen
 ``Snapshot`` dataclass for :meth:`ClientBase.read`.
 """
@@ -21,8 +21,7 @@ from typing import Any, Self, TypeVar
 
 from pymodbus.pdu import ModbusPDU
 
-from drivemap.runtime.client import rawio
-from drivemap.runtime.client.accessors import (
+from drivemap.runtime.client.api.accessors import (
     ArrayBase,
     AsyncCommand,
     AsyncReadOnly,
@@ -44,13 +43,14 @@ from drivemap.runtime.client.accessors import (
     WriteOnlyArray,
     encode_for_write,
 )
-from drivemap.runtime.client.async_client import AsyncClientBase
-from drivemap.runtime.client.base import ClientCommon, S, broadcast_refusal, broadcast_unit
-from drivemap.runtime.client.bus import AsyncBus, Bus, Stats
-from drivemap.runtime.client.machinery import ClientMachinery, Program, register_flavour
-from drivemap.runtime.client.planner import Key, ReadRequest
-from drivemap.runtime.client.review import refuse_open
-from drivemap.runtime.client.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
+from drivemap.runtime.client.api.async_client import AsyncClientBase
+from drivemap.runtime.client.api.base import ClientCommon, S, broadcast_refusal, broadcast_unit
+from drivemap.runtime.client.api.machinery import ClientMachinery, Program, register_flavour
+from drivemap.runtime.client.protocol import rawio
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest
+from drivemap.runtime.client.protocol.review import refuse_open
+from drivemap.runtime.client.protocol.sansio import Core, Op, PagePolicy, RawItem, run, run_replay
+from drivemap.runtime.client.transport.bus import AsyncBus, Bus, Stats
 from drivemap.runtime.errors import DriveError, PartialWrite, ReadOnlyRegister
 
 T = TypeVar("T")
@@ -189,7 +189,7 @@ class ClientBase(ClientCommon[S, Bus]):
 
     def read_registers(self, table: str, address: int, count: int) -> list[int]:
         """``count`` words (0/1 per coil or discrete input) of ``table`` from ``address``, as the
-        device sends them, in one request; checked before the wire (:mod:`drivemap.runtime.client.rawio`)."""
+        device sends them, in one request; checked before the wire (:mod:`drivemap.runtime.client.protocol.rawio`)."""
         rawio.check_read(self._drivemap.core.spec, table, address, count, self._drivemap.core.broadcast)
         op = rawio.read_registers(self._drivemap.core, table, address, count)
         with self.bus.lock:

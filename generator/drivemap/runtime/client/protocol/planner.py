@@ -13,7 +13,7 @@ spanned) - except that with the map's ``max_gap`` it may read across up to that 
 *undocumented* words (no register, no reserved range) between two units.
 
 *Holes* are words a device refused (02h) when a request that spanned them was split by the client
-(:meth:`drivemap.runtime.client.sync_client.Core.read_raw`). A unit on a hole is never a filler and is never
+(:meth:`drivemap.runtime.client.api.sync_client.Core.read_raw`). A unit on a hole is never a filler and is never
 merged with another unit; a gap with a hole is never spanned.
 
 Pages: a register with ``page: {selector, value}`` is only valid while its selector shows that

@@ -15,8 +15,8 @@ a range the map marks unreadable (:class:`WriteOnlyRegister`), no broadcast clie
 from __future__ import annotations
 
 from drivemap.runtime.alignment import refuse_misaligned
-from drivemap.runtime.client.planner import MODBUS_MAX_READ, MODBUS_MAX_READ_BITS
-from drivemap.runtime.client.sansio import Core, Op
+from drivemap.runtime.client.protocol.planner import MODBUS_MAX_READ, MODBUS_MAX_READ_BITS
+from drivemap.runtime.client.protocol.sansio import Core, Op
 from drivemap.runtime.errors import (
     BroadcastRead,
     InvalidValue,

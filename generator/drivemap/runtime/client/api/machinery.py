@@ -19,14 +19,14 @@ import weakref
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
-from drivemap.runtime.client.accessors import ArrayBase, ElementBase, Readable, SnapshotBase, encode_for_write
-from drivemap.runtime.client.codec import Codec, EnumCodec, FieldsCodec, FlagCodec, unwrap
-from drivemap.runtime.client.descriptor import Reg
-from drivemap.runtime.client.planner import Key, ReadRequest, plan_reads
-from drivemap.runtime.client.programs import Reader, compile_reader, exchanges
-from drivemap.runtime.client.review import sign_checked, warn_review
-from drivemap.runtime.client.sansio import Core, Deferred, RawItem, spec_tables
-from drivemap.runtime.client.writes import element_writer, refusing_writer
+from drivemap.runtime.client.api.accessors import ArrayBase, ElementBase, Readable, SnapshotBase, encode_for_write
+from drivemap.runtime.client.api.descriptor import Reg
+from drivemap.runtime.client.protocol.planner import Key, ReadRequest, plan_reads
+from drivemap.runtime.client.protocol.programs import Reader, compile_reader, exchanges
+from drivemap.runtime.client.protocol.review import sign_checked, warn_review
+from drivemap.runtime.client.protocol.sansio import Core, Deferred, RawItem, spec_tables
+from drivemap.runtime.client.protocol.writes import element_writer, refusing_writer
+from drivemap.runtime.client.values.codec import Codec, EnumCodec, FieldsCodec, FlagCodec, unwrap
 
 if TYPE_CHECKING:
     from drivemap.runtime.spec import DeviceSpec
@@ -250,7 +250,7 @@ class ClientMachinery:
         state.update(fields)
         return snap
 
-    # -- read programs (drivemap.runtime.client.programs)
+    # -- read programs (drivemap.runtime.client.protocol.programs)
     def bind(self, reader: Reader | None, general: Program, fallback: Callable[..., Any]) -> Program:
         """This client's program of ``reader`` (its requests prepared for this unit), else ``general``."""
         if reader is None:

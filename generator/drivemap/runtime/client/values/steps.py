@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import struct
 
-from drivemap.runtime.client.words import raw_bounds
+from drivemap.runtime.client.values.words import raw_bounds
 from drivemap.runtime.errors import InexactValue, ValueOutOfRange
 from drivemap.runtime.spec import RegisterSpec
 

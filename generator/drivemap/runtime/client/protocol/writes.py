@@ -19,10 +19,10 @@ from typing import Any
 from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest, WriteSingleRegisterRequest
 
-from drivemap.runtime.client.codec import Codec, EnumCodec, IntCodec
-from drivemap.runtime.client.exchange import Exchange
-from drivemap.runtime.client.sansio import Core
-from drivemap.runtime.client.words import raw_bounds, raw_to_words
+from drivemap.runtime.client.protocol.sansio import Core
+from drivemap.runtime.client.transport.exchange import Exchange
+from drivemap.runtime.client.values.codec import Codec, EnumCodec, IntCodec
+from drivemap.runtime.client.values.words import raw_bounds, raw_to_words
 from drivemap.runtime.errors import DriveError
 from drivemap.runtime.spec import RegisterSpec
 

@@ -10,8 +10,8 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.pdu.bit_message import ReadCoilsRequest, ReadDiscreteInputsRequest
 from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInputRegistersRequest
 
-from drivemap.runtime.client.codec import Codec
-from drivemap.runtime.client.planner import Key
+from drivemap.runtime.client.protocol.planner import Key
+from drivemap.runtime.client.values.codec import Codec
 from drivemap.runtime.errors import InexactValue, TransportError
 
 __all__ = ["ILLEGAL_ADDRESS", "READ_REQUESTS", "Deferred", "RawItem", "reply_words"]

@@ -1,6 +1,6 @@
 """Running the core's operations (generators of exchanges) on a bus: :func:`run` (sync),
 :func:`arun` (asyncio), and their ``_replay`` forms for an operation whose first exchanges a read
-program has carried out already (:mod:`drivemap.runtime.client.programs`)."""
+program has carried out already (:mod:`drivemap.runtime.client.protocol.programs`)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from typing import TypeVar
 
 from pymodbus.pdu import ModbusPDU
 
-from drivemap.runtime.client.bus import AsyncBus, Bus
-from drivemap.runtime.client.exchange import Exchange
+from drivemap.runtime.client.transport.bus import AsyncBus, Bus
+from drivemap.runtime.client.transport.exchange import Exchange
 from drivemap.runtime.errors import DriveError
 
 T = TypeVar("T")
@@ -24,7 +24,7 @@ def run(bus: Bus, op: Op[T]) -> T:
 
 def run_replay(bus: Bus, op: Op[T], replies: Sequence[ModbusPDU | None]) -> T:
     """:func:`run` for an operation whose first exchanges have been carried out already (a read
-    program's, :mod:`drivemap.runtime.client.programs`): it gets ``replies`` for them, then the bus's."""
+    program's, :mod:`drivemap.runtime.client.protocol.programs`): it gets ``replies`` for them, then the bus's."""
     try:
         ex = next(op)
         for reply in replies:

@@ -1,8 +1,8 @@
 """The protocol core of every client: operations written once as generators ("sans I/O").
 
-An operation yields :class:`~drivemap.runtime.client.bus.Exchange` requests and receives the replies;
-:class:`~drivemap.runtime.client.sync_client.ClientBase` runs it on a :class:`Bus`,
-:class:`~drivemap.runtime.client.async_client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
+An operation yields :class:`~drivemap.runtime.client.transport.bus.Exchange` requests and receives the replies;
+:class:`~drivemap.runtime.client.api.sync_client.ClientBase` runs it on a :class:`Bus`,
+:class:`~drivemap.runtime.client.api.async_client.AsyncClientBase` on an :class:`AsyncBus`. Every check on the
 caller's input happens before the first request is yielded, so a bad value never sends a byte.
 
 Tables: holding registers are read with 03h and written with 06h/10h, input registers read with
@@ -33,10 +33,8 @@ from pymodbus.pdu.register_message import (
 )
 
 from drivemap.runtime.alignment import refuse_misaligned
-from drivemap.runtime.client.advice import warn_if_running
-from drivemap.runtime.client.codec import raw_to_words, words_to_raw
-from drivemap.runtime.client.exchange import Exchange, Stats
-from drivemap.runtime.client.planner import (
+from drivemap.runtime.client.protocol.advice import warn_if_running
+from drivemap.runtime.client.protocol.planner import (
     Hole,
     Key,
     ReadRequest,
@@ -45,10 +43,12 @@ from drivemap.runtime.client.planner import (
     request_for,
     split_units,
 )
-from drivemap.runtime.client.review import warn_review
-from drivemap.runtime.client.runner import Op, arun, arun_replay, run, run_replay
-from drivemap.runtime.client.tables import SpecTables, spec_tables
-from drivemap.runtime.client.wire import ILLEGAL_ADDRESS, READ_REQUESTS, Deferred, RawItem, reply_words
+from drivemap.runtime.client.protocol.review import warn_review
+from drivemap.runtime.client.protocol.runner import Op, arun, arun_replay, run, run_replay
+from drivemap.runtime.client.protocol.tables import SpecTables, spec_tables
+from drivemap.runtime.client.protocol.wire import ILLEGAL_ADDRESS, READ_REQUESTS, Deferred, RawItem, reply_words
+from drivemap.runtime.client.transport.exchange import Exchange, Stats
+from drivemap.runtime.client.values.codec import raw_to_words, words_to_raw
 from drivemap.runtime.errors import (
     BroadcastRead,
     DeviceException,
@@ -391,7 +391,7 @@ class Core:
 
     def _advise_if_running(self, items: Sequence[tuple[RegisterSpec, Key]]) -> Op[None]:
         """The map's running_advice: read its running_state register and warn if the drive runs
-        (:mod:`drivemap.runtime.client.advice`); never refuses. A broadcast client cannot read: no check."""
+        (:mod:`drivemap.runtime.client.protocol.advice`); never refuses. A broadcast client cannot read: no check."""
         state = self.spec.protocol.running_state
         if state is None or self.broadcast:
             return

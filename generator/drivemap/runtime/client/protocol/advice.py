@@ -20,11 +20,12 @@ from collections.abc import Sequence
 from drivemap.runtime.errors import RunningWriteWarning
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 
-_RUNTIME_DIR = os.path.dirname(os.path.abspath(__file__)) + os.sep
+#: the client runtime's folder (``runtime/client/``, all its layers): frames inside it are not the caller's
+_RUNTIME_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
 
 
 def _caller_stacklevel() -> int:
-    """The ``stacklevel`` of the first frame outside ``drivemap.runtime`` (the user's call), seen from
+    """The ``stacklevel`` of the first frame outside ``drivemap.runtime.client`` (the user's call), seen from
     the function that calls :func:`warnings.warn` (this function's caller)."""
     frame = sys._getframe(1)
     level = 1

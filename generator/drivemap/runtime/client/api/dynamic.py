@@ -16,14 +16,14 @@ import sys
 import types
 from typing import Any
 
-from drivemap.runtime.client.accessors import SnapshotBase
-from drivemap.runtime.client.async_client import AsyncClientBase
-from drivemap.runtime.client.bus import AsyncBus, Bus
-from drivemap.runtime.client.codec import DriveEnum
-from drivemap.runtime.client.declare import REG_CLASSES, broadcast_kind_of, codecs_for, kind_of
-from drivemap.runtime.client.records import record
-from drivemap.runtime.client.sansio import PagePolicy
-from drivemap.runtime.client.sync_client import ClientBase
+from drivemap.runtime.client.api.accessors import SnapshotBase
+from drivemap.runtime.client.api.async_client import AsyncClientBase
+from drivemap.runtime.client.api.declare import REG_CLASSES, broadcast_kind_of, codecs_for, kind_of
+from drivemap.runtime.client.api.sync_client import ClientBase
+from drivemap.runtime.client.protocol.sansio import PagePolicy
+from drivemap.runtime.client.transport.bus import AsyncBus, Bus
+from drivemap.runtime.client.values.codec import DriveEnum
+from drivemap.runtime.client.values.records import record
 from drivemap.runtime.errors import DeviceException
 from drivemap.runtime.names import bit_attribute, exception_classes
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec

@@ -1,7 +1,7 @@
 """What the sync and async buses share (:class:`BusBase`): counters, frame logging, the timing
 arithmetic per transaction shape, quiet times; the serial settings and the precise asyncio sleep.
 
-The rules it implements are described in :mod:`drivemap.runtime.client.bus`.
+The rules it implements are described in :mod:`drivemap.runtime.client.transport.bus`.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 from pymodbus.framer import FramerType
 from pymodbus.pdu import ModbusPDU
 
-from drivemap.runtime.client import staleguard
-from drivemap.runtime.client.exchange import Exchange, Stats
+from drivemap.runtime.client.transport import staleguard
+from drivemap.runtime.client.transport.exchange import Exchange, Stats
 from drivemap.runtime.errors import InvalidArgument
 from drivemap.runtime.spec import SerialSpec, TimingSpec
 

@@ -2,9 +2,9 @@
 
 A register whose ``review:`` names a field that decides its words (:attr:`RegisterSpec.open_for_writes
 <drivemap.runtime.spec.RegisterSpec.open_for_writes>`; the client's :attr:`SpecTables.under_review
-<drivemap.runtime.client.tables.SpecTables.under_review>`) is read as the map says, with one
+<drivemap.runtime.client.protocol.tables.SpecTables.under_review>`) is read as the map says, with one
 :class:`ReviewWarning` per register and client, and never written: :meth:`Core.check_write
-<drivemap.runtime.client.sansio.Core.check_write>` raises :class:`OpenForReview` naming the fields,
+<drivemap.runtime.client.protocol.sansio.Core.check_write>` raises :class:`OpenForReview` naming the fields,
 before anything is sent (and, through :func:`refuse_open`, before the values are looked at).
 """
 
@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Iterable
 from typing import Any
 
-from drivemap.runtime.client.planner import Key
+from drivemap.runtime.client.protocol.planner import Key
 from drivemap.runtime.errors import OpenForReview, ReviewWarning
 from drivemap.runtime.spec import RegisterSpec
 

@@ -6,9 +6,9 @@ so it notices the end of a reply 1-2 ms late at 115200 Bd. :class:`SerialReceive
 client's ``recv`` (instance attribute; pymodbus itself is not patched) and, for a request whose
 reply length is known (:func:`reply_length`), reads it as it comes:
 
-1. with a stale-reply guard (:mod:`drivemap.runtime.client.staleguard`, the default): every chunk that
+1. with a stale-reply guard (:mod:`drivemap.runtime.client.transport.staleguard`, the default): every chunk that
    arrives before the reply, with the moment it was read, goes to :meth:`StaleGuard.skip
-   <drivemap.runtime.client.staleguard.StaleGuard.skip>`, which drops and counts what began before the
+   <drivemap.runtime.client.transport.staleguard.StaleGuard.skip>`, which drops and counts what began before the
    request could have been answered; the first chunk it accepts begins the reply;
 2. a blocking read of the frame's head (RTU: unit + function; ASCII: ``:`` + 4 hex digits) within
    the response timeout; the head says whether the reply is an exception (shorter frame);
@@ -67,7 +67,7 @@ class SerialReceiver:
         #: pymodbus's receive returns after a poll interval without a new byte: the silence it has seen.
         self._fallback_silence = float(getattr(client, "_recv_interval", 0.0))
         self._on_silence = on_silence
-        #: The stale-reply guard (set by :func:`drivemap.runtime.client.staleguard.guard_sync_client`), or None.
+        #: The stale-reply guard (set by :func:`drivemap.runtime.client.transport.staleguard.guard_sync_client`), or None.
         self.guard: Any = None
         #: Replies this receiver read itself (not through pymodbus's receive).
         self.handled = 0
