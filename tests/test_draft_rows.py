@@ -77,3 +77,31 @@ def test_a_row_without_a_type_column_states_the_type_token_it_writes() -> None:
     assert any("the row says 'S16'" in n for n in one.notes)
     two = draft_fields(Raw(605, "holding", "table 9 row 5", cells={"unit": "1W"}, text="low word U16, with 606 as S32"), ctx)
     assert "type" not in two.entry and "type" in two.entry["review"]  # type: ignore[operator]
+
+
+def test_a_documents_own_glossary_of_types_decides_its_type_tokens() -> None:
+    """A document that defines its type words (``I32  Signed integer (32 bits)``) is read by them: a
+    token the usual words do not know (``I32``, ``I64``) takes the document's meaning, with the line
+    that defines it; a prose line is no definition; a token defined two ways defines nothing; a length
+    that disagrees with the defined width leaves the type open."""
+    from drivemap.onboard.draft.cells import type_glossary
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    text = ("1.1 Definitions of Terms\nU16 Unsigned integer (16 bits)\nI32 Signed integer (32 bits)\n"
+            "I64 Signed integer (64 bits)\nINT16: 16-bit signed integer\nR4 - IEEE 754 floating point (32 bits)\n"
+            "Temperature Signed integer (16 bits)\nX9 Signed integer (16 bits)\nX9 Unsigned integer (16 bits)\n")
+    glossary = type_glossary(text)
+    assert {k: v[0] for k, v in glossary.items()} == {"U16": "u16", "I32": "s32", "I64": "s64", "INT16": "s16", "R4": "f32"}
+    assert glossary["I32"][1] == "I32 Signed integer (32 bits)"
+
+    rows = [Row(["SN", "Name", "Type", "Unit", "Address", "Quantity"], 3, 1),
+            Row(["1", "Phase A current", "I32", "A", "32272", "2"], 3, 2),
+            Row(["2", "Total energy", "I64", "kWh", "32274", "4"], 3, 3),
+            Row(["3", "Frequency", "R4", "Hz", "32278", "2"], 3, 4),
+            Row(["4", "Odd", "I32", "A", "32280", "1"], 3, 5)]
+    result = draft(Source("meter.pdf", "0" * 64, [Table(None, rows, 3, None, "", label="p.3 table 1")], text), "meter")
+    by = {r.entry["label"]: r for r in result.registers}
+    assert [by[n].entry.get("type") for n in ("Phase A current", "Total energy", "Frequency")] == ["s32", "s64", "f32"]
+    assert any("the document defines 'I32'" in n and "line 3" in n for n in by["Phase A current"].notes)
+    assert "type" not in by["Odd"].entry and "type" in by["Odd"].entry["review"]
+    assert any("but the row gives 1 register" in n for n in by["Odd"].notes)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from drivemap.frontend.formats import CURRENT
+from drivemap.onboard.draft.cells import type_glossary
 from drivemap.onboard.draft.fields import REVIEWED, Context, Raw, draft_fields, factor_direction
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
@@ -111,6 +112,8 @@ def document_context(source: Source) -> Context:
     base = _BASE_ONE.search(text)
     if base is not None:
         ctx.base_one = f"{source.name} {_statement_where(source, base.group(0))}: {base.group(0).strip()!r}"
+    ctx.type_words = {token: (rtype, f"{source.name} {_statement_where(source, said)}: {said!r}")
+                      for token, (rtype, said) in type_glossary(text).items()}
     return ctx
 
 

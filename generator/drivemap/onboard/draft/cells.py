@@ -147,6 +147,38 @@ def _resize(rtype: str, words: int) -> str | None:
     return f"{family}{sized}"
 
 
+_GLOSSARY = re.compile(
+    r"^[ \t]*(?P<token>[A-Z][A-Z0-9_]{0,11})[ \t]*[:=：\-–]?[ \t]+(?P<said>(?i:"
+    r"(?:an?\s+)?(?P<sign>un)?signed\s+(?:integer|int|short|long|number|value)?\s*[,(（]?\s*(?P<w1>16|32|64)\s*-?\s*bits?"
+    r"|(?P<w2>16|32|64)\s*-?\s*bits?\s+(?P<sign2>un)?signed(?:\s+(?:integer|int|number|value))?"
+    r"|(?:ieee[\s-]*754\s+)?(?:floating[\s-]*point|float)(?:\s+number)?\s*[,(（]?\s*(?P<w3>32|64)\s*-?\s*bits?"
+    r"|(?P<w4>32|64)\s*-?\s*bits?\s+(?:ieee[\s-]*754\s+)?(?:floating[\s-]*point|float)"
+    r")[ \t]*[)）]?)", re.M)
+"""A line of a document's glossary of data types: ``I32  Signed integer (32 bits)``, ``U16: unsigned
+16-bit integer``, ``INT16 16-bit signed integer``, ``F32 floating point (32 bits)``."""
+
+
+def type_glossary(text: str) -> dict[str, tuple[str, str]]:
+    """The data types a document defines in its own words: token (upper case) -> (schema type, the
+    line that defines it). A token defined twice differently is left out (the document contradicts itself)."""
+    found: dict[str, tuple[str, str]] = {}
+    clashes: set[str] = set()
+    for m in _GLOSSARY.finditer(text):
+        token = m.group("token").upper()
+        if not re.search(r"\d|^[A-Z]{2,}$", token):
+            continue
+        width = m.group("w1") or m.group("w2") or m.group("w3") or m.group("w4")
+        if m.group("w3") or m.group("w4"):
+            rtype = f"f{width}"
+        else:
+            rtype = f"{'u' if (m.group('sign') or m.group('sign2')) else 's'}{width}"
+        line = m.group(0).strip()
+        if token in found and found[token][0] != rtype:
+            clashes.add(token)
+        found.setdefault(token, (rtype, line))
+    return {k: v for k, v in found.items() if k not in clashes}
+
+
 def signed_hint(text: str) -> bool:
     return bool(_SIGNED_HINT.search(text)) and not _UNSIGNED_HINT.search(text)
 

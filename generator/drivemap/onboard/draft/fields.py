@@ -37,6 +37,8 @@ class Context:
     """Where the document states it (file, line and the words), recorded on each register it decides."""
     base_one: str = ""
     """Where the document says it numbers registers from 1 (empty when it does not)."""
+    type_words: dict[str, tuple[str, str]] = field(default_factory=dict)
+    """The document's own glossary of data types: token -> (schema type, where it defines it and how)."""
 
 
 @dataclass
@@ -74,9 +76,34 @@ def _type_in_text(raw: Raw, words: int | None, notes: list[str]) -> str | None:
     return rtype
 
 
+def _glossary_type(cell: str, ctx: Context, words: int | None, notes: list[str]) -> str | None:
+    """The type a type cell's token has by the document's own glossary (``I32``: "Signed integer (32
+    bits)"), where it reads otherwise than the usual words or they do not know it; a length column that
+    disagrees with the width leaves it open."""
+    token = re.sub(r"\s+", "", cell).upper()
+    defined = ctx.type_words.get(token)
+    if defined is None:
+        return None
+    rtype, said = defined
+    if parse_type(cell, None) == rtype:
+        return None  # the usual reading, no note needed
+    if words is not None and _WIDTHS.get(rtype) != words:
+        notes.append(f"type left open: the document defines {token!r} as {rtype} ({said}) but the row gives "
+                     f"{words} register{'' if words == 1 else 's'}")
+        return None
+    notes.append(f"type {rtype}: the document defines {token!r}: {said}")
+    return rtype
+
+
+#: registers of each numeric type a glossary can define
+_WIDTHS = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4}
+
+
 def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list[str], notes: list[str]) -> str:
     words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
-    rtype = parse_type(raw.cells.get("type", ""), words)
+    rtype = _glossary_type(raw.cells.get("type", ""), ctx, words, notes)
+    if rtype is None:
+        rtype = parse_type(raw.cells.get("type", ""), words)
     if rtype is None and not raw.cells.get("type", "").strip():
         rtype = _type_in_text(raw, words, notes)
     if rtype is None and signed_hint(raw.text + " " + raw.cells.get("type", "")):
