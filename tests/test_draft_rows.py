@@ -105,3 +105,42 @@ def test_a_documents_own_glossary_of_types_decides_its_type_tokens() -> None:
     assert any("the document defines 'I32'" in n and "line 3" in n for n in by["Phase A current"].notes)
     assert "type" not in by["Odd"].entry and "type" in by["Odd"].entry["review"]
     assert any("but the row gives 1 register" in n for n in by["Odd"].notes)
+
+
+def test_a_german_register_table_is_read_by_its_headers_and_its_access_cells() -> None:
+    """``Datentyp``, ``Multiplikator``, ``Laenge [Word / 16bit]``, ``Einheit``, ``Allg. Erlaeuterung``,
+    ``Register-Bit`` name their columns; a column whose every filled cell is an access (``r/w``, ``r``)
+    is the access column whatever it is headed (``EVCC-Home MODBUS RTU``, which otherwise reads as a
+    second address column); C's ``uint16_t`` is u16; a writable register a word wide is a holding
+    register; a row with an address of its own after bit rows is the next register, not more text."""
+    from drivemap.onboard.draft.cells import parse_type
+    from drivemap.onboard.draft.columns import find_layouts, role_of
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    assert [role_of(h) for h in ("Datentyp", "Multiplikator", "Laenge [Word / 16bit]", "Einheit",
+                                 "Allg. Erlaeuterung", "Register-Bit", "Zugriff")] == \
+        ["type", "scale", "length", "unit", "description", "bit", "access"]
+    assert (parse_type("uint16_t"), parse_type("int32_t", 2), parse_type("uint8")) == ("u16", "s32", None)
+
+    header = ["Register- Adresse", "Register-Bit", "Datentyp", "Multiplikator", "Laenge [Word / 16bit]", "Default- Wert [-]",
+              "Einheit", "Registerbezeichnung / Name", "Allg. Erlaeuterung", "EVCC-Home MODBUS RTU"]
+    body = [["101", "-", "uint16_t", "1", "1", "16", "A", "Ladestromvorgabe", "Ladestrom in A", "r/w"],
+            ["126", "-", "uint16_t", "1", "1", "0", "A", "Ladestromwert", "aktueller Wert", "r"],
+            ["139", "-", "char", "1", "1", "0", "-", "CP-Signal Zustand", "ASCII kodiert", "r"],
+            ["700", "0", "bit", "1", "1/16", "0", "-", "DIP-Switch SW1.1", "0: OFF, 1: ON", "r"],
+            ["", "1", "bit", "1", "1/16", "0", "-", "DIP-Switch SW1.2", "", "r"],
+            ["800-815", "-", "char", "1", "16", "-", "-", "Herstellerbezeichnung", "16-Bit encoded ASCII", "r"]]
+    layout = find_layouts([header, *body])[0]
+    assert layout.roles["access"] == 9 and layout.other_address is None and layout.roles["bit"] == 1
+    rows = [Row(cells, 1, i + 1) for i, cells in enumerate([header, *body])]
+    result = draft(Source("wallbox.pdf", "0" * 64, [Table(None, rows, 1, None, "", label="p.1 table 1")], ""), "wb")
+    by = {r.entry["address"]: r for r in result.registers}
+    written, read = by[101].entry, by[126].entry
+    assert (written["table"], written["type"], written["access"], written["unit"]) == ("holding", "u16", "rw", "A")
+    assert any("only holding registers are" in n for n in by[101].notes)
+    assert "table" not in read and "table" in read["review"]  # read-only: holding or input, the table does not say
+    assert "type" not in by[139].entry and any("a char in one register" in n for n in by[139].notes)
+    assert [b["label"] for b in by[700].entry["bits"]][:2] == ["DIP-Switch SW1.1", "DIP-Switch SW1.2"]  # type: ignore[attr-defined]
+    listed = [s for s in result.skipped if "800-815" in s.text]
+    assert (800 in by) != bool(listed)  # drafted or listed with its reason, not text of the bit register
+    assert "Herstellerbezeichnung" not in " ".join(by[700].notes) + str(by[700].entry)

@@ -121,6 +121,7 @@ def parse_type(text: str, words: int | None = None) -> str | None:
         return None
     # a type token broken over two lines or spaced: "UINT 16", "Int1 6", "U 32"
     low = re.sub(r"\b(u?int|float|real|[us])\s?(\d)\s?(\d)\b", r"\1\2\3", low)
+    low = re.sub(r"\b(u?int(?:8|16|32|64))_t\b", r"\1", low)  # C's names: uint16_t, int32_t
     for pattern, rtype in _TYPE_WORDS:
         found = re.search(pattern, low)
         if found:

@@ -10,29 +10,30 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from drivemap.onboard.draft.cells import Address, parse_address
+from drivemap.onboard.draft.cells import Address, parse_access, parse_address
 
 _ROLES: tuple[tuple[str, str], ...] = (
     ("hi_byte", r"hi(gh)?\s*byte|高位元組|高字节|高位字节"),
     ("lo_byte", r"lo(w)?\s*byte|低位元組|低字节|低位字节"),
     ("length", r"length|size|words|quantity|no\.?\s*of\s*reg|number\s*of\s*reg|reg(ister)?s?\s*count|"
-               r"长度|長度|字数|字數|bytes"),
+               r"长度|長度|字数|字數|bytes|l(?:ä|ae)nge|anzahl"),
     ("function_code", r"function\s*code|func\.?\s*code|^fc$|功能码|功能碼"),
     ("table", r"^reg(ister)?\.?\s*type$|^register\s*kind$|^object\s*type$|^寄存器类型$|^寄存器類型$"),
-    ("type", r"data\s*type|type|format|数据类型|資料型態|资料类型|类型|類型|格式"),
-    ("scale", r"^scal|scale\s*factor|^factor|multiplier|^gain|倍率|系数|係數"),
-    ("unit", r"unit|resolution|单位|單位|分辨率"),
+    ("type", r"data\s*type|type|format|datentyp|^typ$|数据类型|資料型態|资料类型|类型|類型|格式"),
+    ("scale", r"^scal|scale\s*factor|^factor|multiplier|^gain|multiplikator|^faktor|skalierung|倍率|系数|係數"),
+    ("unit", r"unit|resolution|einheit|auflösung|aufloesung|单位|單位|分辨率"),
     ("default", r"default|factory|initial|初始值|出厂|出廠|默认|預設|预设"),
     ("min", r"^min(imum)?\b"),
     ("max", r"^max(imum)?\b"),
-    ("range", r"range|limit|范围|範圍|設定值|设定值"),
-    ("access", r"access|^r\s*/\s*w|^w\s*/\s*r$|read\s*/\s*write|^rw$|attribute|读写|讀寫|属性|屬性|permission"),
-    ("bit", r"^bits?$|^位$"),
+    ("range", r"range|limit|bereich|范围|範圍|設定值|设定值"),
+    ("access", r"access|^r\s*/\s*w|^w\s*/\s*r$|read\s*/\s*write|^rw$|attribute|zugriff|读写|讀寫|属性|屬性|permission"),
+    ("bit", r"^bits?$|^位$|^register[-\s]*bits?$"),
     ("param", r"^id$|^p_?$|^no\.?$|param(eter)?\s*(no|id|number|code|#)|参数号|參數號|参数编号|參數編號"),
     ("address", r"addr|\badr|register|^reg\b|reg\.|寄存器|暂存器|暫存器|位址|地址|modbus|offset|编号|編號|pdu|"
                 r"^coils?$|^discrete\s+inputs?$|^线圈$|^線圈$"),
     ("name", r"name|parameter|function|item|measur|signal|variable|quantity|object|名稱|名称|功能|项目|項目|参数|參數"),
-    ("description", r"descr|decrip|content|definition|meaning|note|remark|comment|detail|data|說明|说明|內容|内容|含义|含義|意义"),
+    ("description", r"descr|decrip|content|definition|meaning|note|remark|comment|detail|data|beschreibung|"
+                    r"erl(?:ä|ae)uterung|bemerkung|hinweis|說明|说明|內容|内容|含义|含義|意义"),
 )
 _RADIX_HEX = re.compile(r"hex|\(h\)|16\s*进制|16\s*進位|十六", re.I)
 #: an address column headed as an offset (``Offset``, ``偏移``, ``Index``) and not as an address: its numbers
@@ -171,9 +172,30 @@ def find_layouts(rows: list[list[str]]) -> list[Layout]:
         layout = _layout_of(cells, offset)
         layout.header_row, layout.header_rows = index, 2 if joined else 1
         _prefer_marked(layout, rows[index + layout.header_rows:])
+        _access_by_values(layout, rows[index + layout.header_rows:], offset, cells)
         _prefer_distinct_name(layout, rows[index + layout.header_rows:])
         layouts.append(layout)
     return layouts
+
+
+def _access_by_values(layout: Layout, rows: list[list[str]], offset: int, header: list[str]) -> None:
+    """Without a column headed as access, a column every filled cell of which reads as an access
+    (``r``, ``w``, ``r/w``, ``RO``; ``-`` says nothing) is the access column, whatever its header says
+    (``EVCC-Home MODBUS RTU``): a second address column never holds such cells."""
+    if "access" in layout.roles:
+        return
+    taken = {i for role, i in layout.roles.items() if role not in ("description",)}
+    for col in range(offset, offset + len(header)):
+        if col in taken:
+            continue
+        cells = [r[col].strip() for r in rows if col < len(r) and r[col].strip() not in ("", "-", "–")]
+        if len(cells) >= 3 and all(parse_access(c) is not None for c in cells):
+            if layout.roles.get("description") == col:
+                del layout.roles["description"], layout.headers["description"]
+            if layout.other_address == col:
+                layout.other_address, layout.other_header = None, ""
+            layout.roles["access"], layout.headers["access"] = col, header[col - offset]
+            return
 
 
 def _prefer_distinct_name(layout: Layout, rows: list[list[str]]) -> None:

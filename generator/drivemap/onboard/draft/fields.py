@@ -119,6 +119,11 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
         missing.append("type")
         return "u16"
     if rtype == "string":
+        if words == 1 and re.fullmatch(r"\s*(?:char|character)\s*", raw.cells.get("type", ""), re.I):
+            missing.append("type")
+            notes.append("a char in one register: a character's code (a number) or two bytes of text? "
+                         "the document does not say: type left out")
+            return "u16"
         if words is None:
             missing.append("type")
             notes.append("string without a length: type left out")
@@ -361,8 +366,24 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
     _access_field(raw, entry, missing)
+    if raw.table is None and entry.get("access") in ("w", "rw") and _word_sized(raw, entry):
+        entry = {"table": "holding", **entry}
+        missing.remove("table")
+        notes.append(f"table holding: the document says it is written ({_access_text(raw)!r}) and a register wide; "
+                     "of Modbus's tables only holding registers are")
     _review(entry, missing)
     return Drafted(entry, raw.where, missing, notes)
+
+
+def _word_sized(raw: Raw, entry: dict[str, object]) -> bool:
+    """Whether the row says the register is 16 bits or more wide (a type, a length in words or bit fields):
+    then it is no coil."""
+    return "type" in entry or "bits" in entry or \
+        parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", "")) is not None
+
+
+def _access_text(raw: Raw) -> str:
+    return raw.cells.get("access", "").strip() or str(raw.access)
 
 
 def _text_enum(raw: Raw, notes: list[str]) -> list[tuple[int, str]]:

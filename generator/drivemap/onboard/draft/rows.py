@@ -295,8 +295,8 @@ class GridReader:
             if label and not RESERVED.search(label):
                 raw.bits.append((bit, label))
             return True
-        if address_text and not self.mode == "bits":
-            return False
+        if address_text and (self.mode != "bits" or "bit" in self.layout.roles):
+            return False  # a row with an address of its own and no bit in the Bit column: the next register
         raw.text += " " + " ".join(texts)
         return True
 
