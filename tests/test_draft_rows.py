@@ -144,3 +144,29 @@ def test_a_german_register_table_is_read_by_its_headers_and_its_access_cells() -
     listed = [s for s in result.skipped if "800-815" in s.text]
     assert (800 in by) != bool(listed)  # drafted or listed with its reason, not text of the bit register
     assert "Herstellerbezeichnung" not in " ".join(by[700].notes) + str(by[700].entry)
+
+
+def test_a_modicon_column_beside_the_physical_address_states_the_table_and_lsw_msw_the_word_order() -> None:
+    """``Modicom address 300001 | Physical address 0000h``: the 6-digit (or 5-digit) Modicon number of the
+    same address states the table (3: input, 4: holding); one that names another address states nothing.
+    "In INT32 ... formats, the word order is LSW-> MSW" states the word order of the whole document."""
+    from drivemap.onboard.draft.assemble import _word_order
+    from drivemap.onboard.draft.rows import modicon_reference
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    assert [modicon_reference(c) for c in ("300001", "300769", "40092", "465536", "400000", "12345", "3000")] == \
+        [(0, "input"), (768, "input"), (91, "holding"), (65535, "holding"), None, None, None]
+    assert _word_order("formats, the word order is LSW-> MSW.") == ("low_first", "word order is LSW-> MSW")
+    assert _word_order("Word order: MSW first")[0] == "high_first"
+
+    text = "For all the formats the byte order is MSB->LSB. In INT32 formats, the word order is LSW-> MSW.\n"
+    rows = [Row(["Modicom address", "Physical address", "Length (words)", "Variable", "Data Format"], 8, 1),
+            Row(["300001", "0000h", "2", "V L1-N", "INT32"], 8, 2),
+            Row(["400003", "0002h", "2", "V L2-N", "INT32"], 8, 3),
+            Row(["300009", "0004h", "2", "V L3-N", "INT32"], 8, 4)]
+    result = draft(Source("meter.pdf", "0" * 64, [Table(None, rows, 8, None, "", label="p.8 table 1")], text), "meter")
+    by = {r.entry["address"]: r for r in result.registers}
+    assert (by[0].entry["table"], by[0].entry["type"], by[0].entry["word_order"]) == ("input", "s32", "low_first")
+    assert any("prints 300001, the Modicon number of address 0 in the input registers" in n for n in by[0].notes)
+    assert by[2].entry["table"] == "holding"
+    assert "table" not in by[4].entry  # 300009 is address 8, not 4: it states nothing about this row

@@ -80,6 +80,11 @@ def _word_order(text: str) -> tuple[str | None, str]:
     if specific:
         kind = (specific.group(1) or specific.group(2)).lower()
         return ("low_first" if kind == "little" else "high_first"), specific.group(0)
+    named = re.search(r"word[\s-]*order\s*(?:is|:|=)?\s*(lsw|msw|low(?:er)?\s+word|high(?:er)?\s+word)\s*(?:(?:-*>|→)\s*(?:lsw|msw|low(?:er)?\s+word|high(?:er)?\s+word)?|first|before)"
+                      r"|\b(lsw|msw)\s+first\b", text, re.I)
+    if named:  # "the word order is LSW-> MSW", "MSW first"
+        kind = (named.group(1) or named.group(2)).lower()
+        return ("low_first" if kind.startswith(("lsw", "low")) else "high_first"), named.group(0)
     high = re.search(r"(?:high|most significant|upper)\s+word\s+first|big[\s-]*endian|高字在前|高位字在前", text, re.I)
     low = re.search(r"(?:low|least significant|lower)\s+word\s+first|little[\s-]*endian|低字在前|低位字在前", text, re.I)
     if high and not low:

@@ -218,7 +218,22 @@ class GridReader:
                 f"{self.layout.other_header!r} says {other!r}: the document states two addresses"))
             return
         self.mode = "text"
-        self.start(row, value, table)
+        said = self.modicon_beside(row, value) if table is None else None
+        count = len(self.raws)
+        self.start(row, value, said[0] if said else table)
+        if said and len(self.raws) > count:
+            self.raws[-1].notes.append(said[1])
+
+    def modicon_beside(self, row: Row, value: int) -> tuple[str, str] | None:
+        """(table, note) when a second address column prints this register's Modicon number (``300001`` or
+        ``30001`` beside physical address ``0000h``): its first digit states the table (3: input, 4: holding)."""
+        col = self.layout.roles.get("address_dec")
+        cell = row.cells[col].strip() if col is not None and col < len(row.cells) else ""
+        ref = modicon_reference(cell)
+        if ref is None or ref[0] != value:
+            return None
+        return ref[1], (f"table {ref[1]}: {self.layout.headers.get('address_dec', '')!r} prints {cell}, the Modicon "
+                        f"number of address {value} in the {ref[1]} registers")
 
     def other_address(self, row: Row, value: int) -> str | None:
         """The cell of a second address column that states another address than the Modicon number
@@ -486,6 +501,17 @@ def loose_raws(table: Table, kind: str | None, access: str | None) -> tuple[list
             raw.enum = enum
         raws.append(raw)
     return raws, skipped
+
+
+def modicon_reference(cell: str) -> tuple[int, str] | None:
+    """(address, table) of a Modicon number: 5 digits (30001-39999 input, 40001-49999 holding) or 6
+    (300001-365536, 400001-465536)."""
+    if not re.fullmatch(r"[34]\d{4,5}", cell):
+        return None
+    value, base = int(cell), 10 ** (len(cell) - 1)
+    kind = "input" if cell[0] == "3" else "holding"
+    offset = value - (3 if kind == "input" else 4) * base - 1
+    return (offset, kind) if 0 <= offset <= 65535 else None
 
 
 def _loose_address(a: Address | None, kind: str | None) -> tuple[int | None, str | None]:
