@@ -111,8 +111,9 @@ def test_reads_work_and_warn_once(served: tuple[Any, int], generated: tuple[Path
     sim, port = served
     pkg = generated[1]
     with pkg.Client.tcp("127.0.0.1", port, unit=1, timeout=1.0) as client:
-        with pytest.warns(ReviewWarning, match=r"rs485_timeout: its map leaves scale open for review"):
+        with pytest.warns(ReviewWarning, match=r"rs485_timeout: its map leaves scale open for review") as said:
             first = client.rs485_timeout.read()
+        assert said[0].filename == __file__  # attributed to the caller's line, not the runtime's
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             assert client.rs485_timeout.read() == first  # once per register and client
@@ -121,6 +122,7 @@ def test_reads_work_and_warn_once(served: tuple[Any, int], generated: tuple[Path
         with pytest.warns(ReviewWarning) as caught:
             client.read_all()
         assert sorted(str(w.message).split(":")[0] for w in caught) == ["digital_speed"]
+        assert {w.filename for w in caught} == {__file__}
 
 
 async def _async_refusal(pkg: ModuleType, port: int) -> None:

@@ -24,7 +24,7 @@ from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 _RUNTIME_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
 
 
-def _caller_stacklevel() -> int:
+def caller_stacklevel() -> int:
     """The ``stacklevel`` of the first frame outside ``drivemap.runtime.client`` (the user's call), seen from
     the function that calls :func:`warnings.warn` (this function's caller)."""
     frame = sys._getframe(1)
@@ -48,8 +48,8 @@ def warn_if_running(spec: DeviceSpec, written: Sequence[tuple[RegisterSpec, str]
         f"{spec.name}: writing {names} while the drive reports running "
         f"({spec.protocol.running_state.register} = {state_raw}); the manual advises: {advice}",
         RunningWriteWarning,
-        stacklevel=_caller_stacklevel(),
+        stacklevel=caller_stacklevel(),
     )
 
 
-__all__ = ["RunningWriteWarning", "warn_if_running"]
+__all__ = ["RunningWriteWarning", "caller_stacklevel", "warn_if_running"]

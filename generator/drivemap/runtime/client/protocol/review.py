@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Iterable
 from typing import Any
 
+from drivemap.runtime.client.protocol.advice import caller_stacklevel
 from drivemap.runtime.client.protocol.planner import Key
 from drivemap.runtime.errors import OpenForReview, ReviewWarning
 from drivemap.runtime.spec import RegisterSpec
@@ -31,7 +32,7 @@ def warn_review(core: Any, keys: Iterable[Key]) -> None:
         if fields and name not in warned:
             warned.add(name)
             warnings.warn(ReviewWarning(f"{name}: its map leaves {', '.join(fields)} open for review; the value "
-                                        "read may be wrong"), stacklevel=4)
+                                        "read may be wrong"), stacklevel=caller_stacklevel())
 
 
 def refuse_open(core: Any, keys: Iterable[Key]) -> None:
