@@ -20,7 +20,7 @@ import yaml
 from drivemap.build import render_tree, write_tree
 from drivemap.compiler import compile_map
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def payloads(marker: Path) -> list[str]:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_project import ok, project, run, snapshot
+from tests.frontend.test_project import ok, project, run, snapshot
 
 __all__ = ["project"]  # the fixture
 

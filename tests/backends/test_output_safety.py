@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from drivemap.backends import output, staging
-from tests.test_project import ok, project, run, snapshot
+from tests.frontend.test_project import ok, project, run, snapshot
 
 __all__ = ["project"]  # the fixture
 

@@ -14,7 +14,7 @@ import pytest
 
 from drivemap.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MAPS = sorted(p.stem for p in (ROOT / "maps").glob("*.yaml"))
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from tests.corpora import hostile_docs
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 CORPUS = json.loads((ROOT / "tests" / "corpora" / "cli_hostile.json").read_text(encoding="utf-8"))["cases"]
 
 

@@ -15,7 +15,7 @@ from drivemap.cli import main
 from drivemap.frontend import project as project_module
 from drivemap.frontend.project import load_project
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FIXTURES = ROOT / "tests" / "fixtures" / "catalogue_list"
 
 

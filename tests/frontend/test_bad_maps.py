@@ -5,7 +5,7 @@ Each case (``tests/bad_maps/<case>.patch`` against a base map, or a whole ``<cas
 ``drivemap validate --exporter python --exporter docs`` prints on stderr: the front end's errors and
 those of the checks of the exporters ``drivemap build`` runs. Plain ``drivemap validate`` (the front
 end alone) prints the same for every case but :data:`EXPORTER_CASES`. Regenerate after a deliberate message change with
-``DRIVEMAP_UPDATE_GOLDENS=1 pytest tests/test_bad_maps.py`` and review the diff.
+``DRIVEMAP_UPDATE_GOLDENS=1 pytest tests/frontend/test_bad_maps.py`` and review the diff.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ import pytest
 from drivemap.cli import main
 from drivemap.compiler import compile_map
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def run(*argv: str) -> tuple[int, str, str]:

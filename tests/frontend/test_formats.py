@@ -18,7 +18,7 @@ from drivemap.diagnostics import CompileError
 from drivemap.frontend import formats
 from drivemap.frontend.load import load_text
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 HISTORY = sorted((HERE / "maps_history").glob("*/*.yaml"))
 ROOT = HERE.parent
 

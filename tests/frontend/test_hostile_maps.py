@@ -16,7 +16,7 @@ from drivemap.cli import main
 from drivemap.compiler import compile_map
 from drivemap.frontend import family
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 OLD = sorted((HERE / "maps_history").glob("*/ev.yaml"))[0]  # a format-1 map
 
 

@@ -9,7 +9,7 @@ import yaml
 
 from drivemap.frontend import load
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FILES = sorted((ROOT / "maps").glob("*.yaml")) + [ROOT / "generator" / "drivemap" / "backends" / "templates" / "new_map.yaml.jinja"]
 
 

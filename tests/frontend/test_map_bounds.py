@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from drivemap.frontend.load import MAX_NODES, MAX_REGISTERS
-from tests.test_bad_maps import ROOT, _limited
+from tests.frontend.test_bad_maps import ROOT, _limited
 
 BASE = (ROOT / "tests" / "bad_maps" / "bad_access_mode.yaml").read_text(encoding="utf-8").replace(
     "    access: ro\n", "    access: rw\n").replace("model: bad_access_mode", "model: big")

@@ -12,7 +12,7 @@ import pytest
 from drivemap.cli import main
 from drivemap.compiler import compile_map
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _with_review(tmp_path: Path, review: str, evidence: str | None = None) -> Path:

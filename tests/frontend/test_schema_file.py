@@ -11,7 +11,7 @@ import pytest
 
 from drivemap.frontend.schema import SCHEMA_PATH
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 TOP_LEVEL = ROOT / "schemas" / "drivemap.schema.json"
 
 #: The keywords of JSON Schema 2020-12 (core, applicator, validation, unevaluated, meta-data,

@@ -10,7 +10,7 @@ import pytest
 from drivemap.cli import main
 from drivemap.gateway.config import SCHEMA_PATH
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 GOOD = """\
 gateway: 1

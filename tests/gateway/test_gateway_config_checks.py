@@ -14,7 +14,7 @@ from drivemap.gateway.cli import EXAMPLE, example_text
 from drivemap.gateway.config import load_config
 from tests.helpers_gateway import free_port
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 GOOD = """\
 gateway: 1

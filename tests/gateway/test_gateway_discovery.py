@@ -21,7 +21,7 @@ from drivemap.gateway.device import Device
 from drivemap.gateway.discovery import discovery_messages, entity_name
 from drivemap.gateway.service import Gateway
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MAPS = sorted((ROOT / "maps").glob("*.yaml"))
 
 CONFIG = """\

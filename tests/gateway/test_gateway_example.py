@@ -18,7 +18,7 @@ from asyncua import Client  # noqa: E402
 
 from tests.helpers_gateway import Broker, Subscriber, free_port, publish, until
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "docs/examples/plant.yaml"
 README = ROOT / "README.md"
 

@@ -22,7 +22,7 @@ from tests.corpora.mqtt_payloads import INDEXES, PAYLOADS
 from tests.helpers_client import tcp_server
 from tests.helpers_gateway import Broker, Subscriber, free_port, running, until, write_config
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 HUGE = 16 * 1024  # payloads longer than this go to one topic per device (they are refused by size alone)
 HAS_OPCUA = importlib.util.find_spec("asyncua") is not None
 

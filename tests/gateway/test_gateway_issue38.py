@@ -22,7 +22,7 @@ from drivemap.gateway.service import Gateway
 from tests.helpers_client import tcp_server
 from tests.helpers_gateway import Broker, Subscriber, free_port, publish, running, until, write_config
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: Modbus write function codes (05h, 06h, 0Fh, 10h): what a refused command must never send.
 WRITES = (0x05, 0x06, 0x0F, 0x10)
 

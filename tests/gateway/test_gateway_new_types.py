@@ -19,7 +19,7 @@ from drivemap.runtime.sim.simulator import Simulator
 from tests.helpers_client import tcp_server
 from tests.helpers_gateway import Broker, Subscriber, free_port, publish, running, until, write_config
 
-ALLKINDS = Path(__file__).resolve().parent / "maps" / "allkinds.yaml"
+ALLKINDS = Path(__file__).resolve().parents[1] / "maps" / "allkinds.yaml"
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ from drivemap.runtime.client.steps import shortest_f32
 from drivemap.runtime.errors import InvalidValue, ReadOnlyRegister, ValueOutOfRange
 from tests.helpers_gateway import write_config
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 ALLKINDS = ROOT / "tests/maps/allkinds.yaml"
 
 

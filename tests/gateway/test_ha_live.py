@@ -27,7 +27,7 @@ from tests.waits import free_port
 
 pytestmark = pytest.mark.tools
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def simulator(model: str, units: list[int] | None = None) -> Any:

@@ -19,14 +19,14 @@ import pytest
 
 from drivemap.compiler import load_model
 from drivemap.runtime.sim.serve import ThreadedSimServer
+from tests.gateway.test_ha_live import read_all, simulator
 from tests.ha_live import preset
-from tests.test_ha_live import read_all, simulator
 from tests.toolenv import require_npm
 from tests.waits import free_port, wait_port
 
 pytestmark = pytest.mark.tools
 
-PROBE = Path(__file__).with_name("js") / "opcua_probe.js"
+PROBE = Path(__file__).resolve().parents[1] / "js" / "opcua_probe.js"
 CONFIG = """gateway: 1
 name: plant
 opcua:

@@ -10,9 +10,9 @@ import pytest
 
 from drivemap.compiler import compile_map
 from drivemap.model.source import SourceRef
-from tests.test_family import family, run  # noqa: F401 - the fixture
+from tests.frontend.test_family import family, run  # noqa: F401 - the fixture
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _nodes(value: object) -> Iterator[object]:

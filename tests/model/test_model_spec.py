@@ -35,7 +35,7 @@ from drivemap.model.spec import project, spec_from_model
 from drivemap.runtime import spec as runtime
 from drivemap.runtime.spec import RegisterSpec
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MAPS = sorted((ROOT / "maps").glob("*.yaml"))
 
 #: Each model node, its runtime class, and the runtime fields it declares again: narrower types

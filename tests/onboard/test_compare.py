@@ -9,7 +9,7 @@ import yaml
 
 from drivemap.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_compare_lists_changed_scale_and_unit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -19,7 +19,7 @@ from drivemap.build import build_checks
 from drivemap.cli import main
 from drivemap.compiler import compile_cached, compile_map
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ import pytest
 
 from drivemap.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _run(*args: str) -> tuple[int, str, str]:

@@ -1,7 +1,7 @@
 """Every catalogue map (``maps/catalogue/<source>/*.yaml``, imported from other projects' definitions) is
 proven as the shipped maps are: it validates with build's checks, its generated package renders and is
 valid Python, and its simulator, read back through its client over the in-process loopback, gives every
-readable register the value the simulator holds. (The rebuild from ../shared is tests/test_import_catalogue.py.)
+readable register the value the simulator holds. (The rebuild from ../shared is tests/onboard/importers/test_import_catalogue.py.)
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.simulator import Simulator, SimulatorError
 from drivemap.testing.loopback import loopback_bus
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 CATALOGUE = sorted((ROOT / "maps" / "catalogue").rglob("*.yaml"))
 
 pytestmark = pytest.mark.slow

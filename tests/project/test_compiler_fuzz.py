@@ -20,7 +20,7 @@ from drivemap.build import render_tree
 from drivemap.compiler import compile_map
 from drivemap.diagnostics import CompileError
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MAPS = sorted((ROOT / "maps").glob("*.yaml"))
 LOCATED = re.compile(r"^\S+:\d+:\d+: error: .+")
 

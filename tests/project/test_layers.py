@@ -14,7 +14,7 @@ import pytest
 
 from drivemap._compat import MOVED_MODULES
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_import_linter_contracts_hold() -> None:

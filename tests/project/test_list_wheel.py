@@ -1,6 +1,6 @@
 """The catalogue from an installed wheel: a wheel built with catalogue maps below ``maps/catalogue/``
 ships them as package data, and in an empty folder `drivemap list` shows them and a model id finds one
-(slow: builds a wheel and a virtualenv, like tests/test_wheel.py)."""
+(slow: builds a wheel and a virtualenv, like tests/project/test_wheel.py)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FIXTURES = ROOT / "tests" / "fixtures" / "catalogue_list"
 
 pytestmark = pytest.mark.slow

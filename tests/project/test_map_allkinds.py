@@ -1,7 +1,7 @@
 """Every construct of the map language against independent peers (tests/maps/allkinds.yaml).
 
 * The map's example frames are exactly the frames pymodbus builds for the same PDUs and values
-  (tests/allkinds_frames.py); tests/test_roundtrip.py runs them through client and simulator.
+  (tests/allkinds_frames.py); tests/project/test_roundtrip.py runs them through client and simulator.
 * The typed client reads every type from a *plain pymodbus server* (pymodbus's own datastore, not
   drivemap's simulator) holding values that pymodbus's ``convert_to_registers`` laid out, in every
   word and byte order, and gets them exactly (NaN and infinities included).
@@ -12,7 +12,7 @@
   the extra requests.
 
 The peers and known values are in tests/allkinds_server.py; the compiler, the generated simulator,
-the exports and the docs of the same map are checked in tests/test_map_allkinds_outputs.py.
+the exports and the docs of the same map are checked in tests/project/test_map_allkinds_outputs.py.
 """
 
 from __future__ import annotations

@@ -46,7 +46,7 @@ from drivemap.runtime.package import load_package
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing import VirtualSerialLine
 
-TEST_MAPS = sorted((Path(__file__).resolve().parent / "maps").glob("*.yaml"))
+TEST_MAPS = sorted((Path(__file__).resolve().parents[1] / "maps").glob("*.yaml"))
 PROJECT: dict[str, Model] = {m.name: m for m in (compile_map(p) for p in map_paths())}
 MODELS: dict[str, Model] = {**PROJECT, **{m.name: m for m in (compile_map(p) for p in TEST_MAPS)}}
 CASES = [(m, ex) for m in MODELS.values() for ex in m.examples]

@@ -22,7 +22,7 @@ import pytest
 
 from tests.waits import free_port, wait_port
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SEED_MAPS = sorted((ROOT / "maps").glob("*.yaml"))
 
 
@@ -258,7 +258,7 @@ def test_the_gateway_example_checks_from_the_wheel_in_an_empty_folder(env: Path,
 def test_draft_from_the_wheel_in_an_empty_folder(env: Path, tmp_path: Path) -> None:
     """PDF, Word and Excel drafting work after a plain install (pdfplumber, python-docx, openpyxl are
     dependencies of the wheel), and every draft validates as written."""
-    from tests.test_draft import _docx, _pdf, _xlsx
+    from tests.onboard.draft.test_draft import _docx, _pdf, _xlsx
 
     docs = tmp_path / "docs"
     docs.mkdir()

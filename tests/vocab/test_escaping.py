@@ -33,7 +33,7 @@ from markdown_it import MarkdownIt
 
 from drivemap.vocab.escape import LINE_BREAKS, md_comment, md_text, py_docstring, py_literal
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 EVERY_CHARACTER = st.characters(exclude_categories=())  # lone surrogates included
 TRICKY = list(LINE_BREAKS) + ['"', "'", '"""', "\\", "\ud800", "\udfff", "|", "*", "_", "`", "<", ">", "&",

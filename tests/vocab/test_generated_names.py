@@ -21,7 +21,7 @@ from drivemap.compiler import compile_map, map_paths
 from drivemap.runtime.client.bus import Bus
 from drivemap.vocab.reserved import reserved
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 GENERATED = ROOT / "generated" / "drivemap_models"
 MODELS = {p.stem: compile_map(p) for p in map_paths()}
 

@@ -4,7 +4,7 @@ The pages are rendered in memory from the same compiled models ``drivemap build`
 markdown-it-py, and checked structurally (tables, headings, fences, links). The usage snippet on
 each page is executed against that model's simulator over TCP.
 
-Links, leaks, escaping and the usage snippet are checked in tests/test_docs_links.py; the rendering and
+Links, leaks, escaping and the usage snippet are checked in tests/backends/exporters/test_docs_links.py; the rendering and
 the page parser are in tests/docs_pages.py.
 """
 

@@ -1,4 +1,4 @@
-"""Generated Markdown docs, continued (tests/test_docs.py checks what each page shows): every relative
+"""Generated Markdown docs, continued (tests/backends/exporters/test_docs.py checks what each page shows): every relative
 link resolves, no placeholder or ``None`` leaks, map text cannot break a table or inject HTML, and the
 usage snippet on each page runs against that model's simulator over TCP.
 """

@@ -16,7 +16,7 @@ from drivemap.compiler import compile_map
 from drivemap.diagnostics import CompileError
 from drivemap.model.nodes import Model
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 
 
 class _ModelCheck(Exporter):

@@ -7,7 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 
 GOOD = """
 from drivemap_models.ev import AsyncClient, Client, MotorState, NetIn, ScCcMode, Snapshot

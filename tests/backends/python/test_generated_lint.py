@@ -8,7 +8,7 @@ from drivemap.backends.exporters.base import Options
 from drivemap.backends.views.spec import context
 from drivemap.compiler import compile_map
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _imports(model: object) -> list[str]:

@@ -27,7 +27,7 @@ from drivemap.onboard.draft.naming import snake
 from drivemap.onboard.draft.read import TimeLimit
 from drivemap.onboard.draft.units import parse_scale
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 SEEDS = {"edx": ("004_698379178adcef99.txt", 0.95), "v2": ("003_81ad9a58587804cf.txt", 0.8),
          "vfd1000": ("002_65caa110b92ac236.txt", 0.75), "ev": ("001_47d2095fcebbe4cf.txt", 0.75)}
 

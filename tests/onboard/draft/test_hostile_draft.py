@@ -21,7 +21,7 @@ from drivemap.cli import main
 from drivemap.onboard.draft import read
 from tests.corpora import hostile_docs as docs
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 #: Peak RSS a hostile document may cost (drivemap with pdfplumber, openpyxl and python-docx loaded is
 #: about 60 MB; before the bounds these cases took 0.6-2.1 GB).
 RSS_BOUND_MB = 250

@@ -474,9 +474,9 @@ def test_import_and_probe_from_the_installed_wheel(tmp_path_factory: pytest.Temp
     an empty folder outside this checkout; what they write validates there."""
     import subprocess
 
-    from test_wheel import _wait_for, free_port, ok
-    from test_wheel import env as env_fixture
-    from test_wheel import wheel as wheel_fixture
+    from tests.project.test_wheel import _wait_for, free_port, ok
+    from tests.project.test_wheel import env as env_fixture
+    from tests.project.test_wheel import wheel as wheel_fixture
 
     bindir = env_fixture.__wrapped__(wheel_fixture.__wrapped__(tmp_path_factory), tmp_path_factory)  # type: ignore[attr-defined]
     work = tmp_path / "new-device"
@@ -495,7 +495,7 @@ def test_import_and_probe_from_the_installed_wheel(tmp_path_factory: pytest.Temp
     assert "nothing was written to the device" in out and "wrote maps/probed_device.yaml" in out
     validated = ok(bindir, work, "validate")
     assert "maps/probed_device.yaml: ok" in validated and "maps/ev.yaml: ok" in validated
-    from test_wheel import drivemap as run_wheel
+    from tests.project.test_wheel import drivemap as run_wheel
 
     needs = run_wheel(bindir, work, "import", "sunspec", "103")
     assert needs.returncode == 1 and "needs drivemap[sunspec]" in needs.stderr and "Traceback" not in needs.stderr

@@ -12,7 +12,7 @@ import yaml
 
 from drivemap.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 FIX = ROOT / "tests" / "fixtures" / "catalogue"
 
 

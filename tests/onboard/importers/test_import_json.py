@@ -146,9 +146,9 @@ def test_json_and_pymodbus_sim_imports_from_the_installed_wheel(tmp_path_factory
                                                                  tmp_path: Path) -> None:
     """Both formats as users get them: the wheel in a fresh virtualenv, an empty folder outside this
     checkout; the maps they write validate there, with the checks of every exporter."""
-    from test_wheel import env as env_fixture
-    from test_wheel import ok
-    from test_wheel import wheel as wheel_fixture
+    from tests.project.test_wheel import env as env_fixture
+    from tests.project.test_wheel import ok
+    from tests.project.test_wheel import wheel as wheel_fixture
 
     bindir = env_fixture.__wrapped__(wheel_fixture.__wrapped__(tmp_path_factory), tmp_path_factory)  # type: ignore[attr-defined]
     work = tmp_path / "from-exports"

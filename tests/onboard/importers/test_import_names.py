@@ -17,7 +17,7 @@ from drivemap.onboard.draft import naming as draft_naming
 from drivemap.onboard.importers.homeassistant import import_homeassistant
 from drivemap.onboard.importers.mapdoc import MapDoc
 
-IMPORTERS = Path(__file__).resolve().parents[1] / "generator" / "drivemap" / "onboard" / "importers"
+IMPORTERS = Path(__file__).resolve().parents[3] / "generator" / "drivemap" / "onboard" / "importers"
 
 HA_NAMES = """\
 modbus:

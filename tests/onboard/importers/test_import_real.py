@@ -18,7 +18,7 @@ from drivemap.cli import main
 from drivemap.compiler import compile_map
 from drivemap.onboard.importers.mapdoc import safe
 
-FIXTURES = Path(__file__).resolve().parent / "fixtures" / "import_real"
+FIXTURES = Path(__file__).resolve().parents[2] / "fixtures" / "import_real"
 
 
 class _Loader(yaml.SafeLoader):

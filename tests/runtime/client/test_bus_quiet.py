@@ -20,7 +20,7 @@ from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, WriteSing
 from drivemap.runtime.client.bus import DEFAULT_BROADCAST_GAP_MS, AsyncBus, Bus, Exchange
 from drivemap.runtime.spec import TimingSpec
 from tests.helpers_client import TIMEOUT, package, serial_server, tcp_server
-from tests.test_client_tcp import rtu_over_tcp_server
+from tests.runtime.client.test_client_tcp import rtu_over_tcp_server
 
 v2 = package("v2")
 GAP_S = v2.SPEC.protocol.timing.inter_frame_gap_ms / 1000.0

@@ -25,7 +25,7 @@ from drivemap.runtime.client.declare import ReadOnlyReg, Reg
 from drivemap.runtime.client.dynamic import client_package
 from drivemap.runtime.package import load_package
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 MODELS = ["ev", "edx", "v2", "vfd1000", "sdm630", "fronius_symo_hybrid"]
 TEST_MAPS = sorted((ROOT / "tests" / "maps").glob("*.yaml"))
 

@@ -16,7 +16,7 @@ from helpers_live import no_traceback, run
 from drivemap.runtime.client.codec import STEP_TOLERANCE, shortest_f32_text
 from drivemap.runtime.errors import InexactValue
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 
 # ---------------------------------------------------------------- 1. no silent rounding
 

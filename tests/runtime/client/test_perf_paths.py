@@ -20,7 +20,7 @@ from drivemap.runtime.client.serialrx import SerialReceiver, reply_length
 from drivemap.runtime.errors import DeviceException
 from drivemap.testing.vserial import FrameFault
 from tests.helpers_client import TIMEOUT, package, serial_server
-from tests.test_client_faults import ascii_frame, rtu
+from tests.runtime.client.test_client_faults import ascii_frame, rtu
 
 ev = package("ev")
 

@@ -27,7 +27,7 @@ from drivemap.runtime.errors import DeviceException, DriveError
 from drivemap.testing.vserial import FrameFault
 from tests.allkinds_server import MODEL, PKG, REFUSED, plain_server, server_tables
 from tests.helpers_client import package, serial_server, tcp_server
-from tests.test_client_faults import rtu
+from tests.runtime.client.test_client_faults import rtu
 
 ev = package("ev")
 vfd = package("vfd1000")

@@ -22,7 +22,7 @@ from drivemap.runtime.errors import OpenForReview, ReviewWarning
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from tests.helpers_live import run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 #: register -> its review list in the test map (rs232_timeout's unit decides no word: it is written)
 REVIEW = {"rs485_timeout": "[scale, unit]", "digital_speed": "[type]", "rs232_timeout": "[unit]"}
 

@@ -35,7 +35,7 @@ from drivemap.runtime.errors import DeviceException
 from drivemap.runtime.sim.serve import ThreadedSimServer
 from drivemap.testing.vserial import FrameFault, VirtualSerialLine
 from tests.helpers_client import package, simulator
-from tests.test_client_faults import ascii_frame, rtu
+from tests.runtime.client.test_client_faults import ascii_frame, rtu
 
 ev = package("ev")
 BAUD = 9600

@@ -16,7 +16,7 @@ import pytest
 
 from tests.waits import free_port, wait_port
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 IDLE_CLIENTS = 300
 READ = bytes([0x03, 0x00, 0x00, 0x00, 0x01])  # read one holding register at 0
 

@@ -1,6 +1,6 @@
 """Simulator core: register store, dialect, broadcast, persistence and behaviours, PDU level.
 
-The transport tests (tests/test_simulator_server.py) put the same simulators behind real
+The transport tests (tests/runtime/sim/test_simulator_server.py) put the same simulators behind real
 servers; here requests are PDUs (function code + data) so every dialect case is cheap to reach.
 """
 

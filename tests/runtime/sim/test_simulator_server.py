@@ -31,7 +31,7 @@ from drivemap.runtime.sim.simulator import SimulatorError
 from drivemap.testing.vserial import VirtualSerialLine
 from tests.waits import wait_until
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def sim_class(model: str) -> Any:

@@ -35,7 +35,7 @@ from pymodbus.exceptions import ModbusException
 
 from drivemap.runtime.spec import DeviceSpec, RegisterSpec
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 MODEL = "ev"  # the seed model with EEPROM-class registers
 ROUNDS = 6
 

@@ -23,7 +23,7 @@ import pytest
 from drivemap.runtime.sim.simulator import SimulatorError, StateFileError
 from tests.helpers_live import run
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def sim_class() -> Any:
