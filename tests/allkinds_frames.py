@@ -3,7 +3,7 @@
 Each example is a request PDU and a response PDU made from pymodbus's own message classes, with
 register contents from pymodbus's ``convert_to_registers`` (word order "big"/"little"; a
 low_first byte order swaps the two bytes of every word, which pymodbus has no option for). The
-frames are pymodbus's RTU framer output. ``tests/test_map_allkinds.py`` checks that the map prints
+frames are pymodbus's RTU framer output. ``tests/project/test_map_allkinds.py`` checks that the map prints
 exactly these frames; ``python -m tests.allkinds_frames`` prints them as YAML for the map.
 """
 

@@ -1,4 +1,4 @@
-"""The peers of tests/test_map_allkinds.py: tests/maps/allkinds.yaml compiled and loaded, known values of
+"""The peers of tests/project/test_map_allkinds.py: tests/maps/allkinds.yaml compiled and loaded, known values of
 every register, and a *plain pymodbus server* (pymodbus's own datastore, not drivemap's simulator) holding
 them as pymodbus's ``convert_to_registers`` lays them out."""
 
@@ -198,7 +198,7 @@ def holding_words(port: int, address: int, count: int) -> list[int]:
         assert not reply.isError(), reply
         return list(reply.registers)
 
-#: Words a device of tests/test_map_allkinds.py refuses (02h): two reserved words the map calls readable
+#: Words a device of tests/project/test_map_allkinds.py refuses (02h): two reserved words the map calls readable
 #: and an undocumented word inside max_gap.
 REFUSED = {("input", 0x14), ("input", 0x30), ("input", 0x31)}
 

@@ -1,4 +1,4 @@
-"""Shared by tests/test_docs.py and tests/test_docs_links.py: the maps, their docs pages rendered in
+"""Shared by tests/backends/exporters/test_docs.py and tests/backends/exporters/test_docs_links.py: the maps, their docs pages rendered in
 memory exactly as ``drivemap build`` renders them, and a small structural view of a page (CommonMark,
 parsed with markdown-it-py: sections with their tables, fences and text, and the page's links)."""
 

@@ -1,4 +1,4 @@
-"""Frames for tests/test_simulator_fuzz.py: RTU/ASCII framing and checksums, finding the checked
+"""Frames for tests/runtime/sim/test_simulator_fuzz.py: RTU/ASCII framing and checksums, finding the checked
 requests that were on the line, splitting and checking the device's replies, and :class:`Fuzzer`, which
 makes deterministic valid, mutated and random frames for one model and framing."""
 

@@ -37,8 +37,8 @@ TOOLS: dict[str, str | tuple[str, ...]] = {
     # (--esphome-version; drivemap.backends.exporters.esphome NEWEST / OLDEST)
     "esphome": "esphome==2026.10.0",
     "esphome-oldest": "esphome==2026.6.5",
-    # check_config (tests/test_exporters_tools.py) and a Home Assistant that *runs* (`hass -c CFG
-    # --skip-pip`, tests/test_ha_live.py): with what HA would otherwise pip-install at start for its
+    # check_config (tests/backends/exporters/test_exporters_tools.py) and a Home Assistant that *runs* (`hass -c CFG
+    # --skip-pip`, tests/gateway/test_ha_live.py): with what HA would otherwise pip-install at start for its
     # core, recorder, frontend, http, modbus and mqtt (a frontend that fails to set up sends HA into
     # recovery mode, which loads no integration)
     "homeassistant": (

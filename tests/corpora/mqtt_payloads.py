@@ -1,5 +1,5 @@
 """Hostile MQTT command payloads: every one must be refused, answered on the result topic, and leave
-the gateway polling and publishing (tests/test_gateway_hostile.py sends each to every command topic of
+the gateway polling and publishing (tests/gateway/test_gateway_hostile.py sends each to every command topic of
 the example devices). None of them is a value any register of those devices takes."""
 
 from __future__ import annotations

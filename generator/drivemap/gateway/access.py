@@ -10,7 +10,7 @@ its protocol, its password, the register layout it presents (SunSpec model type)
 the map, never a hand list of registers: a writable register is a link setting when a word of its
 name or of its group's name is one of :data:`LINK_WORDS`, or its label, description or notes
 contain one of :data:`LINK_PHRASES` (case-insensitive; a note naming the map's own
-``protocol.alignment`` key is not about the link). ``tests/test_gateway_access.py`` holds the
+``protocol.alignment`` key is not about the link). ``tests/gateway/test_gateway_discovery.py`` holds the
 rule to every shipped map.
 """
 

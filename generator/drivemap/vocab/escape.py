@@ -1,7 +1,7 @@
 """The one way map text reaches generated Python and Markdown (the templates' filters call these).
 
 Any Unicode string, lone surrogates included, is safe in each context, and a property test over
-all of Unicode (``tests/test_escaping.py``) holds them to it:
+all of Unicode (``tests/vocab/test_escaping.py``) holds them to it:
 
 * :func:`py_literal` - a Python literal (``repr``): ``ast.literal_eval`` gives the value back;
 * :func:`py_docstring` - the inside of a ``\"\"\"...\"\"\"`` docstring: a quote followed by another one or

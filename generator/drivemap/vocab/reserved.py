@@ -2,7 +2,7 @@
 
 A map name equal to one of these would shadow or overwrite something the generated package or the
 docs page defines; :mod:`.namecheck` refuses it. The sets are data, not computed at validation time:
-``tests/test_generated_names.py`` renders a probe map through the built-in exporters, reads the output
+``tests/vocab/test_generated_names.py`` renders a probe map through the built-in exporters, reads the output
 back (``tests/reserved_probe.py``) and fails when these sets differ from what the templates really
 produce. After a template or runtime change, ``python tests/reserved_probe.py > generator/drivemap/vocab/reserved.py``
 writes this file anew.
