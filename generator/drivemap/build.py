@@ -192,13 +192,17 @@ def simulator_factory(model: Model, project: Project) -> Any:
     from drivemap.runtime.sim.simulator import Simulator
 
     root = str(project.root)
-    if project.behaviours and root not in sys.path:
+    added = bool(project.behaviours) and root not in sys.path
+    if added:  # the project's own modules, importable while they load (and no longer after)
         sys.path.insert(0, root)
     try:
         load_modules(project.behaviours)
     except ImportError as exc:
         where = Location(display(project.config or project.root), 1, 1)
         raise CompileError([Diagnostic(where, f"behaviours: cannot import {exc.name or exc}: {exc}")]) from None
+    finally:
+        if added and root in sys.path:
+            sys.path.remove(root)
     spec = spec_from_model(model)
 
     def factory(units: Sequence[int] = (1,), **kwargs: Any) -> Simulator:

@@ -277,6 +277,7 @@ def test_behaviours_come_from_the_project(project: Path) -> None:
 
     sim = simulator_factory(compile_map(project / "maps" / "acme.yaml"), load_project())([1])
     assert type(sim.behaviour).__name__ == "Acme"
+    assert str(project) not in sys.path and str(project.resolve()) not in sys.path  # loaded, not left on the path
     assert getattr(sim, "marker", None) == "acme behaviour ran"
     sys.modules.pop("plant_sim", None)
 
