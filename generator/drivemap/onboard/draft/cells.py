@@ -111,7 +111,8 @@ _SIGNED_HINT = re.compile(r"(?<![A-Za-z])(?:sign attached|signed)(?![A-Za-z])|�
                           r"two'?s complement", re.I)
 """Whole words only: "Assigned", "Designed" say nothing about a sign."""
 _UNSIGNED_HINT = re.compile(r"(?<![A-Za-z])unsigned(?![A-Za-z])|无符号|無符號", re.I)
-_WIDTH = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4, "bool": 1}
+#: registers (16-bit words) of each type
+WIDTHS = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4, "bool": 1}
 
 
 def parse_type(text: str, words: int | None = None) -> str | None:
@@ -125,11 +126,11 @@ def parse_type(text: str, words: int | None = None) -> str | None:
     for pattern, rtype in _TYPE_WORDS:
         found = re.search(pattern, low)
         if found:
-            if words is not None and rtype in _WIDTH and _WIDTH[rtype] != words and rtype != "bool":
+            if words is not None and rtype in WIDTHS and WIDTHS[rtype] != words and rtype != "bool":
                 if not _SIZED.search(found.group(0)):
                     return _resize(rtype, words)
                 # the token states its width: a length of twice its words counts bytes; any other, a contradiction
-                return rtype if words == 2 * _WIDTH[rtype] else None
+                return rtype if words == 2 * WIDTHS[rtype] else None
             return rtype
     return None
 

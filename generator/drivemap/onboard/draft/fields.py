@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 from drivemap.onboard.draft.cells import (
     FULL_SPANS,
+    WIDTHS,
     parse_access,
     parse_bits,
     parse_enum,
@@ -87,16 +88,12 @@ def _glossary_type(cell: str, ctx: Context, words: int | None, notes: list[str])
     rtype, said = defined
     if parse_type(cell, None) == rtype:
         return None  # the usual reading, no note needed
-    if words is not None and _WIDTHS.get(rtype) != words:
+    if words is not None and WIDTHS.get(rtype) != words:
         notes.append(f"type left open: the document defines {token!r} as {rtype} ({said}) but the row gives "
                      f"{words} register{'' if words == 1 else 's'}")
         return None
     notes.append(f"type {rtype}: the document defines {token!r}: {said}")
     return rtype
-
-
-#: registers of each numeric type a glossary can define
-_WIDTHS = {"u16": 1, "s16": 1, "u32": 2, "s32": 2, "f32": 2, "u64": 4, "s64": 4, "f64": 4}
 
 
 def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list[str], notes: list[str]) -> str:
