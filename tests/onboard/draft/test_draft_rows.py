@@ -170,3 +170,52 @@ def test_a_modicon_column_beside_the_physical_address_states_the_table_and_lsw_m
     assert any("prints 300001, the Modicon number of address 0 in the input registers" in n for n in by[0].notes)
     assert by[2].entry["table"] == "holding"
     assert "table" not in by[4].entry  # 300009 is address 8, not 4: it states nothing about this row
+
+
+def test_a_weight_a_name_and_unit_column_and_a_merged_notes_cell_state_the_scale() -> None:
+    """``VARIABLE / ENG. UNIT`` cells print the unit beside the name (``V L1-N``): the unit, never a
+    resolution (no "scale 1" from it). ``Value weight: Volt*10`` states scale 0.1 V; a Notes cell drawn
+    down over the rows below it (a merged PDF cell: pdfplumber gives those rows no cell) is theirs too.
+    A weight in another unit than the row's leaves the scale open."""
+    from types import SimpleNamespace
+
+    from drivemap.onboard.draft.read_pdf import _spanned
+    from drivemap.onboard.draft.tables import Row, Source, Table
+    from drivemap.onboard.draft.units import parse_scale, unit_in_name
+
+    assert parse_scale("Value weight: Volt*10") is not None
+    assert (parse_scale("Value weight: Ampere*1000").scale, parse_scale("Value weight: Ampere*1000").unit) == (0.001, "A")  # type: ignore[union-attr]
+    assert (parse_scale("Value weight: PF*1000").scale, parse_scale("Value weight: PF*1000").unit) == (0.001, None)  # type: ignore[union-attr]
+    assert [unit_in_name(c) for c in ("V L1-N", "kWh(+) TOT", "KWh(+) PAR", "VAR L2", "PF L1", "DMD W max", "W V")] == \
+        ["V", "kWh", "kWh", "var", None, "W", None]
+
+    def cell(top: float, bottom: float) -> tuple[float, float, float, float]:
+        return (0.0, top, 10.0, bottom)
+
+    rows = [SimpleNamespace(bbox=(0, 0, 20, 10), cells=[cell(0, 10), cell(0, 10)]),
+            SimpleNamespace(bbox=(0, 10, 20, 20), cells=[cell(10, 20), cell(10, 40)]),
+            SimpleNamespace(bbox=(0, 20, 20, 30), cells=[cell(20, 30), None]),
+            SimpleNamespace(bbox=(0, 30, 20, 40), cells=[cell(30, 40), None]),
+            SimpleNamespace(bbox=(0, 40, 20, 50), cells=[cell(40, 50), cell(40, 50)]),
+            SimpleNamespace(bbox=(0, 50, 20, 60), cells=[cell(50, 60), None])]  # covered from the left, not above
+    texts = [["a", "Notes"], ["1", "Value weight: Volt*10"], ["2", ""], ["3", ""], ["4", ""], ["5", ""]]
+    found = SimpleNamespace(rows=rows)
+    assert _spanned(found, texts) == {2: {1: "Value weight: Volt*10"}, 3: {1: "Value weight: Volt*10"}}
+
+    header = ["Modicom address", "Physical address", "Length (words)", "VARIABLE ENG. UNIT", "Data Format", "Notes"]
+    body = [["300001", "0000h", "2", "V L1-N", "INT32", "Value weight: Volt*10"],
+            ["300003", "0002h", "2", "V L2-N", "INT32", ""],
+            ["300005", "0004h", "2", "A L1", "INT32", ""],
+            ["300056", "0037h", "1", "Hz", "INT16", "Value weight: Hz*10"],
+            ["300057", "0038h", "1", "Hz", "INT16", ""]]
+    spans = {2: {5: "Value weight: Volt*10"}, 3: {5: "Value weight: Volt*10"}}
+    table_rows = [Row(c, 8, i + 1, spanned=spans.get(i, {})) for i, c in enumerate([header, *body])]
+    result = draft(Source("m.pdf", "0" * 64, [Table(None, table_rows, 8, None, "", label="p.8 table 1")],
+                         "the word order is LSW-> MSW."), "m")
+    by = {r.entry["address"]: r for r in result.registers}
+    assert (by[0].entry["scale"], by[0].entry["unit"], by[0].entry["label"]) == (0.1, "V", "V L1-N")
+    assert (by[2].entry["scale"], by[2].entry["unit"]) == (0.1, "V")  # the merged Notes cell
+    assert any("a cell drawn over this row" in n for n in by[2].notes)
+    assert "scale" not in by[4].entry and by[4].entry["unit"] == "A"  # Volt*10 on an A row: open
+    assert (by[55].entry["scale"], by[55].entry["unit"]) == (0.1, "Hz")
+    assert "scale" not in by[56].entry and "scale" in by[56].entry["review"]  # the unit is no resolution

@@ -89,6 +89,11 @@ def role_of(text: str) -> str | None:
     return None
 
 
+#: a unit column whose header also names the quantity (``VARIABLE / ENG. UNIT``): its cells print both,
+#: ``V L1-N`` (the name column too, when no other column is one)
+_NAMES_UNIT = re.compile(r"variable|quantity|measur|\bname", re.I)
+
+
 def _layout_of(header: list[str], offset: int = 0) -> Layout:
     layout = Layout()
     for i, cell in enumerate(header):
@@ -107,6 +112,8 @@ def _layout_of(header: list[str], offset: int = 0) -> Layout:
         layout.roles[role], layout.headers[role] = i + offset, cell
         if role == "address":
             layout.radix = "hex" if _RADIX_HEX.search(cell) else "dec" if _RADIX_DEC.search(cell) else None
+    if "name" not in layout.roles and "unit" in layout.roles and _NAMES_UNIT.search(layout.headers["unit"]):
+        layout.roles["name"], layout.headers["name"] = layout.roles["unit"], layout.headers["unit"]
     if "name" not in layout.roles and "description" in layout.roles:
         layout.roles["name"] = layout.roles.pop("description")
         layout.headers["name"] = layout.headers.pop("description")

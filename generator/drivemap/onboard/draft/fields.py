@@ -23,7 +23,7 @@ from drivemap.onboard.draft.cells import (
     value_list,
 )
 from drivemap.onboard.draft.tables import Drafted
-from drivemap.onboard.draft.units import Scale, parse_scale, unit_after_range
+from drivemap.onboard.draft.units import Scale, parse_scale, unit_after_range, unit_in_name
 
 
 @dataclass
@@ -144,7 +144,13 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     """Scale and unit; returns (scale, whether the range that follows is in raw counts). A value list
     in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
     unit_cell = raw.cells.get("unit", "")
-    found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    named = bool(raw.cells.get("unit_named"))
+    if named:  # the quantity's name and its unit in one cell ("V L1-N"): the unit, never a resolution
+        printed = unit_in_name(unit_cell)
+        found = Scale(None, printed, unit_cell) if printed else None
+        unit_cell = printed or ""
+    else:
+        found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
     bare = parse_number(unit_cell) if unit_cell and found is None else None
     if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
             and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
@@ -159,9 +165,14 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
         notes.append(f"value list '{listed.printed}': values or a resolution? neither drafted")
     elif found is None or found.scale is None:
         in_text = parse_scale(raw.text + " " + raw.cells.get("range", ""), footnote=ctx.footnote)
-        if in_text is not None and (found is None or in_text.scale is not None):
+        if in_text is not None and found is not None and found.unit and in_text.unit \
+                and in_text.scale is not None and in_text.unit != found.unit:
+            notes.append(f"the text's {in_text.printed.strip()!r} is in {in_text.unit}, the unit column says "
+                         f"{found.unit}: scale left out")
+        elif in_text is not None and (found is None or in_text.scale is not None):
             raw_range = in_text.scale is not None and bool(re.search(r"=|means|對應|对应", in_text.printed))
-            found = in_text
+            found = in_text if in_text.unit or found is None else Scale(in_text.scale, found.unit, in_text.printed,
+                                                                         in_text.note)
     if found is not None and found.note:
         notes.append(found.note)
     scale = found.scale if found is not None else None
@@ -170,7 +181,7 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
         rng = parse_range(raw.cells.get("range", "") or raw.text)
         unit = unit_after_range(rng[2]) if rng else None
     if scale is None and listed is None and unit is not None and found is not None and found.unit == unit \
-            and unit_cell and not raw.cells.get("scale_header") and not found.note:
+            and unit_cell and not named and not raw.cells.get("scale_header") and not found.note:
         scale = 1.0  # a unit column that states the unit without a resolution: the value is in that unit
         notes.append(f"scale 1: the unit column says {unit_cell!r} without a resolution")
     elif scale is None and listed is None and found is None and not unit_cell and raw.cells.get("unit_header") \

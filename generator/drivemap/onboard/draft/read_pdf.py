@@ -107,6 +107,10 @@ class _Found:
     frame: Box
 
 
+#: points a merged cell's drawn bottom may fall short of a row's bottom and still cover it
+SPAN_TOLERANCE = 1.0
+
+
 def _body(page: Any, found: Any) -> Any:
     """A ruled header box over rows drawn without rules: the header and the text below it read as one
     table, its columns the header's cell edges (pdfplumber's explicit vertical lines), its rows the
@@ -137,7 +141,8 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
         if grid is not None:
             realign(texts, boxes, grid)
         kept = [i for i, r in enumerate(texts) if any(r)]
-        rows = [Row(texts[i], number, i + 1, table=f"p.{number} table {k}") for i in kept]
+        spans = _spanned(found, texts)
+        rows = [Row(texts[i], number, i + 1, table=f"p.{number} table {k}", spanned=spans.get(i, {})) for i in kept]
         if not rows:
             continue
         top = found.bbox[1]
@@ -148,6 +153,26 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
         table = Table(None, rows, number, None, above, label=f"p.{number} table {k}")
         tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
+
+
+def _spanned(found: Any, texts: list[list[str]]) -> dict[int, dict[int, str]]:
+    """For each row, the columns a cell drawn above runs down over (pdfplumber gives no cell there):
+    column -> that cell's text. Only a cell whose drawn bottom reaches the row's bottom counts."""
+    out: dict[int, dict[int, str]] = {}
+    rows = found.rows
+    for i in range(1, len(rows)):
+        bottom = rows[i].bbox[3]
+        for col, cell in enumerate(rows[i].cells):
+            if cell is not None or col >= len(texts[i]) or texts[i][col]:
+                continue
+            above = next((j for j in range(i - 1, -1, -1) if col < len(rows[j].cells)
+                          and rows[j].cells[col] is not None), None)
+            if above is None:
+                continue
+            box = rows[above].cells[col]
+            if box[3] >= bottom - SPAN_TOLERANCE and box[1] < rows[i].bbox[1] and texts[above][col]:
+                out.setdefault(i, {})[col] = texts[above][col]
+    return out
 
 
 def _columns(boxes: list[list[Box | None]]) -> list[Box] | None:

@@ -111,6 +111,18 @@ def _cell(row: Row, layout: Layout, role: str) -> str:
     return row.cells[i].strip() if i is not None and i < len(row.cells) else ""
 
 
+def _merged_over(row: Row, layout: Layout, cells: dict[str, str]) -> list[str]:
+    """Fill, in place, each empty role cell that a cell drawn above runs down over (a merged cell,
+    as a spreadsheet's merged range reads its value in every cell); the headers of those filled."""
+    filled = []
+    for role in _CELL_ROLES:
+        col = layout.roles.get(role)
+        if col is not None and not cells[role] and col in row.spanned:
+            cells[role] = row.spanned[col].strip()
+            filled.append(layout.headers.get(role, role))
+    return filled
+
+
 def _hi_lo(row: Row, layout: Layout) -> Address | None:
     hi, lo = parse_address(_cell(row, layout, "hi_byte")), parse_address(_cell(row, layout, "lo_byte"))
     if hi is None or lo is None or hi.hex_value is None or lo.hex_value is None:
@@ -252,10 +264,13 @@ class GridReader:
         if self.found_at is not None and self.found_at != self.layout.roles.get("address"):
             name = next((c.strip() for c in row.cells[self.found_at + 1:] if c.strip()), "")
         cells = {r: _cell(row, self.layout, r) for r in _CELL_ROLES}
+        merged = _merged_over(row, self.layout, cells)
         cells["length_header"] = self.layout.headers.get("length", "")
         cells["scale_header"] = self.layout.headers.get("scale", "")
         cells["unit_header"] = self.layout.headers.get("unit", "")
         cells["range_header"] = self.layout.headers.get("range", "")
+        unit_col = self.layout.roles.get("unit")
+        cells["unit_named"] = "yes" if unit_col is not None and unit_col == self.layout.roles.get("name") else ""
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
@@ -268,6 +283,9 @@ class GridReader:
         kind = table or _row_table(cells["table"]) or table_kind(cells["function_code"]) or table_kind(self.layout.headers.get("address", "")) \
             or self.kind
         raw = Raw(value, kind, self.where(row), cells=cells, access=self.access)
+        if merged:
+            raw.notes.append(f"{', '.join(repr(h) for h in merged)}: a cell drawn over this row and the ones above "
+                             "it, read as this row's")
         if self.column.numbered:
             raw.notes.append(f"address {value} as printed under {self.layout.headers.get('address', '')!r}: if the "
                              "document numbers registers from 1, the protocol address is one less")

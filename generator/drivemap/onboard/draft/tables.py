@@ -20,6 +20,9 @@ class Row:
     """Continuation lines of a row of a text table (enum values, bits, wrapped text)."""
     table: str = ""
     """For rows of a table object (PDF, DOCX, XLSX, CSV): the table's name; ``line`` is then its row number."""
+    spanned: dict[int, str] = field(default_factory=dict)
+    """Columns this row has no cell of its own in, because a cell drawn above runs down over it (a
+    vertically merged cell of a ruled PDF table): column -> that cell's text."""
 
     def where(self) -> str:
         parts = []

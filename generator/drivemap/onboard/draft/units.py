@@ -35,6 +35,14 @@ _NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("
                                       ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
                 for w in words.split() + [x.capitalize() for x in words.split()]})
 
+#: spellings a unit cell prints that the unit words above do not take as written
+_CAPITALISED = {"VAR": "var", "KWh": "kWh", "KVARh": "kvarh", "KVARH": "kvarh", "KW": "kW"}
+#: "Value weight: Volt*10" (Carlo Gavazzi and others): the register holds the quantity times the number
+_WEIGHT = re.compile(r"\bweight\s*[:：]?\s*([A-Za-z°%][A-Za-z/°%]*)\s*[*×]\s*(\d+(?:\.\d+)?)(?![\d.])", re.I)
+#: quantities without a unit a weight may name (power factor, cos phi)
+_DIMENSIONLESS = re.compile(r"pf|cos(?:phi|φ)?|ratio|thd", re.I)
+_QUANTITY = {"ampere": "A", "amperes": "A", "volt": "V", "volts": "V", "watt": "W", "watts": "W", "hertz": "Hz"}
+
 
 @dataclass(frozen=True)
 class Scale:
@@ -64,8 +72,43 @@ def _found(scale: float, unit: str, m: re.Match[str], text: str,
     return Scale(_clean(scale), unit_name(unit), m.group(0))
 
 
+def _weight(text: str) -> Scale | None:
+    """``Value weight: Volt*10``: scale 0.1 V; ``PF*1000``: 0.001 without a unit; a quantity it does
+    not know gives the scale and no unit."""
+    m = _WEIGHT.search(text)
+    if m is None or float(m.group(2)) <= 0:
+        return None
+    word = m.group(1)
+    if _DIMENSIONLESS.fullmatch(word):
+        unit = None
+    elif re.fullmatch(UNIT, word) or word in _CAPITALISED:
+        unit = _CAPITALISED.get(word) or unit_name(word)
+    else:
+        unit = _QUANTITY.get(word.lower())
+    return Scale(_clean(1 / float(m.group(2))), unit, m.group(0),
+                 f"scale {_clean(1 / float(m.group(2)))}: '{m.group(0)}' (the register holds the value times "
+                 f"{m.group(2)})")
+
+
+def unit_in_name(text: str) -> str | None:
+    """The unit a cell that prints a quantity's unit beside its name gives (``V L1-N``, ``kWh(+) TOT``,
+    ``DMD W max``): its one word that is a unit (a direction mark ``(+)`` aside); None when no word or
+    two different ones are."""
+    found = set()
+    for word in text.split():
+        word = re.sub(r"\([+-]\)$", "", word)
+        if word in _CAPITALISED:
+            found.add(_CAPITALISED[word])
+        elif re.fullmatch(UNIT, word):
+            found.add(unit_name(word))
+    return found.pop() if len(found) == 1 else None
+
+
 def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str], bool] | None = None) -> Scale | None:
     """The resolution stated in ``text`` (a unit cell when ``unit_cell``, else free text)."""
+    weight = _weight(text)
+    if weight is not None:
+        return weight
     for regex, kind in ((_ONE_EQUALS, "one"), (_MEANS, "per"), (_PER_BIT, "bit"), (_LABELLED, "bit"), (_TIMES, "bit"),
                         (_PER, "per")):
         m = regex.search(text)
