@@ -16,6 +16,10 @@ tool time and peak resident memory) and every truth register is scored on the ma
 * **silently dropped**: truth registers not found whose address appears in no skipped row the draft
   lists (read as decimal, hex, 1-based or Modicon 3xxxx/4xxxx numbers).
 
+Where a truth file disagrees with what the document itself prints for a register's field
+(``bench/corpus_errata.json``: the document's words, where they are, and why), that field is scored
+against the document, and the section lists each such truth erratum.
+
     python bench/draftcorpus.py [--docs DIR] [--json]
 
 The documents' folder defaults to $DRIVEMAP_SHARED/draft-corpus, else ../shared/draft-corpus beside the
@@ -93,6 +97,8 @@ class DocScore:
     seconds: float = 0.0
     peak_mb: float = 0.0
     not_exact: list[str] = field(default_factory=list)
+    errata: list[str] = field(default_factory=list)
+    """Truth fields scored against the document instead (``corpus_errata.json``)."""
 
     @property
     def ratio(self) -> float:
@@ -125,7 +131,30 @@ def _stated(entry: dict[str, Any], key: str) -> Any:
     return float(value) if key == "scale" else value
 
 
-def _compare(truth: dict[str, Any], entry: dict[str, Any], score: DocScore) -> None:
+ERRATA = HERE / "corpus_errata.json"
+
+
+def errata_of(document: str) -> list[dict[str, Any]]:
+    """The truth errata of one corpus document (fields the document prints otherwise than its truth)."""
+    return [e for e in json.loads(ERRATA.read_text(encoding="utf-8"))["errata"] if e["document"] == document]
+
+
+def _as_printed(truth: dict[str, Any], errata: list[dict[str, Any]], score: DocScore) -> dict[str, Any]:
+    """The truth register with each field the document prints otherwise set to the document's value."""
+    fixed = dict(truth)
+    for e in errata:
+        if e["table"] == truth["table"] and int(e["address"]) == int(truth["address"]):
+            fixed[e["field"]] = e["document_says"]
+            if "document_unit" in e:
+                fixed["unit"] = e["document_unit"]
+            score.errata.append(f"{truth['name']}@{truth['address']}.{e['field']}: truth {e['truth']!r}, the document "
+                                f"prints {e['printed']!r} ({e['where']})")
+    return fixed
+
+
+def _compare(truth: dict[str, Any], entry: dict[str, Any], score: DocScore,
+             errata: list[dict[str, Any]] | None = None) -> None:
+    truth = _as_printed(truth, errata or [], score)
     review = set(entry.get("review") or ())
     exact = True
     for key in FIELDS:
@@ -172,8 +201,9 @@ def _compare(truth: dict[str, Any], entry: dict[str, Any], score: DocScore) -> N
 
 
 def score_draft(document: str, truth: list[dict[str, Any]], registers: list[dict[str, Any]],
-                skipped_texts: list[str]) -> DocScore:
-    """Score the written register entries of a draft against the truth registers."""
+                skipped_texts: list[str], errata: list[dict[str, Any]] | None = None) -> DocScore:
+    """Score the written register entries of a draft against the truth registers (as the document prints
+    them, where ``errata`` says the truth disagrees with it)."""
     score = DocScore(document, len(truth), drafted=len(registers), skipped=len(skipped_texts))
     at: dict[int, list[dict[str, Any]]] = {}
     for entry in registers:
@@ -197,7 +227,7 @@ def score_draft(document: str, truth: list[dict[str, Any]], registers: list[dict
             continue
         score.found += 1
         entry = next((e for e in candidates if e.get("table", "holding") == t["table"]), candidates[0])
-        _compare(t, entry, score)
+        _compare(t, entry, score, errata)
     return score
 
 
@@ -238,7 +268,7 @@ def score_document(path: Path, truth_path: Path) -> DocScore:
         s = DocScore(path.name, len(truth), dropped=[f"{t['name']}@{t['address']}" for t in truth])
         s.error = f"{type(exc).__name__}: {exc}"
         return s
-    return score_draft(path.name, truth, registers, skipped)
+    return score_draft(path.name, truth, registers, skipped, errata_of(path.name))
 
 
 def _child(path: Path, truth_path: Path) -> dict[str, Any]:
@@ -283,6 +313,9 @@ def run(quick: bool = False, folder: Path | None = None) -> Section:
                       f"| {len(s.dropped)} | {s.listed} | {s.drafted} | {s.seconds:.1f} s | {s.peak_mb:.0f} MB |")
         for w in s.wrong:
             detail.append(f"|  | wrong: {w} | | | | | | | | | |")
+        for e in s.errata:
+            shown = e.replace("|", "\\|")
+            detail.append(f"|  | truth erratum (scored as the document prints it): {shown} | | | | | | | | | |")
         if s.dropped:
             detail.append(f"|  | dropped silently: {', '.join(s.dropped[:40])} | | | | | | | | | |")
         if s.error:

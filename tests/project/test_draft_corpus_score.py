@@ -68,3 +68,16 @@ def test_a_unit_spelled_out_is_the_same_unit() -> None:
     assert s.exact == 2 and s.wrong == []
     s = draftcorpus.score_draft("doc", [truth("t", 1, unit="Hours")], [{"name": "t", "address": 1, "unit": "s"}], [])
     assert s.wrong == ["t@1.unit: drafted 's', truth 'Hours'"]
+
+
+def test_a_truth_erratum_scores_the_field_as_the_document_prints_it_and_is_listed() -> None:
+    erratum = {"document": "doc", "table": "input", "address": 7, "field": "scale", "truth": 1, "document_says": 0.01,
+               "document_unit": "kW", "where": "p.3", "printed": "7 U16 0.01kW"}
+    t = [truth("limit", 7, "input"), truth("other", 8, "input")]
+    as_printed = [{"name": "limit", "address": 7, "table": "input", "scale": 0.01, "unit": "kW"},
+                  {"name": "other", "address": 8, "table": "input", "scale": 0.01, "unit": "kW"}]
+    s = draftcorpus.score_draft("doc", t, as_printed, [], [erratum])
+    assert s.exact == 1 and s.wrong == ["other@8.scale: drafted 0.01 kW, truth 1.0 "]  # only the erratum's field
+    assert s.errata == ["limit@7.scale: truth 1, the document prints '7 U16 0.01kW' (p.3)"]
+    as_truth = draftcorpus.score_draft("doc", t[:1], [{"name": "limit", "address": 7, "table": "input"}], [], [erratum])
+    assert as_truth.exact == 0 and as_truth.wrong  # the truth's value, against what the document prints: wrong

@@ -185,7 +185,8 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
         scale = 1.0  # a unit column that states the unit without a resolution: the value is in that unit
         notes.append(f"scale 1: the unit column says {unit_cell!r} without a resolution")
     elif scale is None and listed is None and found is None and not unit_cell and raw.cells.get("unit_header") \
-            and not raw.cells.get("scale_header") and rtype in ("u16", "s16", "u32", "s32", "u64", "s64"):
+            and not raw.cells.get("scale_header") and rtype in ("u16", "s16", "u32", "s32", "u64", "s64") \
+            and "type" not in missing:  # a row that states no type states nothing of its value
         scale = 1.0  # the unit column is empty on this row and no column scales: the raw value is the value
         notes.append("scale 1: no unit or resolution in the unit column")
     if scale is not None and rtype not in ("string",):
