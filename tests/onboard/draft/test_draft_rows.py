@@ -219,3 +219,26 @@ def test_a_weight_a_name_and_unit_column_and_a_merged_notes_cell_state_the_scale
     assert "scale" not in by[4].entry and by[4].entry["unit"] == "A"  # Volt*10 on an A row: open
     assert (by[55].entry["scale"], by[55].entry["unit"]) == (0.1, "Hz")
     assert "scale" not in by[56].entry and "scale" in by[56].entry["review"]  # the unit is no resolution
+
+
+def test_the_lines_inside_a_ruled_header_box_are_one_header_row() -> None:
+    """A ruled header box whose heading breaks onto a second line (``Unit/Ra`` over ``tio``), read with the
+    rows below it by their text lines: the lines inside the box are one header row (so the unit column is
+    found), the lines below it are rows. A second ruled row of the box that holds a digit is no header."""
+    from types import SimpleNamespace
+
+    from drivemap.onboard.draft.read_pdf import _body, _join_header_lines
+
+    rows = [SimpleNamespace(bbox=(0, 0, 90, 8)), SimpleNamespace(bbox=(0, 8, 90, 16)),
+            SimpleNamespace(bbox=(0, 20, 90, 28))]
+    texts = [["Name", "Register", "Unit/Ra"], ["", "", "tio"], ["Feed-in limit", "5011", "0.01kW"]]
+    boxes = [[(0.0, 30.0), (30.0, 60.0), (60.0, 90.0)], [None, None, (60.0, 90.0)],
+             [(0.0, 30.0), (30.0, 60.0), (60.0, 90.0)]]
+    _join_header_lines(SimpleNamespace(rows=rows), 16.0, texts, boxes)
+    assert texts[0] == ["Name", "Register", "Unit/Ra tio"] and not any(texts[1])
+    assert texts[2] == ["Feed-in limit", "5011", "0.01kW"]
+
+    cell = (0.0, 0.0, 30.0, 8.0)
+    numbered = SimpleNamespace(rows=[SimpleNamespace(cells=[cell, cell, cell]), SimpleNamespace(cells=[cell])],
+                               extract=lambda: [["No.", "Name", "Unit"], ["5011", None, None]], bbox=(0, 0, 90, 16))
+    assert _body(None, numbered) is None  # a digit in the second ruled row: rows of a table, not a header box

@@ -111,13 +111,20 @@ class _Found:
 SPAN_TOLERANCE = 1.0
 
 
+#: ruled rows a header box may have (a header word broken onto a second or third line)
+HEADER_BOX_ROWS = 3
+
+
 def _body(page: Any, found: Any) -> Any:
     """A ruled header box over rows drawn without rules: the header and the text below it read as one
     table, its columns the header's cell edges (pdfplumber's explicit vertical lines), its rows the
-    text's lines. None when that finds nothing more than the header."""
+    text's lines. None when that finds nothing more than the header. A header box may hold a second or
+    third ruled row that only goes on with header words (``Unit/Ra`` / ``tio``): no digit in it."""
     cells = [c for c in found.rows[0].cells if c is not None]
     xs = sorted({round(c[0], 1) for c in cells} | {round(c[2], 1) for c in cells})
-    if len(found.rows) != 1 or len(cells) < 3:
+    if len(found.rows) > HEADER_BOX_ROWS or len(cells) < 3:
+        return None
+    if len(found.rows) > 1 and any(ch.isdigit() for row in found.extract()[1:] for c in row if c for ch in c):
         return None
     try:
         region = page.crop((found.bbox[0], found.bbox[1], found.bbox[2], page.height))
@@ -132,9 +139,12 @@ def _body(page: Any, found: Any) -> Any:
 def _page_tables(page: Any, number: int) -> list[_Found]:
     tables: list[_Found] = []
     for k, ruled in enumerate(page.find_tables(), 1):
-        found = _body(page, ruled) or ruled
+        body = _body(page, ruled)
+        found = body or ruled
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
         boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]
+        if body is not None:
+            _join_header_lines(found, ruled.bbox[3], texts, boxes)
         _split_boxes(page, found, texts, boxes)
         frame = (found.bbox[0], found.bbox[2])
         grid = grid_of(texts, boxes, frame)
@@ -153,6 +163,21 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
         table = Table(None, rows, number, None, above, label=f"p.{number} table {k}")
         tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
+
+
+def _join_header_lines(found: Any, bottom: float, texts: list[list[str]], boxes: list[list[Box | None]]) -> None:
+    """The text lines inside a ruled header box read as one header row, in place (``Unit/Ra`` over
+    ``tio`` is ``Unit/Ra tio``, one column's heading); the lines below it are left as they are."""
+    inside = [i for i, r in enumerate(found.rows) if r.bbox[3] <= bottom + SPAN_TOLERANCE]
+    if len(inside) < 2 or inside != list(range(len(inside))):
+        return
+    width = max(len(texts[i]) for i in inside)
+    joined = [" ".join(texts[i][c] for i in inside if c < len(texts[i]) and texts[i][c]) for c in range(width)]
+    merged: list[Box | None] = [next((boxes[i][c] for i in inside if c < len(boxes[i]) and boxes[i][c] is not None),
+                                     None) for c in range(width)]
+    texts[0], boxes[0] = joined, merged
+    for i in inside[1:]:
+        texts[i], boxes[i] = [""] * len(texts[i]), [None] * len(boxes[i])
 
 
 def _spanned(found: Any, texts: list[list[str]]) -> dict[int, dict[int, str]]:
