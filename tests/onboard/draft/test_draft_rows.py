@@ -242,3 +242,19 @@ def test_the_lines_inside_a_ruled_header_box_are_one_header_row() -> None:
     numbered = SimpleNamespace(rows=[SimpleNamespace(cells=[cell, cell, cell]), SimpleNamespace(cells=[cell])],
                                extract=lambda: [["No.", "Name", "Unit"], ["5011", None, None]], bbox=(0, 0, 90, 16))
     assert _body(None, numbered) is None  # a digit in the second ruled row: rows of a table, not a header box
+
+
+def test_a_hex_span_of_two_registers_is_one_value_and_a_reserved_span_is_listed() -> None:
+    """``0x0500 - 0x0501`` with 4 bytes is one float over two registers, as ``5031 - 5032`` is; a span
+    named reserved (``预备中``, "in reserve") is listed, never drafted."""
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    header = ["Adr (Offset)", "R/W", "Value", "Bytes", "Type", "Range", "Description"]
+    body = [["0x0500 - 0x0501", "R", "Current L1", "4", "float", "0 … xA", "RMS output current of phase L1"],
+            ["0x0512 - 0x0513", "R", "Power Overall", "4", "float", "0 … xW", "overall Power on all phases"],
+            ["0x012E - 0x012F", "R", "", "4", "uint32", "", "预备中"]]
+    rows = [Row(c, 5, i + 1) for i, c in enumerate([header, *body])]
+    result = draft(Source("wb.pdf", "0" * 64, [Table(None, rows, 5, None, "", label="p.5 table 2")], ""), "wb")
+    by = {r.entry["address"]: r.entry for r in result.registers}
+    assert by[0x500]["type"] == "f32" and by[0x512]["type"] == "f32"
+    assert 0x12E not in by and any("预备中" in s.text for s in result.skipped)

@@ -25,7 +25,7 @@ from drivemap.onboard.draft.fields import Raw
 from drivemap.onboard.draft.tables import Row, Skipped, Table
 from drivemap.onboard.draft.units import parse_scale
 
-RESERVED = re.compile(r"(?<![A-Za-z])(?:reserved|not used|unused|spare|n/a)(?![A-Za-z])|保留|预备|預備|未使用|備用|备用",
+RESERVED = re.compile(r"(?<![A-Za-z])(?:reserved|not used|unused|spare|n/a)(?![A-Za-z])|保留|预备中?|預備中?|未使用|備用|备用",
                       re.I)
 """Whole words only: "transparent" holds no "spare"."""
 _CELL_ROLES = ("type", "unit", "scale", "range", "min", "max", "default", "access", "length", "description", "function_code",
@@ -174,8 +174,8 @@ class GridReader:
     def _pair(self, text: str) -> tuple[int | None, str | None, str]:
         """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
         pair = parse_address_pair(text)
-        span = re.fullmatch(r"\s*(\d{1,6})\s*[-~–～]\s*(\d{1,6})\s*", text)
-        if pair is None and span is not None:  # "5031 - 5032": one value over the registers of the span
+        span = re.fullmatch(r"\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*[-~–～]\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*", text)
+        if pair is None and span is not None:  # "5031 - 5032", "0x0500 - 0x0501": one value over the span's registers
             first_a, last_a = parse_address(span.group(1)), parse_address(span.group(2))
             if first_a is not None and last_a is not None:
                 (first, table), (last, other) = self.column.read(first_a), self.column.read(last_a)
