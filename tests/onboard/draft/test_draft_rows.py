@@ -5,23 +5,30 @@ from __future__ import annotations
 from drivemap.onboard.draft.assemble import draft
 
 
-def test_offsets_are_listed_not_drafted_as_addresses() -> None:
-    """A register table whose numbers are offsets from a block's base (the base printed once in a merged
-    cell; offsets in words or bytes, the table does not say) drafts no register at an offset as if it were
-    an address: its rows, and those of its headerless continuation on the next page, are listed."""
+def test_offsets_are_never_drafted_as_addresses() -> None:
+    """A register table whose numbers are offsets from a block's base (offsets in words or bytes, the
+    table does not say) drafts no register at an offset as if it were an address. With no start address
+    printed beside the block its rows, and those of its headerless continuation on the next page, are
+    listed; with one (``0x1000``, once, in a cell of the block) they are drafted at start + offset, the
+    document's own sum, with the address open for review."""
     from drivemap.onboard.draft.tables import Row, Source, Table
 
     head = [Row(["Start address", "Offset", "", "Type", "R/W", "Content", "Unit"], 1, 1),
             Row(["", "HEX", "DEC", "", "", "", ""], 1, 2)]
-    body = [Row(["", f"0x{4 * i:04X}", str(4 * i), "UINT32", "RW", f"Setting{i}", "mV"], 1, 3 + i) for i in range(4)]
-    body[1].cells[0] = "0x1000"  # the base, once, in the middle of its merged cell
-    page2 = [Row([f"0x{4 * i:04X}", str(4 * i), "UINT32", "RW", f"Setting{i}", "mV"], 2, i + 1) for i in range(4, 7)]
+    names = ["Sleep", "UnderVolt", "OverVolt", "Balance", "FullCharge", "Empty", "Recharge"]  # no array
+    body = [Row(["", f"0x{4 * i:04X}", str(4 * i), "UINT32", "RW", names[i], "mV"], 1, 3 + i) for i in range(4)]
+    page2 = [Row([f"0x{4 * i:04X}", str(4 * i), "UINT32", "RW", names[i], "mV"], 2, i + 1) for i in range(4, 7)]
     tables = [Table(None, head + body, 1, None, "", label="p.1 table 1"), Table(None, page2, 2, None, "", label="p.2 table 1")]
     result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
     assert result.registers == []
-    reasons = [s.reason for s in result.skipped if s.text.split(" | ")[0].startswith(("0x", "0x1000"))]
+    reasons = [s.reason for s in result.skipped if s.text.split(" | ")[0].startswith("0x")]
     assert len(reasons) == 7
     assert all("offset" in r and "from a base address" in r and "to be stated by a person" in r for r in reasons)
+
+    body[1].cells[0] = "0x1000"  # the base, once, in the middle of its merged cell
+    result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
+    assert [r.entry["address"] for r in result.registers] == [0x1000 + 4 * i for i in range(7)]
+    assert all("address" in r.entry["review"] for r in result.registers)  # type: ignore[operator]
 
     # the same table headed as addresses drafts its rows at them
     head[0].cells[1], body[1].cells[0] = "Register address", ""
@@ -258,3 +265,33 @@ def test_a_hex_span_of_two_registers_is_one_value_and_a_reserved_span_is_listed(
     by = {r.entry["address"]: r.entry for r in result.registers}
     assert by[0x500]["type"] == "f32" and by[0x512]["type"] == "f32"
     assert 0x12E not in by and any("预备中" in s.text for s in result.skipped)
+
+
+def test_offsets_under_a_start_address_printed_beside_their_block_are_drafted_with_the_address_open() -> None:
+    """A table of offsets (``偏移Index``) whose block start (``0x1000``) is printed once beside its rows, in
+    a cell drawn over rows of several pages (its text level with rows of the next page, left of the
+    table): each row of the block, on its own page's table too (shifted under the first page's columns),
+    is drafted at start + offset, the document's own sum, with ``review: [address]`` and both readings in
+    its notes. A block beside which two different starts are printed is listed, not drafted."""
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    header = [["起始地址码 Address Field", "偏移Index", "", "数据类型 Type", "R/W", "数据内容Content", "单位 Unit"],
+              ["", "HEX", "DEC", "", "", "", ""]]
+    first = [Row(c, 1, i + 1, table="p.1 table 1", top=80.0 + 10 * i) for i, c in enumerate([
+        *header, ["", "0x0000", "0", "UINT16", "RW", "VolSmartSleep", "mV"],
+        ["", "0x0002", "2", "UINT16", "RW", "VolCellUV", "mV"], ["", "0x0004", "4", "UINT16", "RW", "VolCellOV", "mV"]])]
+    second = [Row(c, 2, i + 1, table="p.2 table 1", top=50.0 + 10 * i) for i, c in enumerate([
+        ["0x0006", "6", "UINT16", "RW", "VolBalan", "mV"], ["0x0008", "8", "UINT16", "RW", "VolSOC", "mV"],
+        ["0x0000", "0", "UINT16", "R", "CellVol0", "mV"], ["0x0002", "2", "UINT16", "R", "CellVol1", "mV"]])]
+    tables = [Table(None, first, 1, None, "", label="p.1 table 1"),
+              Table(None, second, 2, None, "", label="p.2 table 1", margin=[(2, 55.0, "0x1000"), (2, 75.0, "0x1200")])]
+    result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
+    by = {r.entry["address"]: r for r in result.registers}
+    assert sorted(by) == [0x1000, 0x1002, 0x1004, 0x1006, 0x1008, 0x1200, 0x1202]
+    assert by[0x1008].entry["label"] == "VolSOC" and "address" in by[0x1008].entry["review"]  # type: ignore[operator]
+    assert any("0x1008" in n and "bytes (0x1004)" in n for n in by[0x1008].notes)
+
+    tables[1].margin.append((2, 78.0, "0x1400"))  # two starts beside the second block: it has none
+    result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
+    assert 0x1200 not in {r.entry["address"] for r in result.registers}
+    assert any("p.2 table 1 row 3" == s.where and "offset" in s.reason for s in result.skipped)

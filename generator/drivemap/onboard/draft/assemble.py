@@ -15,11 +15,14 @@ from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
 from drivemap.onboard.draft.rows import (
     grid_raws,
     loose_raws,
+    offset_bases,
     offset_rows,
     offsets_header,
     plain_addresses,
     table_access,
     table_kind,
+    under_header,
+    with_start,
 )
 from drivemap.onboard.draft.tables import Drafted, Skipped, Source, Table
 
@@ -187,12 +190,21 @@ def _tables(source: Source, skipped: list[Skipped]) -> Iterator[Table]:
     """The document's tables to read. A table without a header of its own that follows one printing
     offsets, not addresses (the same table on the next page), is not read: its rows go to ``skipped``."""
     offsets: str | None = None  # the header of the table before, when it prints offsets
+    head: Table | None = None  # that table
+    starts = offset_bases(source.tables)
     for table in source.tables:
         listed = offset_rows(table, offsets) if offsets is not None else []
         if listed:
-            skipped += listed
+            laid = under_header(head, table) if head is not None else None
+            if laid is None:
+                skipped += listed
+            else:
+                yield laid
             continue
         offsets = offsets_header(table)
+        head = table if offsets is not None else None
+        if head is not None:
+            table.starts = starts
         yield table
 
 
@@ -339,6 +351,8 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
             _finish(d, source.name, names)
         registers += drafts
     _contradictions(registers)
+    bases = offset_bases(source.tables)
+    skipped[:] = [with_start(s, bases) for s in skipped]
     data = _document(source, model, groups, registers)
     if hints.said():
         data["device"]["notes"] += ("; assumed by the user, not read from the document: " + ", ".join(hints.said())

@@ -59,6 +59,9 @@ class Raw:
     bits: list[tuple[int, str]] = field(default_factory=list)
     enum: list[tuple[int, str]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    open: list[str] = field(default_factory=list)
+    """Fields the row's reading leaves open whatever its cells say (``address``: an offset from a start
+    address whose unit the document does not give)."""
 
 
 #: a type written as a token of its own in a row without a type column (a remark's ``S16``, ``U32``)
@@ -347,7 +350,7 @@ def _access_field(raw: Raw, entry: dict[str, object], missing: list[str]) -> Non
 def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafted:
     """The map entry of one register (without name, group and enum names: :mod:`.assemble` adds them)."""
     entry: dict[str, object] = {}
-    missing: list[str] = []
+    missing: list[str] = list(raw.open)
     notes = list(raw.notes)
     if raw.table is not None:
         entry["table"] = raw.table
@@ -411,7 +414,7 @@ def _text_enum(raw: Raw, notes: list[str]) -> list[tuple[int, str]]:
 
 
 #: Fields whose schema default would change the values read: an unstated one is written as ``review:``.
-REVIEWED = ("table", "type", "word_order", "scale")
+REVIEWED = ("table", "address", "type", "word_order", "scale")
 
 
 def _review(entry: dict[str, object], missing: list[str]) -> None:

@@ -10,6 +10,7 @@ parsed objects are dropped once it is read; a page whose content streams inflate
 
 from __future__ import annotations
 
+import re
 import time
 import zlib
 from collections.abc import Callable
@@ -138,7 +139,9 @@ def _body(page: Any, found: Any) -> Any:
 
 def _page_tables(page: Any, number: int) -> list[_Found]:
     tables: list[_Found] = []
-    for k, ruled in enumerate(page.find_tables(), 1):
+    ruled_tables = page.find_tables()
+    words = [w for w in page.extract_words() if _HEX_ADDRESS.fullmatch(w["text"])] if ruled_tables else []
+    for k, ruled in enumerate(ruled_tables, 1):
         body = _body(page, ruled)
         found = body or ruled
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
@@ -152,7 +155,8 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
             realign(texts, boxes, grid)
         kept = [i for i, r in enumerate(texts) if any(r)]
         spans = _spanned(found, texts)
-        rows = [Row(texts[i], number, i + 1, table=f"p.{number} table {k}", spanned=spans.get(i, {})) for i in kept]
+        rows = [Row(texts[i], number, i + 1, table=f"p.{number} table {k}", spanned=spans.get(i, {}),
+                    top=found.rows[i].bbox[1]) for i in kept]
         if not rows:
             continue
         top = found.bbox[1]
@@ -160,7 +164,8 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
             above = page.crop((0, max(0.0, top - CONTEXT_HEIGHT), page.width, max(top, 0.1))).extract_text() or ""
         except ValueError:
             above = ""
-        table = Table(None, rows, number, None, above, label=f"p.{number} table {k}")
+        table = Table(None, rows, number, None, above, label=f"p.{number} table {k}",
+                      margin=_margin(words, found, number))
         tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
 
@@ -178,6 +183,16 @@ def _join_header_lines(found: Any, bottom: float, texts: list[list[str]], boxes:
     texts[0], boxes[0] = joined, merged
     for i in inside[1:]:
         texts[i], boxes[i] = [""] * len(texts[i]), [None] * len(boxes[i])
+
+
+_HEX_ADDRESS = re.compile(r"0[xX][0-9A-Fa-f]{4}")
+
+
+def _margin(words: list[dict[str, Any]], found: Any, number: int) -> list[tuple[int, float, str]]:
+    """Hex addresses (``0x1000``) printed level with the table's rows, left of all its cells."""
+    left, top, bottom = found.bbox[0], found.bbox[1], found.bbox[3]
+    return [(number, float(w["top"]), w["text"]) for w in words
+            if _HEX_ADDRESS.fullmatch(w["text"]) and top <= w["top"] <= bottom and w["x1"] <= left + 1]
 
 
 def _spanned(found: Any, texts: list[list[str]]) -> dict[int, dict[int, str]]:
@@ -261,6 +276,7 @@ class _Joiner:
             self.tables.append(table)
         elif prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
             prev.rows.extend(table.rows)
+            prev.margin.extend(table.margin)
             self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
         elif self.framed is not None and headerless and self._next(self.framed_page, table) \
                 and same_frame(self.framed[1], found.frame):
@@ -268,6 +284,7 @@ class _Joiner:
             for row, cells in zip(table.rows, laid, strict=True):
                 row.cells = cells
             self.framed[0].rows.extend(table.rows)
+            self.framed[0].margin.extend(table.margin)
             self.framed_page = table.page
         else:
             self.tables.append(table)

@@ -8,6 +8,7 @@ Description``) or more text. Rows whose name says reserved/unused are skipped as
 from __future__ import annotations
 
 import re
+from collections import Counter
 from collections.abc import Sequence
 
 from drivemap.onboard.draft.cells import (
@@ -216,6 +217,10 @@ class GridReader:
                 self.skipped.append(Skipped(self.where(row), " | ".join(c for c in row.cells if c.strip()),
                                             "no address in the address column"))
             return
+        start = self.table.starts.get(row.where()) if self.relative is not None else None
+        if start is not None:
+            self._offset_row(row, int(start[0], 16), start[1], start[0], table)
+            return
         if self.relative is not None:
             self.skipped.append(Skipped(
                 self.where(row), " | ".join(c.strip() for c in row.cells if c.strip()),
@@ -235,6 +240,23 @@ class GridReader:
         self.start(row, value, said[0] if said else table)
         if said and len(self.raws) > count:
             self.raws[-1].notes.append(said[1])
+
+    def _offset_row(self, row: Row, base: int, offset: int, start: str, table: str | None) -> None:
+        """A row of offsets whose block's start address the document prints: drafted at start + offset, the
+        document's own sum, with the address open (``review: [address]``), since it does not say whether
+        the offset counts registers, as the address does, or bytes."""
+        count = len(self.raws)
+        self.found_at = self.layout.roles.get("address")  # the name is the name column's, not the cell after
+        self.start(row, base + offset, table)
+        if len(self.raws) == count:
+            return
+        raw = self.raws[-1]
+        other = f", or bytes (0x{base + offset // 2:04X})" if offset % 2 == 0 and offset else ""
+        raw.notes.append(f"address 0x{base + offset:04X}: the start address {start} printed beside its block plus "
+                         f"offset 0x{offset:04X} under {self.relative!r}, as printed; the document does not say whether "
+                         f"the offset counts registers, as the address does (0x{base + offset:04X}){other}: address "
+                         "to review")
+        raw.open.append("address")
 
     def modicon_beside(self, row: Row, value: int) -> tuple[str, str] | None:
         """(table, note) when a second address column prints this register's Modicon number (``300001`` or
@@ -445,7 +467,11 @@ def offset_rows(table: Table, header: str) -> list[Skipped]:
     """The rows of a table without a header of its own that follows one printing offsets under
     ``header`` (the same table on the next page): each row with an address-like number listed, none
     drafted, since its numbers are offsets too. [] when the table has a header of its own."""
-    if table.loose or table.matrix or find_layouts([r.cells for r in table.rows]):
+    # a "header" found in a row that prints a hex address first (``0x0108 | 264 | UINT32 | ... | RW |
+    # 设备地址DevAddr``: RW and 地址 read as headings) is a row of the table, not its header
+    headed = [layout for layout in find_layouts([r.cells for r in table.rows])
+              if layout.header_row is None or not _addressed(table.rows[layout.header_row])]
+    if table.loose or table.matrix or headed:
         return []
     return [Skipped(r.where(), " | ".join(c.strip() for c in r.cells if c.strip()),
                     f"not drafted: this table continues one whose numbers under {header!r} are offsets from a "
@@ -596,3 +622,111 @@ def _loose_label(rest: str, trailing_default: bool = False) -> str:
     if re.search(r"[\u4e00-\u9fff]", cut) and " " in cut:  # name column, then the description
         cut = " ".join(_name_words(cut.split(), trailing_default))
     return cut.rstrip(" ,;:")
+
+
+_HEX_CELL = re.compile(r"0[xX][0-9A-Fa-f]{1,6}")
+
+
+def _offset_entry(row: Row) -> tuple[int, str | None] | None:
+    """A row of an offsets table: (its offset, the start address printed in it or over it, if any). The
+    first hex cells of the row are the offset, or the start address then the offset."""
+    hexes = [c.strip() for c in row.cells[:3] if _HEX_CELL.fullmatch(c.strip())]
+    if not hexes:
+        return None
+    mark = hexes[0] if len(hexes) >= 2 else None
+    if mark is None:
+        mark = next((t.strip() for t in row.spanned.values() if _HEX_CELL.fullmatch(t.strip())), None)
+    return int(hexes[-1 if len(hexes) < 2 else 1], 16), mark
+
+
+def _addressed(row: Row) -> bool:
+    return any(_HEX_CELL.fullmatch(c.strip()) for c in row.cells[:2])
+
+
+def offset_bases(tables: Sequence[Table]) -> dict[str, tuple[str, int]]:
+    """Where a table prints offsets (its header says so) and headerless tables on the next pages go on
+    with them: for each row, the start address of its block as the document prints it and the row's
+    offset, ``row.where()`` -> (start, offset). A block is a run of rows whose offsets rise; its start is
+    the one hex address printed beside its rows: in a cell of the row or drawn over it, or level with
+    its rows outside the table (a cell drawn over the rows of several pages, its text on one of them).
+    A block beside which none, or two different ones, are printed has no start here."""
+    out: dict[str, tuple[str, int]] = {}
+    run: list[Table] = []
+    header: str | None = None
+    for table in [*tables, None]:
+        if table is not None and header is not None and offset_rows(table, header):
+            run.append(table)
+            continue
+        if run:
+            out.update(_run_bases(run))
+        header = offsets_header(table) if table is not None else None
+        run = [table] if table is not None and header is not None else []
+    return out
+
+
+def _run_bases(run: Sequence[Table]) -> dict[str, tuple[str, int]]:
+    entries: list[tuple[tuple[int, float], Row, int]] = []
+    marks: list[tuple[tuple[int, float], str]] = []
+    for table in run:
+        page = table.page or 0
+        marks += [((at, y), text) for at, y, text in table.margin]
+        for row in table.rows:
+            found = _offset_entry(row)
+            if found is None:
+                continue
+            key = (row.page or page, row.top if row.top is not None else float(row.line or 0))
+            entries.append((key, row, found[0]))
+            if found[1] is not None:
+                marks.append((key, found[1]))
+    entries.sort(key=lambda e: e[0])
+    block_of: list[int] = []
+    for i, (_, _, offset) in enumerate(entries):
+        block_of.append(0 if i == 0 else block_of[-1] + (offset <= entries[i - 1][2]))
+    starts: dict[int, set[str]] = {}
+    for key, text in marks:
+        before = [i for i, e in enumerate(entries) if e[0] <= key]
+        if before:
+            starts.setdefault(block_of[before[-1]], set()).add(text.lower())
+    return {row.where(): (next(iter(starts[block_of[i]])), offset) for i, (_, row, offset) in enumerate(entries)
+            if len(starts.get(block_of[i], ())) == 1}
+
+
+def with_start(skipped: Skipped, bases: dict[str, tuple[str, int]]) -> Skipped:
+    """An offset row listed with the start address printed beside its block and the two addresses the
+    document leaves to choose between (the offset in the address's own units, or in bytes)."""
+    if skipped.where not in bases or "offset" not in skipped.reason:
+        return skipped
+    start, offset = bases[skipped.where]
+    base = int(start, 16)
+    said = f"0x{base + offset:04X} if it counts the address's own units (registers)"
+    if offset % 2 == 0:
+        said += f", 0x{base + offset // 2:04X} if it counts bytes"
+    return Skipped(skipped.where, skipped.text, f"{skipped.reason}; the start address printed beside its block is "
+                   f"{start}: {said} (the document does not say which)")
+
+
+def under_header(head: Table, table: Table) -> Table | None:
+    """A headerless table that goes on with ``head``'s offsets on the next page, its rows shifted under
+    ``head``'s columns (the offset in the offset column; a page may leave out the start-address column)
+    and ``head``'s header rows put over them, so that it reads as ``head`` does. None when ``head``'s
+    header or offset column is not found or no row of ``table`` has a start address."""
+    first = next((i for i, r in enumerate(head.rows) if _offset_entry(r) is not None), None)
+    if first is None or first == 0 or not any(r.where() in head.starts for r in table.rows):
+        return None
+    column = Counter(_offset_column(r) for r in head.rows[first:] if _offset_entry(r) is not None).most_common(1)[0][0]
+    rows: list[Row] = list(head.rows[:first])
+    shift = 0
+    for r in table.rows:
+        if _offset_entry(r) is not None:
+            shift = column - _offset_column(r)
+        cells = [""] * shift + r.cells if shift >= 0 else r.cells[-shift:]
+        spanned = {k + shift: v for k, v in r.spanned.items() if k + shift >= 0}
+        rows.append(Row(cells, r.page, r.line, list(r.extra), r.table, r.top, spanned))
+    return Table(None, rows, table.page, table.line, head.context, label=table.label, above=head.above,
+                 starts=head.starts)
+
+
+def _offset_column(row: Row) -> int:
+    """The index of a row's offset cell (the second of two hex cells, a start address and an offset)."""
+    hexes = [i for i, c in enumerate(row.cells[:3]) if _HEX_CELL.fullmatch(c.strip())]
+    return hexes[1] if len(hexes) >= 2 else hexes[0]

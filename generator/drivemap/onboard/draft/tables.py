@@ -20,6 +20,8 @@ class Row:
     """Continuation lines of a row of a text table (enum values, bits, wrapped text)."""
     table: str = ""
     """For rows of a table object (PDF, DOCX, XLSX, CSV): the table's name; ``line`` is then its row number."""
+    top: float | None = None
+    """Where the row starts down its page (PDF points), for rows of a ruled PDF table."""
     spanned: dict[int, str] = field(default_factory=dict)
     """Columns this row has no cell of its own in, because a cell drawn above runs down over it (a
     vertically merged cell of a ruled PDF table): column -> that cell's text."""
@@ -49,6 +51,11 @@ class Table:
     """An address matrix (:mod:`.matrix`): a row per array element, a column of addresses per quantity."""
     loose: bool = False
     """Rows of free text that start with an address (OCR text without cell borders)."""
+    starts: dict[str, tuple[str, int]] = field(default_factory=dict)
+    """For a table of offsets: row.where() -> (the start address printed beside the row's block, its offset)."""
+    margin: list[tuple[int, float, str]] = field(default_factory=list)
+    """(page, y, text) of hex addresses printed beside a ruled PDF table's rows in no cell of it (down the page, text): a
+    block's start address printed once in a cell drawn over rows of several pages."""
     above: str = ""
     """A longer stretch of text before the table, where its section heading is looked for."""
     label: str = ""
