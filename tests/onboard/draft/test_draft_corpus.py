@@ -28,7 +28,7 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "deye_sg0x_3p_hybrid_v105.docx": (18, 0, 0),
     "deye_sun_1p_hybrid_v118.pdf": (0, 0, 0),
     "huawei_smartlogger3000.pdf": (0, 0, 0),
-    "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 1),
+    "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 0),
     "mennekes_amtron_compact20.pdf": (3, 0, 0),
     "mennekes_amtron_hcc3.pdf": (6, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),

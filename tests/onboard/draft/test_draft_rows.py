@@ -295,3 +295,25 @@ def test_offsets_under_a_start_address_printed_beside_their_block_are_drafted_wi
     result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
     assert 0x1200 not in {r.entry["address"] for r in result.registers}
     assert any("p.2 table 1 row 3" == s.where and "offset" in s.reason for s in result.skipped)
+
+
+def test_an_address_printed_in_no_cell_of_a_table_is_listed_with_its_line() -> None:
+    """Text inside a ruled table that starts with a hex address in none of its cells (a cell drawn over
+    bit rows across a page break: ``0x00A0 160 UINT32 4 R``) is a row of its own, listed, never lost;
+    hex words in cells or outside the table are not."""
+    from types import SimpleNamespace
+
+    from drivemap.onboard.draft.read_pdf import _orphans
+
+    def word(text: str, x: float, y: float) -> dict[str, object]:
+        return {"text": text, "x0": x, "x1": x + 20, "top": y, "bottom": y + 8}
+
+    found = SimpleNamespace(bbox=(90, 50, 700, 500), rows=[
+        SimpleNamespace(cells=[(90, 50, 150, 60), (150, 50, 700, 60)]),
+        SimpleNamespace(cells=[None, (150, 300, 700, 310)])])
+    every = [word("0x0004", 100, 51), word("0x00A0", 100, 200), word("160", 125, 200), word("UINT32", 160, 200),
+             word("0x1200", 40, 200)]
+    hexes = [w for w in every if str(w["text"]).startswith("0x")]
+    rows = _orphans(every, hexes, found, 5, "p.5 table 1")
+    assert [r.cells for r in rows] == [["0x00A0", "160", "UINT32"]]
+    assert rows[0].where() == "p.5 table 1, text in no cell at y 200"

@@ -351,6 +351,9 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
             _finish(d, source.name, names)
         registers += drafts
     _contradictions(registers)
+    skipped += [Skipped(r.where(), " | ".join(r.cells), "an address or offset printed in the table in none of its "
+                        "cells (the text of a cell drawn over rows, across a page break?): not read")
+                for t in source.tables for r in t.orphans]
     bases = offset_bases(source.tables)
     skipped[:] = [with_start(s, bases) for s in skipped]
     data = _document(source, model, groups, registers)

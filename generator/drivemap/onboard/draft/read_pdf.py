@@ -140,7 +140,8 @@ def _body(page: Any, found: Any) -> Any:
 def _page_tables(page: Any, number: int) -> list[_Found]:
     tables: list[_Found] = []
     ruled_tables = page.find_tables()
-    words = [w for w in page.extract_words() if _HEX_ADDRESS.fullmatch(w["text"])] if ruled_tables else []
+    every = page.extract_words() if ruled_tables else []
+    words = [w for w in every if _HEX_ADDRESS.fullmatch(w["text"])]
     for k, ruled in enumerate(ruled_tables, 1):
         body = _body(page, ruled)
         found = body or ruled
@@ -166,6 +167,7 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
             above = ""
         table = Table(None, rows, number, None, above, label=f"p.{number} table {k}",
                       margin=_margin(words, found, number))
+        table.orphans = _orphans(every, words, found, number, table.label)
         tables.append(_Found(table, grid, [boxes[i] for i in kept], frame))
     return tables
 
@@ -193,6 +195,26 @@ def _margin(words: list[dict[str, Any]], found: Any, number: int) -> list[tuple[
     left, top, bottom = found.bbox[0], found.bbox[1], found.bbox[3]
     return [(number, float(w["top"]), w["text"]) for w in words
             if _HEX_ADDRESS.fullmatch(w["text"]) and top <= w["top"] <= bottom and w["x1"] <= left + 1]
+
+
+def _orphans(every: list[dict[str, Any]], words: list[dict[str, Any]], found: Any, number: int,
+             label: str) -> list[Row]:
+    """The lines inside the table that begin with a hex address in none of its cells, each as a row of its
+    words (where pdfplumber draws no cell: text of a cell drawn over rows across a page break)."""
+    cells = [c for r in found.rows for c in r.cells if c is not None]
+    left, top, right, bottom = found.bbox
+    out = []
+    for w in words:
+        middle = ((w["x0"] + w["x1"]) / 2, (w["top"] + w["bottom"]) / 2)
+        if not (left <= middle[0] <= right and top <= middle[1] <= bottom) \
+                or any(c[0] <= middle[0] <= c[2] and c[1] <= middle[1] <= c[3] for c in cells):
+            continue
+        line = sorted((v for v in every if abs(v["top"] - w["top"]) < 2 and v["x0"] >= w["x0"]
+                       and not any(c[0] <= (v["x0"] + v["x1"]) / 2 <= c[2] and c[1] <= (v["top"] + v["bottom"]) / 2
+                                   <= c[3] for c in cells)), key=lambda v: v["x0"])
+        out.append(Row([v["text"] for v in line], number, None, table=f"{label}, text in no cell at y {w['top']:.0f}",
+                       top=float(w["top"])))
+    return out
 
 
 def _spanned(found: Any, texts: list[list[str]]) -> dict[int, dict[int, str]]:
@@ -277,6 +299,7 @@ class _Joiner:
         elif prev is not None and headerless and self._next(self.last_page, table) and _fits(prev, table):
             prev.rows.extend(table.rows)
             prev.margin.extend(table.margin)
+            prev.orphans.extend(table.orphans)
             self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
         elif self.framed is not None and headerless and self._next(self.framed_page, table) \
                 and same_frame(self.framed[1], found.frame):
@@ -285,6 +308,7 @@ class _Joiner:
                 row.cells = cells
             self.framed[0].rows.extend(table.rows)
             self.framed[0].margin.extend(table.margin)
+            self.framed[0].orphans.extend(table.orphans)
             self.framed_page = table.page
         else:
             self.tables.append(table)

@@ -670,7 +670,7 @@ def _run_bases(run: Sequence[Table]) -> dict[str, tuple[str, int]]:
     for table in run:
         page = table.page or 0
         marks += [((at, y), text) for at, y, text in table.margin]
-        for row in table.rows:
+        for row in [*table.rows, *table.orphans]:
             found = _offset_entry(row)
             if found is None:
                 continue

@@ -53,6 +53,9 @@ class Table:
     """Rows of free text that start with an address (OCR text without cell borders)."""
     starts: dict[str, tuple[str, int]] = field(default_factory=dict)
     """For a table of offsets: row.where() -> (the start address printed beside the row's block, its offset)."""
+    orphans: list[Row] = field(default_factory=list)
+    """Lines of a ruled PDF table that start with a hex address printed in none of its cells (a cell drawn
+    over rows across a page break): listed as skipped, never drafted."""
     margin: list[tuple[int, float, str]] = field(default_factory=list)
     """(page, y, text) of hex addresses printed beside a ruled PDF table's rows in no cell of it (down the page, text): a
     block's start address printed once in a cell drawn over rows of several pages."""
