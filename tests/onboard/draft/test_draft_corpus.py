@@ -30,7 +30,7 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "huawei_smartlogger3000.pdf": (0, 0, 0),
     "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 0),
     "mennekes_amtron_compact20.pdf": (3, 0, 0),
-    "mennekes_amtron_hcc3.pdf": (6, 0, 0),
+    "mennekes_amtron_hcc3.pdf": (13, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (106, 0, 0),
     "sungrow_sh_hybrid_protocol_v1111.pdf": (66, 0, 0),

@@ -317,3 +317,29 @@ def test_an_address_printed_in_no_cell_of_a_table_is_listed_with_its_line() -> N
     rows = _orphans(every, hexes, found, 5, "p.5 table 1")
     assert [r.cells for r in rows] == [["0x00A0", "160", "UINT32"]]
     assert rows[0].where() == "p.5 table 1, text in no cell at y 200"
+
+
+def test_a_value_said_in_a_unit_and_a_row_naming_its_low_and_high_register() -> None:
+    """"Rated Current in A" says the value is in amperes, one per count; "(Reg_Low–0x030D, Reg_High-0x030E)"
+    says the low word is at the lower address (low_first) for that register, where the document states no
+    word order of its own. "stored in Amtron" is no unit."""
+    from drivemap.onboard.draft.fields import _halves
+    from drivemap.onboard.draft.tables import Row, Source, Table
+    from drivemap.onboard.draft.units import parse_scale
+
+    said = parse_scale("Rated Current in A")
+    assert said is not None and (said.scale, said.unit) == (1, "A")
+    assert parse_scale("stored in Amtron memory") is None and parse_scale("in A", unit_cell=True) is None
+    assert _halves("(Reg_Low–0x030D, Reg_High-0x030E)") == ("low_first", "Low–0x030D, Reg_High-0x030E")
+    assert _halves("high word: 101, low word: 100")[0] == "low_first"  # type: ignore[index]
+    assert _halves("Reg_Low–0x030D, Reg_High-0x0310") is None  # not one apart
+
+    header = ["Register (hex)", "Register (dec)", "Data Type", "Name", "Description"]
+    body = [["0x0309", "30778", "UINT16", "Rated Current", "Rated Current in A Values: 0 or 6 ≤ x ≤ 32"],
+            ["0x030D - 0x030E", "30782", "UINT32", "Charging session meter count",
+             "Charging session meter count in Wh (Reg_Low–0x030D, Reg_High-0x030E)"]]
+    rows = [Row(c, 5, i + 1) for i, c in enumerate([header, *body])]
+    result = draft(Source("wb.pdf", "0" * 64, [Table(None, rows, 5, None, "", label="p.5 table 1")], ""), "wb")
+    by = {r.entry["address"]: r.entry for r in result.registers}
+    assert (by[0x309]["scale"], by[0x309]["unit"]) == (1, "A")
+    assert (by[0x30D]["type"], by[0x30D]["word_order"], by[0x30D]["unit"]) == ("u32", "low_first", "Wh")

@@ -12,6 +12,7 @@ from drivemap.onboard.draft.cells import (
     FULL_SPANS,
     WIDTHS,
     parse_access,
+    parse_address,
     parse_bits,
     parse_enum,
     parse_length,
@@ -130,7 +131,11 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
             return "u16"
         entry["type"], entry["length"] = "string", words
         return "string"
-    if rtype[1:] not in ("16",):
+    halves = _halves(raw.text) if rtype[1:] == "32" else None
+    if halves is not None:
+        entry["word_order"] = halves[0]
+        notes.append(f"word_order {halves[0]}: the row says {halves[1]!r}")
+    elif rtype[1:] not in ("16",):
         if ctx.word_order is None:
             missing.append("word_order")
             notes.append(f"{rtype} stated but the document does not state the word order: word_order to review")
@@ -140,6 +145,29 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
                 notes.append(f"word_order {ctx.word_order}: {ctx.word_order_source}")
     entry["type"] = rtype
     return rtype
+
+
+_HALF = r"(low|high)(?:[\s_-]*word)?\s*[-–—:=]\s*((?:0[xX])?[0-9A-Fa-f]+[hH]?)(?![0-9A-Za-z])"
+_HALVES = re.compile(rf"{_HALF}.{{0,40}}?{_HALF}", re.I | re.S)
+
+
+def _halves(text: str) -> tuple[str, str] | None:
+    """The word order a row states by naming its two registers (``Reg_Low–0x030B, Reg_High-0x030C``): the
+    low word at the lower address is ``low_first``; None unless both halves are named, one apart."""
+    m = _HALVES.search(text)
+    if m is None or m.group(1).lower() == m.group(3).lower():
+        return None
+    first, second = parse_address(m.group(2)), parse_address(m.group(4))
+    if first is None or second is None or first.hex_value is None or second.hex_value is None:
+        return None
+    if m.group(2).lower().startswith("0x") or m.group(2).lower().endswith("h"):
+        a, b = first.hex_value, second.hex_value
+    else:
+        a, b = first.dec_value, second.dec_value
+    if a is None or b is None or abs(a - b) != 1:
+        return None
+    low = a if m.group(1).lower() == "low" else b
+    return ("low_first" if low == min(a, b) else "high_first"), m.group(0)
 
 
 def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], missing: list[str],

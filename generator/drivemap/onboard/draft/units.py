@@ -27,6 +27,8 @@ _MEANS = re.compile(rf"\b({_NUM})\s*(?:means|corresponds\s+to|對應|对应|表�
 _TIMES = re.compile(rf"[×xX*]\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
 _PER_BIT = re.compile(rf"({_NUM})\s*({UNIT})\s*/\s*(?:bit|lsb|count|digit|step)\b", re.I)
 _LABELLED = re.compile(rf"(?:unit|resolution|单位|單位|分辨率|解析度)\s*[:：]?\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
+#: "Rated Current in A", "meter count in Wh": the value is given in that unit, one per count
+_IN_UNIT = re.compile(rf"(?<![A-Za-z])in\s+({UNIT})(?![A-Za-z0-9²³/.])")
 _WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
 _FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
 _NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
@@ -120,6 +122,10 @@ def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str],
                 continue
             return _found(amount / counts, m.group(3), m, text, footnote)
         return _found(float(m.group(1)), m.group(2), m, text, footnote)
+    if not unit_cell:
+        m = _IN_UNIT.search(text)
+        if m:
+            return Scale(1, unit_name(m.group(1)), m.group(0), f"scale 1: the text says the value is {m.group(0)!r}")
     if unit_cell:
         m = _WHOLE.match(text)
         if m:
