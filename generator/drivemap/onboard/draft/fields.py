@@ -160,10 +160,8 @@ def _halves(text: str) -> tuple[str, str] | None:
     first, second = parse_address(m.group(2)), parse_address(m.group(4))
     if first is None or second is None or first.hex_value is None or second.hex_value is None:
         return None
-    if m.group(2).lower().startswith("0x") or m.group(2).lower().endswith("h"):
-        a, b = first.hex_value, second.hex_value
-    else:
-        a, b = first.dec_value, second.dec_value
+    hexed = m.group(2).lower().startswith("0x") or m.group(2).lower().endswith("h")
+    a, b = (first.hex_value, second.hex_value) if hexed else (first.dec_value, second.dec_value)
     if a is None or b is None or abs(a - b) != 1:
         return None
     low = a if m.group(1).lower() == "low" else b
