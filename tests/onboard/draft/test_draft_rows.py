@@ -343,3 +343,28 @@ def test_a_value_said_in_a_unit_and_a_row_naming_its_low_and_high_register() -> 
     by = {r.entry["address"]: r.entry for r in result.registers}
     assert (by[0x309]["scale"], by[0x309]["unit"]) == (1, "A")
     assert (by[0x30D]["type"], by[0x30D]["word_order"], by[0x30D]["unit"]) == ("u32", "low_first", "Wh")
+
+
+def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
+    """A one-register value whose signedness the document leaves open, with a printed range inside
+    0..32767 at its stated scale, is u16 (every value it may hold reads the same as s16), with a note and
+    the range; a range reaching past 32767 at its scale, a negative range, no range or no scale leave the
+    type open."""
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    header = ["Addr", "Register meaning", "R/W", "data range", "unit"]
+    body = [["100", "Max charge current", "R/W", "[0,185]", "1A"],
+            ["101", "Grid power", "R", "[-32768,32767]", "1W"],
+            ["102", "Battery voltage", "R/W", "[0,6000]", "0.01V"],
+            ["103", "Offset", "R/W", "[-100,100]", "1W"],
+            ["104", "Counter", "R", "", "1"],
+            ["105", "Energy", "R", "[0,40000]", "1Wh"]]
+    rows = [Row(c, 1, i + 1) for i, c in enumerate([header, *body])]
+    result = draft(Source("inv.docx", "0" * 64, [Table(None, rows, 1, None, "", label="table 5")], ""), "inv")
+    by = {r.entry["address"]: r for r in result.registers}
+    assert by[100].entry["type"] == "u16" and "type" not in by[100].entry.get("review", [])  # type: ignore[operator]
+    assert (by[100].entry["min"], by[100].entry["max"]) == (0, 185)
+    assert any("reads the same either way" in n for n in by[100].notes)
+    assert by[101].entry["type"] == "s16"  # the range is the whole span of s16: stated
+    for address in (102, 103, 104, 105):
+        assert "type" in by[address].entry["review"], by[address].entry  # type: ignore[operator]

@@ -403,6 +403,7 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes, direction)
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
+        _same_either_way(raw, entry, missing, notes)
     _access_field(raw, entry, missing)
     if raw.table is None and entry.get("access") in ("w", "rw") and _word_sized(raw, entry):
         entry = {"table": "holding", **entry}
@@ -411,6 +412,31 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
                      "of Modbus's tables only holding registers are")
     _review(entry, missing)
     return Drafted(entry, raw.where, missing, notes)
+
+
+#: the raw values a one-register integer reads the same signed and unsigned
+_BOTH_WAYS = 32767
+
+
+def _same_either_way(raw: Raw, entry: dict[str, object], missing: list[str], notes: list[str]) -> None:
+    """A one-register integer whose signedness the document leaves open, but whose printed range
+    (``[0,1000]``) lies within 0..32767 both as raw counts and as the value at its stated scale: every
+    value it may hold reads the same as u16 and as s16, so u16 changes no value. It is written with the
+    range (which a write outside is refused by) and a note saying so; without a stated scale, a range
+    or a length of one register, the type stays open."""
+    if "type" not in missing or raw.cells.get("type", "").strip() or "min" not in entry or "max" not in entry:
+        return
+    words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
+    scale = entry.get("scale")
+    if words not in (None, 1) or not isinstance(scale, (int, float)) or scale <= 0:
+        return
+    rng = parse_range(raw.cells.get("range", "") or _range_text(raw.text))
+    if rng is None or rng[0] < 0 or max(rng[1], rng[1] / scale) > _BOTH_WAYS:
+        return
+    missing.remove("type")
+    entry["type"] = "u16"
+    notes.append(f"type u16: the document does not say signed or unsigned, but its range {_clean(rng[0])}.."
+                 f"{_clean(rng[1])} reads the same either way (every raw value from 0 to {_BOTH_WAYS})")
 
 
 def _word_sized(raw: Raw, entry: dict[str, object]) -> bool:
