@@ -349,9 +349,11 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     """A one-register value whose signedness the document leaves open, with a printed range inside
     0..32767 at its stated scale, is u16 (every value it may hold reads the same as s16), with a note and
     the range; a range reaching past 32767 at its scale, a negative range, no range or no scale leave the
-    type open."""
+    type open. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
+    from drivemap.onboard.draft.cells import parse_range
     from drivemap.onboard.draft.tables import Row, Source, Table
 
+    assert parse_range("[0000 6300]") == (0, 6300, "") and parse_range("[1 2 3]") is None
     header = ["Addr", "Register meaning", "R/W", "data range", "unit"]
     body = [["100", "Max charge current", "R/W", "[0,185]", "1A"],
             ["101", "Grid power", "R", "[-32768,32767]", "1W"],

@@ -207,8 +207,9 @@ _REFERENCE = re.compile(r"(?:\btable|\btab\.|\bfig(?:ure|\.)?|\bchapter|\bsectio
 """``Table 2-2``, ``Figure 3-1``: the numbers of a table or figure, not a range."""
 
 
-_INTERVAL = re.compile(rf"[\[(]\s*({_NUMBER})\s*[,，;]\s*({_NUMBER})\s*[\])]")
-"""``[0,1000]``, ``[-32768,32767]``: an interval written with brackets and a comma."""
+_INTERVAL = re.compile(rf"[\[(]\s*({_NUMBER})\s*[,，;]\s*({_NUMBER})\s*[\])]|\[\s*({_NUMBER})\s+({_NUMBER})\s*\]")
+"""``[0,1000]``, ``[-32768,32767]``, ``[0000 6300]``: an interval written with brackets and a comma (or, in
+square brackets, a space)."""
 
 #: a range that is exactly the span of a raw register type states that type (``[-32768,32767]``: s16)
 FULL_SPANS: dict[tuple[float, float], str] = {(-32768, 32767): "s16", (0, 65535): "u16", (-2147483648, 2147483647): "s32", (0, 4294967295): "u32"}
@@ -225,7 +226,7 @@ def parse_range(text: str) -> tuple[float, float, str] | None:
     text = text.replace("−", "-")
     interval = _INTERVAL.search(text)
     if interval and not _REFERENCE.search(text[:interval.start()]):
-        low, high = _num(interval.group(1)), _num(interval.group(2))
+        low, high = _num(interval.group(1) or interval.group(3)), _num(interval.group(2) or interval.group(4))
         return (low, high, text[interval.end():].strip()) if low <= high else None
     m = next((m for m in _RANGE.finditer(text) if not _REFERENCE.search(text[:m.start()])), None)
     if not m:
