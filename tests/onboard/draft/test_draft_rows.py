@@ -348,8 +348,8 @@ def test_a_value_said_in_a_unit_and_a_row_naming_its_low_and_high_register() -> 
 def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     """A one-register value whose signedness the document leaves open, with a printed range inside
     0..32767 at its stated scale, is u16 (every value it may hold reads the same as s16), with a note and
-    the range; a range reaching past 32767 at its scale, a negative range, no range or no scale leave the
-    type open. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
+    the range; a range reaching past raw 32767, a negative range, no range or no scale leave the type
+    open. A range that as the value would need more counts than one register holds is raw counts. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
     from drivemap.onboard.draft.cells import parse_range
     from drivemap.onboard.draft.tables import Row, Source, Table
 
@@ -360,7 +360,8 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
             ["102", "Battery voltage", "R/W", "[0,6000]", "0.01V"],
             ["103", "Offset", "R/W", "[-100,100]", "1W"],
             ["104", "Counter", "R", "", "1"],
-            ["105", "Energy", "R", "[0,40000]", "1Wh"]]
+            ["105", "Energy", "R", "[0,40000]", "1Wh"],
+            ["106", "Bus voltage", "R", "[0,60000]", "0.01V"]]
     rows = [Row(c, 1, i + 1) for i, c in enumerate([header, *body])]
     result = draft(Source("inv.docx", "0" * 64, [Table(None, rows, 1, None, "", label="table 5")], ""), "inv")
     by = {r.entry["address"]: r for r in result.registers}
@@ -368,5 +369,7 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     assert (by[100].entry["min"], by[100].entry["max"]) == (0, 185)
     assert any("reads the same either way" in n for n in by[100].notes)
     assert by[101].entry["type"] == "s16"  # the range is the whole span of s16: stated
-    for address in (102, 103, 104, 105):
+    # [0,6000] at 0.01 V: as volts it would need 600000 counts, more than a register holds: raw, 0..60 V
+    assert (by[102].entry["type"], by[102].entry["min"], by[102].entry["max"]) == ("u16", 0, 60)
+    for address in (103, 104, 105, 106):
         assert "type" in by[address].entry["review"], by[address].entry  # type: ignore[operator]

@@ -321,8 +321,14 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
         return
     if scale is not None and scale != 1:
         decimals = any("." in str(v) for v in (lo, hi))
+        one_word = entry.get("type") in (None, "u16", "s16") and \
+            parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", "")) in (None, 1)
         if raw_range:
             factor = scale
+        elif not decimals and one_word and 0 <= lo and hi <= 65535 < hi / scale:
+            factor = scale  # as the value, it would need more counts than one register holds
+            notes.append(f"range {lo}..{hi} read as raw counts: as the value at scale {scale:g} it would need "
+                         f"{_clean(hi / scale)} counts, more than one register holds")
         elif not decimals:
             notes.append(f"range {lo}..{hi} printed without saying raw or engineering: left out")
             missing.append("range")
@@ -419,24 +425,25 @@ _BOTH_WAYS = 32767
 
 
 def _same_either_way(raw: Raw, entry: dict[str, object], missing: list[str], notes: list[str]) -> None:
-    """A one-register integer whose signedness the document leaves open, but whose printed range
-    (``[0,1000]``) lies within 0..32767 both as raw counts and as the value at its stated scale: every
-    value it may hold reads the same as u16 and as s16, so u16 changes no value. It is written with the
-    range (which a write outside is refused by) and a note saying so; without a stated scale, a range
-    or a length of one register, the type stays open."""
+    """A one-register integer whose signedness the document leaves open, but whose drafted range
+    (``[0,1000]``) lies within raw 0..32767 at its stated scale: every value it may hold reads the same as
+    u16 and as s16, so u16 changes no value. It is written with the range (which a write outside is
+    refused by) and a note saying so; without a stated scale, a drafted range (raw or value: the range
+    fields decide) or a length of one register, the type stays open."""
     if "type" not in missing or raw.cells.get("type", "").strip() or "min" not in entry or "max" not in entry:
         return
     words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
     scale = entry.get("scale")
     if words not in (None, 1) or not isinstance(scale, (int, float)) or scale <= 0:
         return
-    rng = parse_range(raw.cells.get("range", "") or _range_text(raw.text))
-    if rng is None or rng[0] < 0 or max(rng[1], rng[1] / scale) > _BOTH_WAYS:
+    low, high = float(entry["min"]) / scale, float(entry["max"]) / scale  # type: ignore[arg-type]
+    if low < 0 or high > _BOTH_WAYS:
         return
     missing.remove("type")
     entry["type"] = "u16"
-    notes.append(f"type u16: the document does not say signed or unsigned, but its range {_clean(rng[0])}.."
-                 f"{_clean(rng[1])} reads the same either way (every raw value from 0 to {_BOTH_WAYS})")
+    notes.append(f"type u16: the document does not say signed or unsigned, but its range {entry['min']}.."
+                 f"{entry['max']} (raw {_clean(low)}..{_clean(high)}) reads the same either way (every raw value "
+                 f"from 0 to {_BOTH_WAYS})")
 
 
 def _word_sized(raw: Raw, entry: dict[str, object]) -> bool:
