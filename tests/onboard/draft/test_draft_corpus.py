@@ -33,7 +33,7 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "mennekes_amtron_hcc3.pdf": (13, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (106, 0, 0),
-    "sungrow_sh_hybrid_protocol_v1111.pdf": (66, 0, 0),
+    "sungrow_sh_hybrid_protocol_v1111.pdf": (78, 0, 0),
     "webasto_live.pdf": (17, 0, 0),
 }
 

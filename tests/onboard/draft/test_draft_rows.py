@@ -373,3 +373,24 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     assert (by[102].entry["type"], by[102].entry["min"], by[102].entry["max"]) == ("u16", 0, 60)
     for address in (103, 104, 105, 106):
         assert "type" in by[address].entry["review"], by[address].entry  # type: ignore[operator]
+
+
+def test_a_remark_that_says_only_read_write_is_the_access() -> None:
+    """Sungrow's function tables print ``Read-Write`` or ``Read-only`` in their Remarks column: a remark that
+    is only an access word states the access (a written, word-wide register is a holding register); a
+    longer remark states none."""
+    from drivemap.onboard.draft.cells import parse_access
+    from drivemap.onboard.draft.tables import Row, Source, Table
+
+    assert [parse_access(t) for t in ("Read-Write", "read write", "Write-only")] == ["rw", "rw", "w"]
+    header = ["No.", "Name", "Register", "Data type", "Data range", "Unit/Ratio", "Remarks"]
+    body = [["5.", "Feed-in Limitation Ratio", "13088", "U16", "0-1000", "0.1%", "Read-Write"],
+            ["1.", "Min. Feed-in Power", "5622", "U16", "", "0.01kW", "Read-only"],
+            ["2.", "Mode", "13090", "U16", "0-2", "", "Read-Write only when stopped"]]
+    rows = [Row(c, 15, i + 1) for i, c in enumerate([header, *body])]
+    result = draft(Source("inv.pdf", "0" * 64, [Table(None, rows, 15, None, "", label="p.15 table 1")], ""), "inv")
+    by = {r.entry["address"]: r for r in result.registers}
+    assert (by[13088].entry["access"], by[13088].entry["table"]) == ("rw", "holding")
+    assert any("the remark says 'Read-Write'" in n for n in by[13088].notes)
+    assert "access" not in by[5622].entry and "table" not in by[5622].entry  # read-only: holding or input
+    assert "access" not in by[13090].entry

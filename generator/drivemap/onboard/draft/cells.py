@@ -75,7 +75,8 @@ def is_address_range(text: str) -> bool:
 _ACCESS = {
     "r": "r", "ro": "r", "read": "r", "read only": "r", "read-only": "r", "readonly": "r", "只读": "r",
     "唯讀": "r", "只讀": "r", "w": "w", "wo": "w", "write": "w", "write only": "w", "只写": "w",
-    "r/w": "rw", "w/r": "rw", "rw": "rw", "wr": "rw", "read/write": "rw", "r/w/": "rw", "读写": "rw",
+    "r/w": "rw", "w/r": "rw", "rw": "rw", "wr": "rw", "read/write": "rw", "read-write": "rw", "read write": "rw",
+    "read & write": "rw", "write-only": "w", "r/w/": "rw", "读写": "rw",
     "讀寫": "rw", "r&w": "rw", "r,w": "rw",
 }
 _ACCESS_TOKEN = re.compile(r"(?:^|\s)(R/W|W/R|RW|RO|WO|R|W)\s*$")

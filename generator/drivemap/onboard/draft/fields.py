@@ -369,8 +369,13 @@ def _enum_default(raw: Raw, enum: list[tuple[int, str]], entry: dict[str, object
         notes.append(f"default {printed!r} is none of the listed values: left out")
 
 
-def _access_field(raw: Raw, entry: dict[str, object], missing: list[str]) -> None:
+def _access_field(raw: Raw, entry: dict[str, object], missing: list[str], notes: list[str] | None = None) -> None:
     access = parse_access(raw.cells.get("access", "")) if raw.cells.get("access") else raw.access
+    remark = raw.cells.get("description", "").strip()
+    if access is None and not raw.cells.get("access") and parse_access(remark) is not None:
+        access = parse_access(remark)  # a remark that says only "Read-Write"
+        if notes is not None:
+            notes.append(f"access {access}: the remark says {remark!r}")
     if access is None and raw.table in ("input", "discrete"):
         return  # read-only by the table itself
     if access is None:
@@ -410,7 +415,7 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
         _same_either_way(raw, entry, missing, notes)
-    _access_field(raw, entry, missing)
+    _access_field(raw, entry, missing, notes)
     if raw.table is None and entry.get("access") in ("w", "rw") and _word_sized(raw, entry):
         entry = {"table": "holding", **entry}
         missing.remove("table")
@@ -454,7 +459,8 @@ def _word_sized(raw: Raw, entry: dict[str, object]) -> bool:
 
 
 def _access_text(raw: Raw) -> str:
-    return raw.cells.get("access", "").strip() or str(raw.access)
+    return raw.cells.get("access", "").strip() or (str(raw.access) if raw.access else
+                                                   raw.cells.get("description", "").strip())
 
 
 def _text_enum(raw: Raw, notes: list[str]) -> list[tuple[int, str]]:
