@@ -100,7 +100,8 @@ def test_range_statements_register_meaning_and_interval_spans(tmp_path: Path) ->
     assert regs["device_type"]["table"] == "holding" and "0-59 registers are read-only" in regs["device_type"]["notes"]
     assert regs["self_check_time"]["table"] == "holding" and "60-499" in regs["self_check_time"]["notes"]
     assert regs["self_check_time"]["min"] == 0 and regs["self_check_time"]["max"] == 1000
-    assert "type" in regs["self_check_time"]["review"]  # [0,1000] does not say signed or unsigned
+    # [0,1000] does not say signed or unsigned, but reads the same either way: u16 changes no value it may hold
+    assert regs["self_check_time"]["type"] == "u16" and "reads the same either way" in regs["self_check_time"]["notes"]
     energy = regs["active_energy_today"]
     assert "table" in energy["review"] and "table" not in energy  # 501 is in no stated range
     assert energy["type"] == "s16" and "min" not in energy and energy["scale"] == 0.1

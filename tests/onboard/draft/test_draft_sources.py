@@ -125,12 +125,16 @@ def test_a_range_printed_in_another_unit_is_left_out_and_noted(
         "| --- | --- | --- | --- |\n| TANK_LEVEL | 30001 | 0-10V Input | mV |\n"
         "| FLOW_LOOP | 30002 | 4-20mA Input | mA |\n| SUPPLY_RAIL | 30003 | 0-24V Input | V |\n"))
     facts, notes, _ = _drafted(tmp_path, doc, capsys)
+    # the register's own unit: a range; within raw 0..32767 it reads the same signed and unsigned (u16)
     assert facts == [("TANK_LEVEL", "input", 0, None, 1.0, "mV", None, None, None),
-                     ("FLOW_LOOP", "input", 1, None, 1.0, "mA", 4, 20, None),      # the register's own unit
-                     ("SUPPLY_RAIL", "input", 2, None, 1.0, "V", 0, 24, None)]
+                     ("FLOW_LOOP", "input", 1, "u16", 1.0, "mA", 4, 20, None),
+                     ("SUPPLY_RAIL", "input", 2, "u16", 1.0, "V", 0, 24, None)]
     said = "scale 1: the unit column says {!r} without a resolution"
+    either = "type u16: the document does not say signed or unsigned, but its range {} (raw {}) reads the same " \
+             "either way (every raw value from 0 to 32767)"
     assert notes == [f"{said.format('mV')}; range 0..10 printed in V, the register's unit is mV: left out; "
-                     f"{TO_FILL}type, range", f"{said.format('mA')}; {TO_FILL}type", f"{said.format('V')}; {TO_FILL}type"]
+                     f"{TO_FILL}type, range", f"{said.format('mA')}; {either.format('4..20', '4..20')}",
+                     f"{said.format('V')}; {either.format('0..24', '0..24')}"]
 
 
 # ------------------------------------------------------- two address columns that disagree
