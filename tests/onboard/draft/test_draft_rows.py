@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from drivemap.onboard.draft.assemble import draft
+from drivemap.onboard.draft.assemble import Draft, draft
+from drivemap.onboard.draft.tables import Row, Source, Table
+
+
+def _one_table(header: list[str], body: list[list[str]], page: int, label: str, text: str = "") -> Draft:
+    """The draft of a document holding one table: ``header`` over ``body``, on ``page``."""
+    rows = [Row(cells, page, i + 1) for i, cells in enumerate([header, *body])]
+    return draft(Source("doc.pdf", "0" * 64, [Table(None, rows, page, None, "", label=label)], text), "doc")
 
 
 def test_offsets_are_never_drafted_as_addresses() -> None:
@@ -254,14 +261,12 @@ def test_the_lines_inside_a_ruled_header_box_are_one_header_row() -> None:
 def test_a_hex_span_of_two_registers_is_one_value_and_a_reserved_span_is_listed() -> None:
     """``0x0500 - 0x0501`` with 4 bytes is one float over two registers, as ``5031 - 5032`` is; a span
     named reserved (``预备中``, "in reserve") is listed, never drafted."""
-    from drivemap.onboard.draft.tables import Row, Source, Table
 
     header = ["Adr (Offset)", "R/W", "Value", "Bytes", "Type", "Range", "Description"]
     body = [["0x0500 - 0x0501", "R", "Current L1", "4", "float", "0 … xA", "RMS output current of phase L1"],
             ["0x0512 - 0x0513", "R", "Power Overall", "4", "float", "0 … xW", "overall Power on all phases"],
             ["0x012E - 0x012F", "R", "", "4", "uint32", "", "预备中"]]
-    rows = [Row(c, 5, i + 1) for i, c in enumerate([header, *body])]
-    result = draft(Source("wb.pdf", "0" * 64, [Table(None, rows, 5, None, "", label="p.5 table 2")], ""), "wb")
+    result = _one_table(header, body, 5, "p.5 table 2")
     by = {r.entry["address"]: r.entry for r in result.registers}
     assert by[0x500]["type"] == "f32" and by[0x512]["type"] == "f32"
     assert 0x12E not in by and any("预备中" in s.text for s in result.skipped)
@@ -324,7 +329,6 @@ def test_a_value_said_in_a_unit_and_a_row_naming_its_low_and_high_register() -> 
     says the low word is at the lower address (low_first) for that register, where the document states no
     word order of its own. "stored in Amtron" is no unit."""
     from drivemap.onboard.draft.fields import _halves
-    from drivemap.onboard.draft.tables import Row, Source, Table
     from drivemap.onboard.draft.units import parse_scale
 
     said = parse_scale("Rated Current in A")
@@ -338,8 +342,7 @@ def test_a_value_said_in_a_unit_and_a_row_naming_its_low_and_high_register() -> 
     body = [["0x0309", "30778", "UINT16", "Rated Current", "Rated Current in A Values: 0 or 6 ≤ x ≤ 32"],
             ["0x030D - 0x030E", "30782", "UINT32", "Charging session meter count",
              "Charging session meter count in Wh (Reg_Low–0x030D, Reg_High-0x030E)"]]
-    rows = [Row(c, 5, i + 1) for i, c in enumerate([header, *body])]
-    result = draft(Source("wb.pdf", "0" * 64, [Table(None, rows, 5, None, "", label="p.5 table 1")], ""), "wb")
+    result = _one_table(header, body, 5, "p.5 table 1")
     by = {r.entry["address"]: r.entry for r in result.registers}
     assert (by[0x309]["scale"], by[0x309]["unit"]) == (1, "A")
     assert (by[0x30D]["type"], by[0x30D]["word_order"], by[0x30D]["unit"]) == ("u32", "low_first", "Wh")
@@ -351,7 +354,6 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     the range; a range reaching past raw 32767, a negative range, no range or no scale leave the type
     open. A range that as the value would need more counts than one register holds is raw counts. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
     from drivemap.onboard.draft.cells import parse_range
-    from drivemap.onboard.draft.tables import Row, Source, Table
 
     assert parse_range("[0000 6300]") == (0, 6300, "") and parse_range("[1 2 3]") is None
     header = ["Addr", "Register meaning", "R/W", "data range", "unit"]
@@ -362,8 +364,7 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
             ["104", "Counter", "R", "", "1"],
             ["105", "Energy", "R", "[0,40000]", "1Wh"],
             ["106", "Bus voltage", "R", "[0,60000]", "0.01V"]]
-    rows = [Row(c, 1, i + 1) for i, c in enumerate([header, *body])]
-    result = draft(Source("inv.docx", "0" * 64, [Table(None, rows, 1, None, "", label="table 5")], ""), "inv")
+    result = _one_table(header, body, 1, "table 5")
     by = {r.entry["address"]: r for r in result.registers}
     assert by[100].entry["type"] == "u16" and "type" not in by[100].entry.get("review", [])  # type: ignore[operator]
     assert (by[100].entry["min"], by[100].entry["max"]) == (0, 185)
@@ -380,15 +381,13 @@ def test_a_remark_that_says_only_read_write_is_the_access() -> None:
     is only an access word states the access (a written, word-wide register is a holding register); a
     longer remark states none."""
     from drivemap.onboard.draft.cells import parse_access
-    from drivemap.onboard.draft.tables import Row, Source, Table
 
     assert [parse_access(t) for t in ("Read-Write", "read write", "Write-only")] == ["rw", "rw", "w"]
     header = ["No.", "Name", "Register", "Data type", "Data range", "Unit/Ratio", "Remarks"]
     body = [["5.", "Feed-in Limitation Ratio", "13088", "U16", "0-1000", "0.1%", "Read-Write"],
             ["1.", "Min. Feed-in Power", "5622", "U16", "", "0.01kW", "Read-only"],
             ["2.", "Mode", "13090", "U16", "0-2", "", "Read-Write only when stopped"]]
-    rows = [Row(c, 15, i + 1) for i, c in enumerate([header, *body])]
-    result = draft(Source("inv.pdf", "0" * 64, [Table(None, rows, 15, None, "", label="p.15 table 1")], ""), "inv")
+    result = _one_table(header, body, 15, "p.15 table 1")
     by = {r.entry["address"]: r for r in result.registers}
     assert (by[13088].entry["access"], by[13088].entry["table"]) == ("rw", "holding")
     assert any("the remark says 'Read-Write'" in n for n in by[13088].notes)

@@ -627,16 +627,27 @@ def _loose_label(rest: str, trailing_default: bool = False) -> str:
 _HEX_CELL = re.compile(r"0[xX][0-9A-Fa-f]{1,6}")
 
 
+def _hex_columns(row: Row) -> list[int]:
+    """The row's first cells (of three) that hold a hex address: the offset, or the start address then the offset."""
+    return [i for i, c in enumerate(row.cells[:3]) if _HEX_CELL.fullmatch(c.strip())]
+
+
+def _offset_column(row: Row) -> int:
+    """The index of a row's offset cell (the second of two hex cells, a start address and an offset)."""
+    hexes = _hex_columns(row)
+    return hexes[1] if len(hexes) >= 2 else hexes[0]
+
+
 def _offset_entry(row: Row) -> tuple[int, str | None] | None:
-    """A row of an offsets table: (its offset, the start address printed in it or over it, if any). The
-    first hex cells of the row are the offset, or the start address then the offset."""
-    hexes = [c.strip() for c in row.cells[:3] if _HEX_CELL.fullmatch(c.strip())]
+    """A row of an offsets table: (its offset, the start address printed in it or over it, if any)."""
+    hexes = _hex_columns(row)
     if not hexes:
         return None
-    mark = hexes[0] if len(hexes) >= 2 else None
-    if mark is None:
+    if len(hexes) >= 2:
+        mark: str | None = row.cells[hexes[0]].strip()
+    else:
         mark = next((t.strip() for t in row.spanned.values() if _HEX_CELL.fullmatch(t.strip())), None)
-    return int(hexes[-1 if len(hexes) < 2 else 1], 16), mark
+    return int(row.cells[_offset_column(row)].strip(), 16), mark
 
 
 def _addressed(row: Row) -> bool:
@@ -725,8 +736,3 @@ def under_header(head: Table, table: Table) -> Table | None:
     return Table(None, rows, table.page, table.line, head.context, label=table.label, above=head.above,
                  starts=head.starts)
 
-
-def _offset_column(row: Row) -> int:
-    """The index of a row's offset cell (the second of two hex cells, a start address and an offset)."""
-    hexes = [i for i, c in enumerate(row.cells[:3]) if _HEX_CELL.fullmatch(c.strip())]
-    return hexes[1] if len(hexes) >= 2 else hexes[0]
