@@ -393,3 +393,37 @@ def test_a_remark_that_says_only_read_write_is_the_access() -> None:
     assert any("the remark says 'Read-Write'" in n for n in by[13088].notes)
     assert "access" not in by[5622].entry and "table" not in by[5622].entry  # read-only: holding or input
     assert "access" not in by[13090].entry
+
+
+def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None:
+    """A notes cell listing one value a line (``0x00 50HZ`` / ``0x01 60hz``, a label running on to the next
+    line) is the register's value list; a list whose first values are not printed, amounts said with
+    "means", and zero-padded numbers past 9 (hex or decimal?) are not. A unit cell's ``0.1kwh`` or
+    ``0.01v`` names one unit whatever its case and says so; ``1S`` (siemens or seconds?) names none."""
+    from drivemap.onboard.draft.cells import parse_enum
+    from drivemap.onboard.draft.units import parse_scale
+
+    assert parse_enum("0x00 使能卖电 \nsell electricity enabled\n0x01 使能内置 built-in") == [
+        (0, "使能卖电 sell electricity enabled"), (1, "使能内置 built-in")]
+    assert parse_enum("根据电压 According to voltage\n根据容量 capacity\n2 没有电池 no battery") is None
+    assert parse_enum("3800 means 38V\n6100 means 61V") is None
+    assert parse_enum("0000 standby\n0010 fault") is None
+    assert parse_enum("0000 standby\n0001 selfcheck") == [(0, "standby"), (1, "selfcheck")]
+    assert parse_enum("1. first do this\n2. then that") is None
+    found = parse_scale("0.1kwh", unit_cell=True)
+    assert found is not None and (found.scale, found.unit) == (0.1, "kWh") and "read as kWh" in found.note
+    assert parse_scale("1S", unit_cell=True) is None and parse_scale("0.1kwh") is None
+    header = ["Addr", "Register meaning", "R/W", "data range", "unit", "note"]
+    body = [["183", "Grid Frequency", "R/W", "[0 1]", "", "0x00 50HZ\n0x01 60hz"],
+            ["514", "Daily charge of the battery", "R", "", "0.1kwh", ""],
+            ["126", "Grid charging start voltage", "R/W", "[0000 6300]", "0.01v", ""],
+            ["102", "Batt Capacity", "R/W", "[0,2000]", "1 Ah", "200 means 200AH"]]
+    result = _one_table(header, body, 3, "table 8")
+    by = {r.entry["address"]: r for r in result.registers}
+    listed = result.data["enums"][by[183].entry["enum"]]["values"]
+    assert [(v["value"], v["label"]) for v in listed] == [(0, "50HZ"), (1, "60hz")]
+    assert by[183].entry["review"] == ["table"]  # no type or scale to state for listed values
+    assert (by[514].entry["scale"], by[514].entry["unit"]) == (0.1, "kWh")
+    assert by[514].entry["review"] == ["table", "type"]  # holding or input? u16 or s16? the document does not say
+    assert (by[126].entry["scale"], by[126].entry["unit"], by[126].entry["type"]) == (0.01, "V", "u16")
+    assert (by[102].entry["scale"], by[102].entry["unit"], by[102].entry["max"]) == (1, "Ah", 2000)

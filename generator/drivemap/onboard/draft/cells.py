@@ -320,8 +320,39 @@ def value_list(text: str) -> ValueList | None:
         span += [m.start("v"), m.end("l")]
     values = [v for v, _ in items]
     if len(items) < 2 or len(set(values)) != len(values):
-        return None
+        return _line_list(text) if not items else None
     return ValueList(items, _one_step(items), re.sub(r"\s+", " ", text[span[0]:span[-1]]))
+
+
+#: one line of a value list written one value a line, the label after spaces (``0x01 60hz``, ``1 智能负载输出``)
+_LINE_ITEM = re.compile(r"^\s*(?P<v>0[xX][0-9A-Fa-f]{1,4}|\d{1,5})(?![\d.)\]:：=,，/~-])\s+(?P<l>\S.*?)\s*$")
+_LETTER = re.compile(r"[^\W\d_]")
+_SAYS_AMOUNT = re.compile(r"^(?:means|corresponds|对应|對應|表示)", re.I)
+
+
+def _line_list(text: str) -> ValueList | None:
+    """Values listed one a line, each line a value and its label, a label's further lines under it:
+    ``0x00 50HZ`` / ``0x01 60hz``. None when a line before the first value says something else (the list's
+    first values are not printed), when a label is no words, or when zero-padded numbers of two digits or
+    more (``0010``) may be hex or decimal."""
+    items: list[tuple[int, str]] = []
+    padded = False
+    for line in text.splitlines():
+        m = _LINE_ITEM.match(line)
+        if m is None or not _LETTER.search(m.group("l")) or _SAYS_AMOUNT.match(m.group("l")):
+            if not line.strip():
+                continue
+            if not items:
+                return None
+            items[-1] = (items[-1][0], f"{items[-1][1]} {line.strip()}")
+            continue
+        v = m.group("v")
+        padded = padded or (len(v) > 1 and v.startswith("0") and not v.lower().startswith("0x"))
+        items.append((int(v, 16) if v.lower().startswith("0x") else int(v), m.group("l")))
+    values = [v for v, _ in items]
+    if len(items) < 2 or len(set(values)) != len(values) or (padded and max(values) > 9):
+        return None
+    return ValueList(items, _one_step(items), re.sub(r"\s+", " ", text.strip()))
 
 
 def parse_enum(text: str) -> list[tuple[int, str]] | None:

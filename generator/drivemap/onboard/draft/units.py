@@ -13,7 +13,7 @@ from dataclasses import dataclass
 _UNITS = (
     r"[Vv]olts?|[Aa]mps?|[Ww]atts?|[Hh]ertz|[Hh]ours?|[Ss]econds?|[Mm]inutes?|"
     r"kvarh|kVArh|kVarh|kvar|kVAr|kVar|kVAh|kVA|kWh|MWh|Wh|kW|MW|VArh|Varh|varh|VAr|Var|var|VA|W|"
-    r"VDC|VAC|Vdc|Vac|mV|kV|V|mA|µA|μA|uA|kA|A|kHz|Hz|"
+    r"VDC|VAC|Vdc|Vac|mV|kV|V|mAh|kAh|Ah|mA|µA|μA|uA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
     r"ms|min|s|sec|h|hr|hours|"
     r"%RH|%|‰|kΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
@@ -39,6 +39,11 @@ _NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("
 
 #: spellings a unit cell prints that the unit words above do not take as written
 _CAPITALISED = {"VAR": "var", "KWh": "kWh", "KVARh": "kvarh", "KVARH": "kvarh", "KW": "kW"}
+#: a unit cell's spellings in the wrong case (``0.1kwh``, ``0.01v``) that name one unit only; ``S`` (siemens
+#: or seconds?) and ``MWH`` (mega or milli?) are not among them
+_FOLDED = {"kwh": "kWh", "kw": "kW", "v": "V", "kv": "kV", "mv": "mV", "hz": "Hz", "khz": "kHz", "kva": "kVA",
+           "kvar": "kvar", "kvarh": "kvarh", "wh": "Wh", "va": "VA", "ah": "Ah", "mah": "mAh", "ma": "mA"}
+_WHOLE_WORD = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*([A-Za-z]+)\s*[)\]]?\s*$")
 #: "Value weight: Volt*10" (Carlo Gavazzi and others): the register holds the quantity times the number
 _WEIGHT = re.compile(r"\bweight\s*[:：]?\s*([A-Za-z°%][A-Za-z/°%]*)\s*[*×]\s*(\d+(?:\.\d+)?)(?![\d.])", re.I)
 #: quantities without a unit a weight may name (power factor, cos phi)
@@ -132,6 +137,14 @@ def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str],
             if m.group(1) is None:
                 return Scale(None, unit_name(m.group(2)), text.strip())
             return _found(float(m.group(1)), m.group(2), m, text, footnote)
+        m = _WHOLE_WORD.match(text)
+        if m and m.group(2).lower() in _FOLDED:
+            unit = _FOLDED[m.group(2).lower()]
+            note = f"unit {m.group(2)!r} read as {unit}"
+            if m.group(1) is None:
+                return Scale(None, unit, text.strip(), note)
+            found = _found(float(m.group(1)), unit, m, text, footnote)
+            return Scale(found.scale, found.unit, found.printed, found.note or note)
     return None
 
 
