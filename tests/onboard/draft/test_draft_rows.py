@@ -399,7 +399,8 @@ def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None
     """A notes cell listing one value a line (``0x00 50HZ`` / ``0x01 60hz``, a label running on to the next
     line) is the register's value list; a list whose first values are not printed, amounts said with
     "means", and zero-padded numbers past 9 (hex or decimal?) are not. A unit cell's ``0.1kwh`` or
-    ``0.01v`` names one unit whatever its case and says so; ``1S`` (siemens or seconds?) names none."""
+    ``0.01v`` names one unit whatever its case and says so; ``1S`` (siemens or seconds?) names none, nor does
+    a hex literal (``0x0A``: no "× 0 A")."""
     from drivemap.onboard.draft.cells import parse_enum
     from drivemap.onboard.draft.units import parse_scale
 
@@ -413,6 +414,8 @@ def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None
     found = parse_scale("0.1kwh", unit_cell=True)
     assert found is not None and (found.scale, found.unit) == (0.1, "kWh") and "read as kWh" in found.note
     assert parse_scale("1S", unit_cell=True) is None and parse_scale("0.1kwh") is None
+    # a hex literal's x is no "times": "#define SOLAX 0x0A" states no unit A
+    assert parse_scale("#define Bat_SOLAX_HV 0x0A") is None and parse_scale("x0.1A") is not None
     header = ["Addr", "Register meaning", "R/W", "data range", "unit", "note"]
     body = [["183", "Grid Frequency", "R/W", "[0 1]", "", "0x00 50HZ\n0x01 60hz"],
             ["514", "Daily charge of the battery", "R", "", "0.1kwh", ""],

@@ -24,7 +24,7 @@ _NUM = r"\d+(?:\.\d+)?"
 _ONE_EQUALS = re.compile(rf"\b1\s*=\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
 _PER = re.compile(rf"(?<![\d.%])({_NUM})\s*/\s*({_NUM})\s*({UNIT})(?![A-Za-z/])")
 _MEANS = re.compile(rf"\b({_NUM})\s*(?:means|corresponds\s+to|對應|对应|表示)\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
-_TIMES = re.compile(rf"[×xX*]\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
+_TIMES = re.compile(rf"(?:(?<![0-9A-Za-z])[xX]|[×*])\s*({_NUM})\s*({UNIT})(?![A-Za-z])")
 _PER_BIT = re.compile(rf"({_NUM})\s*({UNIT})\s*/\s*(?:bit|lsb|count|digit|step)\b", re.I)
 _LABELLED = re.compile(rf"(?:unit|resolution|单位|單位|分辨率|解析度)\s*[:：]?\s*({_NUM})\s*({UNIT})(?![A-Za-z])", re.I)
 #: "Rated Current in A", "meter count in Wh": the value is given in that unit, one per count
