@@ -430,3 +430,57 @@ def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None
     assert by[514].entry["review"] == ["table", "type"]  # holding or input? u16 or s16? the document does not say
     assert (by[126].entry["scale"], by[126].entry["unit"], by[126].entry["type"]) == (0.01, "V", "u16")
     assert (by[102].entry["scale"], by[102].entry["unit"], by[102].entry["max"]) == (1, "Ah", 2000)
+
+
+def test_a_page_drawn_apart_is_read_under_the_header_column_by_column_in_order() -> None:
+    """A headerless table on the next page whose columns are drawn apart from the header's (wider or
+    narrower, a name cell split in two on some rows): its rows with as many cells as the header has
+    headings say where each heading's column lies on this page, and every cell goes under the column
+    it overlaps most; with no such row it is not read under the header."""
+    from drivemap.onboard.draft.pdf_grid import Grid, by_order
+
+    grid = Grid([(0, (60, 95), True), (1, (95, 202), True), (2, (202, 237), True), (3, (237, 300), True)], 4,
+                (60, 300), 0)
+    texts = [["060", "Day active energy", "R", "0.1kWh"], ["", "Day", "_Active", ""], ["061", "Grid power", "R", "1W"]]
+    boxes = [[(55, 89), (89, 232), (232, 262), (262, 300)], [None, (89, 160), (160, 232), None],
+             [(55, 89), (89, 232), (232, 262), (262, 300)]]
+    assert by_order(texts, boxes, grid) == [["060", "Day active energy", "R", "0.1kWh"], ["", "Day _Active", "", ""],
+                                            ["061", "Grid power", "R", "1W"]]
+    assert by_order([texts[1]], [boxes[1]], grid) is None  # no row as wide as the header
+    from drivemap.onboard.draft.cells import parse_address
+
+    found = parse_address("190 •")  # a bullet glyph printed beside the number
+    assert found is not None and found.dec_value == 190
+
+
+def test_an_address_given_two_meanings_is_drafted_as_neither() -> None:
+    """A row without an address of its own under a register's row (one address cell drawn over both)
+    that names a unit of its own, another than the register's, is a second register at that address
+    (one model's beside another's): neither is drafted, both are listed with why. Two rows of drawn
+    tables at one address of a stated table, with two names, are listed alike; the same register printed
+    twice, or a name cut short ("limitation" of "Power limitation"), keeps the first as before."""
+    from drivemap.onboard.draft.writer import settle
+
+    header = ["Addr", "Register meaning", "R/W", "data range", "unit"]
+    body = [["098", "String inverter RCD leak current", "R", "[0,65535]", "0.01A"],
+            ["", "Hybird Year grid sell low word", "", "", "0.1kwh"],
+            ["099", "Limiter power", "R", "", "1W"]]
+    result = _one_table(header, body, 13, "p.13 table 1")
+    assert [r.entry["address"] for r in result.registers] == [99]
+    reason = next(s.reason for s in result.skipped if s.text.startswith("address 98 (0x0062)"))
+    assert "names another register with a unit of its own ('0.1kwh'" in reason and "two meanings" in reason
+
+    head = ["Reg. Type", "Address", "Name", "R/W", "Type", "Unit"]
+    first = [["Holding", "1000", "Charge Point State", "R", "UINT16", ""], ["Holding", "1100", "Max current", "R", "UINT16", "0.1 A"],
+             ["Holding", "1200", "Power limitation", "R", "UINT16", "W"]]
+    second = [["Holding", "1000", "Hems Current Limit (A)", "R/W", "UINT16", "A"], ["Holding", "1100", "Max current", "R", "UINT16", "0.1 A"],
+              ["Holding", "1200", "limitation", "R", "UINT16", "W"]]
+    tables = [Table(None, [Row(c, p, i + 1, table=f"p.{p} table 1") for i, c in enumerate([head, *rows])], p, None, "",
+                    label=f"p.{p} table 1") for p, rows in ((1, first), (7, second))]
+    result = draft(Source("evse.pdf", "0" * 64, tables, ""), "evse")
+    text, errors = settle(result, "", "evse.yaml")
+    assert not errors
+    assert sorted(int(r.entry["address"]) for r in result.registers) == [1100, 1200]  # type: ignore[call-overload]
+    listed = [s for s in result.skipped if "another meaning" in s.reason]
+    assert sorted(s.where for s in listed) == ["p.1 table 1 row 2", "p.7 table 1 row 2"]
+    assert all(s.text.startswith("address 1000 (0x03E8)") for s in listed)

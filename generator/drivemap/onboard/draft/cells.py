@@ -31,7 +31,7 @@ class Address:
 def parse_address(text: str) -> Address | None:
     """``00E6H``, ``0x1A``, ``1A2Bh``, ``16#1A2B`` (IEC; ``16#2136 = 08502`` where both forms agree),
     ``40001``, ``0100`` (radix left to the column) -> Address."""
-    t = text.strip().strip("()[]").strip()
+    t = text.strip().strip("()[]•").strip()  # a bullet glyph printed beside the number ("190 •")
     t = t[:-1] if re.fullmatch(r"\d{1,6}\.", t) else t  # "0." of a numbered list of registers
     t = t.replace("O", "0") if re.fullmatch(r"[0-9A-FO]{4}[hH]", t) else t
     m = _HEX_MARKED.match(t)

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from drivemap.onboard.draft.cells import parse_access, parse_address
 from drivemap.onboard.draft.columns import find_layouts
-from drivemap.onboard.draft.pdf_grid import Box, Grid, grid_of, realign, relay, same_frame
+from drivemap.onboard.draft.pdf_grid import Box, Grid, by_order, grid_of, realign, relay, same_frame
 from drivemap.onboard.draft.read_text import read_text
 from drivemap.onboard.draft.tables import DraftError, Row, Table
 
@@ -310,15 +311,60 @@ class _Joiner:
             self.framed[0].margin.extend(table.margin)
             self.framed[0].orphans.extend(table.orphans)
             self.framed_page = table.page
+        elif self.framed is not None and headerless and self._here_or_next(self.framed_page, table) \
+                and (ordered := by_order([r.cells for r in table.rows], found.boxes, self.framed[1])) is not None \
+                and _reads_as_headed(self.framed[0], ordered):
+            for row, cells in zip(table.rows, ordered, strict=True):
+                row.cells = cells
+                row.relaid = f"read under the columns of {self.framed[0].label}, column by column in order"
+            self.framed[0].rows.extend(table.rows)
+            self.framed[0].margin.extend(table.margin)
+            self.framed[0].orphans.extend(table.orphans)
+            self.framed_page = table.page
         else:
             self.tables.append(table)
             if found.grid is not None:
                 self.framed, self.framed_page = (table, found.grid), table.page
+            elif headerless and self.framed is not None and self._next(self.framed_page, table) \
+                    and len(table.rows) >= PAGE_ROWS:
+                self.framed_page = table.page  # a page of the table its columns cannot be read on: it goes on
         self.last_page = table.page
+
+    @staticmethod
+    def _here_or_next(page: int | None, table: Table) -> bool:
+        return page is not None and table.page in (page, page + 1)
 
     @staticmethod
     def _next(page: int | None, table: Table) -> bool:
         return page is not None and table.page == page + 1
+
+
+#: rows a headerless table must have to be taken as a page of the table before it, though its columns
+#: cannot be read (a small table drawn apart on a page, such as one cell, ends that table)
+PAGE_ROWS = 10
+
+#: the share of a relaid table's address cells that must read as addresses
+ADDRESS_SHARE = 0.8
+
+
+def _reads_as_headed(head: Table, laid: list[list[str]]) -> bool:
+    """Whether rows laid out under ``head``'s columns read as its headings say: most cells under the
+    address heading are addresses (one at least), and every cell under the access heading, where it has
+    one, is an access word."""
+    layouts = find_layouts([r.cells for r in head.rows])
+    if not layouts:
+        return False
+    roles = layouts[0].roles
+    col = roles.get("address")
+    if col is None:
+        return False
+    addresses = [row[col] for row in laid if col < len(row) and row[col]]
+    read = sum(parse_address(a) is not None for a in addresses)
+    if not read or read < ADDRESS_SHARE * len(addresses):
+        return False
+    access = roles.get("access")
+    return access is None or all(parse_access(row[access]) is not None for row in laid
+                                 if access < len(row) and row[access].strip(" -"))
 
 
 def _header_roles(table: Table) -> set[str]:

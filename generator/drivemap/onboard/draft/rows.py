@@ -146,6 +146,8 @@ class GridReader:
         self.words: int | None = None
         self.raws: list[Raw] = []
         self.skipped: list[Skipped] = []
+        self.conflicts: dict[int, str] = {}
+        """id of a read register -> why a row under it makes its address ambiguous"""
         self.mode = "text"
         #: the header of the column whose numbers are offsets from a base the rows do not give, if any
         self.relative = _relative_header(table, layout, self.rows)
@@ -308,6 +310,8 @@ class GridReader:
         if merged:
             raw.notes.append(f"{', '.join(repr(h) for h in merged)}: a cell drawn over this row and the ones above "
                              "it, read as this row's")
+        if row.relaid:
+            raw.notes.append(row.relaid)
         if self.column.numbered:
             raw.notes.append(f"address {value} as printed under {self.layout.headers.get('address', '')!r}: if the "
                              "document numbers registers from 1, the protocol address is one less")
@@ -352,8 +356,38 @@ class GridReader:
             return True
         if address_text and (self.mode != "bits" or "bit" in self.layout.roles):
             return False  # a row with an address of its own and no bit in the Bit column: the next register
+        other = self._second_register(raw, row)
+        if other is not None:
+            self.conflicts[id(raw)] = other
         raw.text += " " + " ".join(texts)
         return True
+
+    def _second_register(self, raw: Raw, row: Row) -> str | None:
+        """Why a row without an address of its own, under a register's row, is another register at that
+        address (a merged address cell over two models' registers: ``String`` 0.01A above ``Hybird``
+        0.1kwh): it names a unit of its own, another than the register's. None when it does not."""
+        here, there = _cell(row, self.layout, "unit"), raw.cells.get("unit", "").strip()
+        if not here or not there:
+            return None
+        mine, theirs = parse_scale(here, unit_cell=True), parse_scale(there, unit_cell=True)
+        if mine is None or theirs is None or mine.unit is None or (mine.unit, mine.scale) == (theirs.unit, theirs.scale):
+            return None
+        return (f"not drafted: {self.where(row)}, under the same address cell, names another register with a unit "
+                f"of its own ({here!r}; this row says {there!r}): the document gives the address two meanings, "
+                "which one the device has is for a person to say")
+
+    def settled(self) -> list[Raw]:
+        """The registers read, less those whose address another row under the same cell gives another
+        meaning (each listed with why)."""
+        kept = []
+        for raw in self.raws:
+            reason = self.conflicts.get(id(raw))
+            if reason is None:
+                kept.append(raw)
+            else:
+                self.skipped.append(Skipped(raw.where, f"address {raw.address} (0x{raw.address:04X}): "
+                                            f"{' '.join(raw.text.split())[:200]}", reason))
+        return kept
 
 
 def _label_after(cells: list[str], bit: int) -> str:
@@ -422,7 +456,7 @@ def grid_raws(table: Table, kind: str | None, access: str | None,
             continue
         reader = GridReader(table, layout, kind, access, modicon)
         reader.run()
-        raws += reader.raws
+        raws += reader.settled()
         skipped += reader.skipped
         offsets = offsets or reader.relative is not None
     # rows of a table that is no register table are not listed; a register table of offsets is one
@@ -732,7 +766,7 @@ def under_header(head: Table, table: Table) -> Table | None:
             shift = column - _offset_column(r)
         cells = [""] * shift + r.cells if shift >= 0 else r.cells[-shift:]
         spanned = {k + shift: v for k, v in r.spanned.items() if k + shift >= 0}
-        rows.append(Row(cells, r.page, r.line, list(r.extra), r.table, r.top, spanned))
+        rows.append(Row(cells, r.page, r.line, list(r.extra), r.table, r.top, spanned, r.relaid))
     return Table(None, rows, table.page, table.line, head.context, label=table.label, above=head.above,
                  starts=head.starts)
 

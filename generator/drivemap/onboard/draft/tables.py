@@ -25,6 +25,8 @@ class Row:
     spanned: dict[int, str] = field(default_factory=dict)
     """Columns this row has no cell of its own in, because a cell drawn above runs down over it (a
     vertically merged cell of a ruled PDF table): column -> that cell's text."""
+    relaid: str = ""
+    """How the row's cells were put under another page's header, when its own table has none."""
 
     def where(self) -> str:
         parts = []

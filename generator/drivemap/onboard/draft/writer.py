@@ -133,9 +133,53 @@ def _fix(draft: Draft, text: str, firsts: list[int], diag: Diagnostic, drop: set
             reg.entry["review"] = items if key in items else [*items, key]
     elif index not in drop:
         drop.add(index)
-        draft.skipped.append(Skipped(reg.where, str(reg.entry.get("label") or reg.entry.get("name")),
-                                     f"not drafted: {diag.message}"))
+        other = _two_meanings(draft, firsts, diag, index)
+        if other is not None and other not in drop:
+            drop.add(other)
+            them = draft.registers[other]
+            draft.skipped.append(Skipped(them.where, _at(them), f"not drafted: the document gives its address "
+                                         f"another meaning at {reg.where} ({_label(reg)!r}); which one the device "
+                                         "has is for a person to say"))
+            draft.skipped.append(Skipped(reg.where, _at(reg), f"not drafted: the document gives its address "
+                                         f"another meaning at {them.where} ({_label(them)!r}); which one the "
+                                         "device has is for a person to say"))
+        else:
+            draft.skipped.append(Skipped(reg.where, _label(reg), f"not drafted: {diag.message}"))
     return True
+
+
+def _label(reg: Drafted) -> str:
+    return str(reg.entry.get("label") or reg.entry.get("name"))
+
+
+def _at(reg: Drafted) -> str:
+    address = int(reg.entry["address"])  # type: ignore[call-overload]
+    return f"address {address} (0x{address:04X}): {_label(reg)}"
+
+
+def _two_meanings(draft: Draft, firsts: list[int], diag: Diagnostic, index: int) -> int | None:
+    """The register that ``diag`` says the one at ``index`` overlaps, when both are rows of drawn tables
+    (PDF, DOCX, spreadsheet) that start at the same address of a table both state and name two things (neither label holds the other: "limitation" is "Power limitation" cut short) (neither label begins
+    the other): the document gives one address two meanings (one model's register beside another's),
+    and neither is drafted as the device's. For spans that overlap in part, for one register printed
+    twice, or for lines of a text (where a sentence may be read as a row), the first is kept, as before."""
+    if " overlaps " not in diag.message or not diag.related:
+        return None
+    line = diag.related[0][0].line
+    other = max((i for i, first in enumerate(firsts) if first <= line), default=None)
+    if other is None or other == index:
+        return None
+    mine, theirs = draft.registers[index], draft.registers[other]
+    if mine.entry.get("address") != theirs.entry.get("address") or mine.entry.get("table") != theirs.entry.get("table"):
+        return None  # spans that overlap in part: a length misread as likely as two meanings
+    if any("table" in r.missing or "table" not in r.entry for r in (mine, theirs)):
+        return None  # the table left open: the two may be registers of two tables
+    if not all(re.search(r"\brow \d+$", r.where) for r in (mine, theirs)):
+        return None  # a line of text may be a sentence read as a row; a drawn table's row is the table's own
+    a, b = (re.sub(r"\W+", "", str(r.entry.get("label") or "")).lower() for r in (mine, theirs))
+    if not a or not b or a in b or b in a:
+        return None
+    return other
 
 
 def _fix_enum(draft: Draft, text: str, diag: Diagnostic) -> bool:
