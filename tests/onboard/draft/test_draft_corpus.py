@@ -32,8 +32,8 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "mennekes_amtron_compact20.pdf": (3, 0, 0),
     "mennekes_amtron_hcc3.pdf": (13, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),
-    "sungrow_sg_grid_protocol_v1180.pdf": (106, 0, 0),
-    "sungrow_sh_hybrid_protocol_v1111.pdf": (78, 0, 0),
+    "sungrow_sg_grid_protocol_v1180.pdf": (112, 0, 0),
+    "sungrow_sh_hybrid_protocol_v1111.pdf": (79, 0, 0),
     # 17 until the draft listed an address the document gives two meanings: its 1000 is TQ-DM100's
     # "Charge Point State" and Ebee's "Hems Current Limit (A)"; keeping the first was a guess
     "webasto_live.pdf": (16, 0, 0),
