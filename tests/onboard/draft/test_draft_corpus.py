@@ -34,9 +34,9 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "schrack_cion.pdf": (3, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (112, 0, 0),
     "sungrow_sh_hybrid_protocol_v1111.pdf": (79, 0, 0),
-    # 17 until the draft listed an address the document gives two meanings: its 1000 is TQ-DM100's
-    # "Charge Point State" and Ebee's "Hems Current Limit (A)"; keeping the first was a guess
-    "webasto_live.pdf": (16, 0, 0),
+    # its 1000 is TQ-DM100's "Charge Point State" and Ebee's "Hems Current Limit (A)": listed, not drafted
+    # (keeping the first was a guess); comTimeout's unit cell "S" reads as seconds
+    "webasto_live.pdf": (17, 0, 0),
 }
 
 

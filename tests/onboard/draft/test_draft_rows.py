@@ -412,15 +412,21 @@ def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None
     assert parse_enum("0000 standby\n0001 selfcheck") == [(0, "standby"), (1, "selfcheck")]
     assert parse_enum("1. first do this\n2. then that") is None
     found = parse_scale("0.1kwh", unit_cell=True)
-    assert found is not None and (found.scale, found.unit) == (0.1, "kWh") and "read as kWh" in found.note
+    assert found is not None and (found.scale, found.unit) == (0.1, "kWh") and "read as kWh" in found.reading
     assert parse_scale("1S", unit_cell=True) is None and parse_scale("0.1kwh") is None
+    from drivemap.onboard.draft.units import seconds_cell
+
+    timeout = seconds_cell("1S", "Ups_delay time")  # a conductance is never a delay: seconds
+    assert timeout is not None and (timeout.scale, timeout.unit) == (1, "s") and "seconds" in timeout.reading
+    assert seconds_cell("S", "Restart times") is None and seconds_cell("S", "Conductance") is None
     # a hex literal's x is no "times": "#define SOLAX 0x0A" states no unit A
     assert parse_scale("#define Bat_SOLAX_HV 0x0A") is None and parse_scale("x0.1A") is not None
     header = ["Addr", "Register meaning", "R/W", "data range", "unit", "note"]
     body = [["183", "Grid Frequency", "R/W", "[0 1]", "", "0x00 50HZ\n0x01 60hz"],
             ["514", "Daily charge of the battery", "R", "", "0.1kwh", ""],
             ["126", "Grid charging start voltage", "R/W", "[0000 6300]", "0.01v", ""],
-            ["102", "Batt Capacity", "R/W", "[0,2000]", "1 Ah", "200 means 200AH"]]
+            ["102", "Batt Capacity", "R/W", "[0,2000]", "1 Ah", "200 means 200AH"],
+            ["209", "Ups_delay time", "R/W", "", "S", ""]]
     result = _one_table(header, body, 3, "table 8")
     by = {r.entry["address"]: r for r in result.registers}
     listed = result.data["enums"][by[183].entry["enum"]]["values"]
@@ -430,6 +436,7 @@ def test_values_listed_one_a_line_and_a_unit_printed_in_the_wrong_case() -> None
     assert by[514].entry["review"] == ["table", "type"]  # holding or input? u16 or s16? the document does not say
     assert (by[126].entry["scale"], by[126].entry["unit"], by[126].entry["type"]) == (0.01, "V", "u16")
     assert (by[102].entry["scale"], by[102].entry["unit"], by[102].entry["max"]) == (1, "Ah", 2000)
+    assert (by[209].entry["scale"], by[209].entry["unit"]) == (1, "s")  # a unit cell without a resolution: scale 1
 
 
 def test_a_page_drawn_apart_is_read_under_the_header_column_by_column_in_order() -> None:

@@ -24,7 +24,7 @@ from drivemap.onboard.draft.cells import (
     value_list,
 )
 from drivemap.onboard.draft.tables import Drafted
-from drivemap.onboard.draft.units import Scale, parse_scale, unit_after_range, unit_in_name
+from drivemap.onboard.draft.units import Scale, parse_scale, seconds_cell, unit_after_range, unit_in_name
 
 
 @dataclass
@@ -168,18 +168,24 @@ def _halves(text: str) -> tuple[str, str] | None:
     return ("low_first" if low == min(a, b) else "high_first"), m.group(0)
 
 
+def _unit_cell(raw: Raw, ctx: Context, named: bool) -> tuple[Scale | None, str]:
+    """What the unit column says, and the cell as read."""
+    unit_cell = raw.cells.get("unit", "")
+    if named:  # the quantity's name and its unit in one cell ("V L1-N"): the unit, never a resolution
+        printed = unit_in_name(unit_cell)
+        return (Scale(None, printed, unit_cell) if printed else None), printed or ""
+    found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    if found is None and unit_cell:
+        found = seconds_cell(unit_cell, raw.label or "")
+    return found, unit_cell
+
+
 def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], missing: list[str],
                   notes: list[str], direction: str | None = None) -> tuple[float | None, bool]:
     """Scale and unit; returns (scale, whether the range that follows is in raw counts). A value list
     in the text (``1 = 0.1 A, 10 = 1 A``) that could be values or a resolution is no scale."""
-    unit_cell = raw.cells.get("unit", "")
     named = bool(raw.cells.get("unit_named"))
-    if named:  # the quantity's name and its unit in one cell ("V L1-N"): the unit, never a resolution
-        printed = unit_in_name(unit_cell)
-        found = Scale(None, printed, unit_cell) if printed else None
-        unit_cell = printed or ""
-    else:
-        found = parse_scale(unit_cell, unit_cell=True, footnote=ctx.footnote) if unit_cell else None
+    found, unit_cell = _unit_cell(raw, ctx, named)
     bare = parse_number(unit_cell) if unit_cell and found is None else None
     if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
             and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
@@ -204,6 +210,8 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
                                                                          in_text.note)
     if found is not None and found.note:
         notes.append(found.note)
+    if found is not None and found.reading:
+        notes.append(found.reading)
     scale = found.scale if found is not None else None
     unit = found.unit if found is not None else None
     if unit is None:

@@ -57,6 +57,9 @@ class Scale:
     unit: str | None
     printed: str
     note: str = ""
+    """A doubt about the text (a footnote not printed, a zero resolution): no scale 1 is read from it."""
+    reading: str = ""
+    """How the unit was read, where it is not written as a unit is (``0.1kwh``: kWh), for the row's notes."""
 
 
 def unit_name(text: str) -> str:
@@ -140,12 +143,30 @@ def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str],
         m = _WHOLE_WORD.match(text)
         if m and m.group(2).lower() in _FOLDED:
             unit = _FOLDED[m.group(2).lower()]
-            note = f"unit {m.group(2)!r} read as {unit}"
-            if m.group(1) is None:
-                return Scale(None, unit, text.strip(), note)
-            found = _found(float(m.group(1)), unit, m, text, footnote)
-            return Scale(found.scale, found.unit, found.printed, found.note or note)
+            return _read_as(m, unit, f"unit {m.group(2)!r} read as {unit}", text, footnote)
     return None
+
+
+def _read_as(m: re.Match[str], unit: str, reading: str, text: str,
+             footnote: Callable[[str], bool] | None) -> Scale:
+    if m.group(1) is None:
+        return Scale(None, unit, text.strip(), reading=reading)
+    found = _found(float(m.group(1)), unit, m, text, footnote)
+    return Scale(found.scale, found.unit, found.printed, found.note, reading)
+
+
+#: a register's name that says it holds a time (``Communication timeout``, ``Ups_delay time``, ``自检时间``)
+_TIME_NAME = re.compile(r"(?i)time(?!s\b)|delay|duration|interval|period|zeit|dauer|时间|時間|延时|延時")
+
+
+def seconds_cell(text: str, name: str) -> Scale | None:
+    """A unit cell ``S`` or ``1S``: siemens or seconds? Seconds where the register's name says it holds
+    a time (a conductance is never a timeout); None otherwise."""
+    m = _WHOLE_WORD.match(text)
+    if m is None or m.group(2) != "S" or not _TIME_NAME.search(name):
+        return None
+    return _read_as(m, "s", f"unit 'S' read as seconds: the register's name ({name.strip()!r}) says it is a time",
+                    text, None)
 
 
 _TRAILING_UNIT = re.compile(rf"^\s*({UNIT})(?![A-Za-z])")
