@@ -491,3 +491,36 @@ def test_an_address_given_two_meanings_is_drafted_as_neither() -> None:
     listed = [s for s in result.skipped if "another meaning" in s.reason]
     assert sorted(s.where for s in listed) == ["p.1 table 1 row 2", "p.7 table 1 row 2"]
     assert all(s.text.startswith("address 1000 (0x03E8)") for s in listed)
+
+
+def test_a_page_drawn_as_the_page_before_goes_on_under_the_header() -> None:
+    """After a page read column by column in order, the next page drawn in that page's frame is read
+    under the columns as that page drew them (though no row of its own has as many cells as the
+    header has headings), where its cells read as their headings say; a page whose cells do not
+    (no address under the address heading) is a table of its own."""
+    from drivemap.onboard.draft.pdf_grid import grid_of
+    from drivemap.onboard.draft.read_pdf import _Found, _Joiner
+
+    def found(page: int, texts: list[list[str]], boxes: list[list[tuple[float, float] | None]],
+              frame: tuple[float, float], grid: bool = False) -> _Found:
+        rows = [Row(list(t), page, i + 1, table=f"p.{page} table 1") for i, t in enumerate(texts)]
+        return _Found(Table(None, rows, page, None, "", label=f"p.{page} table 1"),
+                      grid_of(texts, boxes, frame) if grid else None, boxes, frame)
+
+    head = [["Addr", "Register meaning", "R/W", "unit"], ["000", "Device type", "R", ""]]
+    head_boxes: list[list[tuple[float, float] | None]] = [[(60, 95), (95, 202), (202, 237), (237, 300)]] * 2
+    page6 = [["060", "Day active energy", "", "R", "0.1kWh"]]  # a grid of its own: five columns, one empty
+    page7 = [["072", "String", "Grid voltage AC", "R", "0.1V"], ["073", "String", "Grid voltage A", "R", "0.1V"]]
+    split: list[list[tuple[float, float] | None]] = [[(55, 89), (89, 125), (125, 232), (232, 262), (262, 300)]] * 2
+    page8 = [["", "Grid voltage", "Hybrid", "R", "0.1V"]]
+    joiner = _Joiner()
+    joiner.add(found(5, head, head_boxes, (60, 300), grid=True))
+    joiner.add(found(6, page6, [[(55, 89), (89, 232), None, (232, 262), (262, 300)]], (55, 300)))
+    joiner.add(found(7, page7, split, (55, 300)))
+    joiner.add(found(8, page8, split[:1], (55, 300)))
+    first = joiner.tables[0]
+    assert [r.cells for r in first.rows[2:]] == [["060", "Day active energy", "R", "0.1kWh"],
+                                                ["072", "String Grid voltage AC", "R", "0.1V"],
+                                                ["073", "String Grid voltage A", "R", "0.1V"]]
+    assert "as the page before drew them" in first.rows[3].relaid
+    assert [t.label for t in joiner.tables] == ["p.5 table 1", "p.8 table 1"]

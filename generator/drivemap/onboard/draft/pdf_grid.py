@@ -94,13 +94,11 @@ def relay(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) -> 
 
 
 
-def by_order(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) -> list[list[str]] | None:
-    """Rows of a table on a grid of its own, drawn apart from ``grid``'s header (its columns wider or
-    narrower on each page, a cell split in two on some rows): its rows drawn with as many cells as the
-    header has headings give, in order from the left, where each heading's column lies on this page,
-    and every cell goes under the column it overlaps most. None when no row has as many cells. The
-    caller checks that the cells read as their headings say (:func:`relay` lays out a table drawn in
-    the same frame)."""
+
+def order_grid(boxes: list[list[Box | None]], grid: Grid) -> Grid | None:
+    """Where ``grid``'s headings lie on a table drawn apart from it: its rows drawn with as many cells as
+    the header has headings give, in order from the left, each heading's column (the median edges).
+    None when no row has as many cells."""
     heads = sorted((c for c in grid.cells if c[2]), key=lambda c: c[1][0])
     full = [[b for b in row if b is not None] for row in boxes]
     full = [row for row in full if len(row) == len(heads) and all(a[1] <= b[0] + 1 for a, b in zip(row, row[1:], strict=False))]
@@ -110,4 +108,14 @@ def by_order(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) 
     for i, (col, _, _) in enumerate(heads):
         lefts, rights = sorted(r[i][0] for r in full), sorted(r[i][1] for r in full)
         cells.append((col, (lefts[len(lefts) // 2], rights[len(rights) // 2]), True))
-    return relay(texts, boxes, Grid(cells, grid.width, (cells[0][1][0], cells[-1][1][1]), 0))
+    return Grid(cells, grid.width, (cells[0][1][0], cells[-1][1][1]), 0)
+
+
+def by_order(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) -> list[list[str]] | None:
+    """Rows of a table on a grid of its own, drawn apart from ``grid``'s header (its columns wider or
+    narrower on each page, a cell split in two on some rows), laid out under :func:`order_grid`'s
+    columns: every cell under the column it overlaps most. None when no row has as many cells as the
+    header has headings. The caller checks that the cells read as their headings say (:func:`relay`
+    lays out a table drawn in the same frame)."""
+    drawn = order_grid(boxes, grid)
+    return None if drawn is None else relay(texts, boxes, drawn)

@@ -20,7 +20,7 @@ from typing import Any
 
 from drivemap.onboard.draft.cells import parse_access, parse_address
 from drivemap.onboard.draft.columns import find_layouts
-from drivemap.onboard.draft.pdf_grid import Box, Grid, by_order, grid_of, realign, relay, same_frame
+from drivemap.onboard.draft.pdf_grid import Box, Grid, by_order, grid_of, order_grid, realign, relay, same_frame
 from drivemap.onboard.draft.read_text import read_text
 from drivemap.onboard.draft.tables import DraftError, Row, Table
 
@@ -287,6 +287,8 @@ class _Joiner:
         self.framed: tuple[Table, Grid] | None = None
         """The last table with a header, and the header's geometry."""
         self.framed_page: int | None = None
+        self.drawn: Grid | None = None
+        """Where the header's columns lie on the last page read column by column in order."""
 
     def add(self, found: _Found) -> None:
         table = found.table
@@ -314,21 +316,29 @@ class _Joiner:
         elif self.framed is not None and headerless and self._here_or_next(self.framed_page, table) \
                 and (ordered := by_order([r.cells for r in table.rows], found.boxes, self.framed[1])) is not None \
                 and _reads_as_headed(self.framed[0], ordered):
-            for row, cells in zip(table.rows, ordered, strict=True):
-                row.cells = cells
-                row.relaid = f"read under the columns of {self.framed[0].label}, column by column in order"
-            self.framed[0].rows.extend(table.rows)
-            self.framed[0].margin.extend(table.margin)
-            self.framed[0].orphans.extend(table.orphans)
-            self.framed_page = table.page
+            self._go_on(self.framed[0], table, ordered, f"read under the columns of {self.framed[0].label}, column by column in order")
+            self.drawn = order_grid(found.boxes, self.framed[1])
+        elif self.framed is not None and self.drawn is not None and headerless \
+                and self._next(self.framed_page, table) and same_frame(self.drawn, found.frame) \
+                and _reads_as_headed(self.framed[0], laid := relay([r.cells for r in table.rows], found.boxes, self.drawn)):
+            self._go_on(self.framed[0], table, laid, f"read under the columns of {self.framed[0].label}, as the page before drew them")
         else:
             self.tables.append(table)
             if found.grid is not None:
-                self.framed, self.framed_page = (table, found.grid), table.page
+                self.framed, self.framed_page, self.drawn = (table, found.grid), table.page, None
             elif headerless and self.framed is not None and self._next(self.framed_page, table) \
                     and len(table.rows) >= PAGE_ROWS:
                 self.framed_page = table.page  # a page of the table its columns cannot be read on: it goes on
         self.last_page = table.page
+
+    def _go_on(self, head: Table, table: Table, cells: list[list[str]], how: str) -> None:
+        """``table``'s rows, laid out as ``cells``, go on ``head``, the table with the header."""
+        for row, laid in zip(table.rows, cells, strict=True):
+            row.cells, row.relaid = laid, how
+        head.rows.extend(table.rows)
+        head.margin.extend(table.margin)
+        head.orphans.extend(table.orphans)
+        self.framed_page = table.page
 
     @staticmethod
     def _here_or_next(page: int | None, table: Table) -> bool:
