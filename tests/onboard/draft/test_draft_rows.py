@@ -352,7 +352,8 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     """A one-register value whose signedness the document leaves open, with a printed range inside
     0..32767 at its stated scale, is u16 (every value it may hold reads the same as s16), with a note and
     the range; a range reaching past raw 32767, a negative range, no range or no scale leave the type
-    open. A range that as the value would need more counts than one register holds is raw counts. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
+    open. A range that as the value would need more counts than one register holds is raw counts; one printed
+    without saying raw or value is read both ways for the type. ``[0000 6300]`` (square brackets, a space) is a range as ``[0,6300]`` is."""
     from drivemap.onboard.draft.cells import parse_range
 
     assert parse_range("[0000 6300]") == (0, 6300, "") and parse_range("[1 2 3]") is None
@@ -363,7 +364,9 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
             ["103", "Offset", "R/W", "[-100,100]", "1W"],
             ["104", "Counter", "R", "", "1"],
             ["105", "Energy", "R", "[0,40000]", "1Wh"],
-            ["106", "Bus voltage", "R", "[0,60000]", "0.01V"]]
+            ["106", "Bus voltage", "R", "[0,60000]", "0.01V"],
+            ["107", "Radiator temperature", "R", "[0,3000]", "0.1℃"],
+            ["108", "DC voltage", "R", "[0,4000]", "0.1V"]]
     result = _one_table(header, body, 1, "table 5")
     by = {r.entry["address"]: r for r in result.registers}
     assert by[100].entry["type"] == "u16" and "type" not in by[100].entry.get("review", [])  # type: ignore[operator]
@@ -372,8 +375,12 @@ def test_a_range_within_0_to_32767_reads_the_same_signed_and_unsigned() -> None:
     assert by[101].entry["type"] == "s16"  # the range is the whole span of s16: stated
     # [0,6000] at 0.01 V: as volts it would need 600000 counts, more than a register holds: raw, 0..60 V
     assert (by[102].entry["type"], by[102].entry["min"], by[102].entry["max"]) == ("u16", 0, 60)
-    for address in (103, 104, 105, 106):
+    for address in (103, 104, 105, 106, 108):
         assert "type" in by[address].entry["review"], by[address].entry  # type: ignore[operator]
+    # [0,3000] at 0.1 °C: raw counts or the value? raw 0..3000 or 0..30000, within 0..32767 either way: u16,
+    # the range itself left out (which reading is meant, the row does not say); [0,4000] at 0.1 V: 40000 counts
+    assert by[107].entry["type"] == "u16" and "min" not in by[107].entry
+    assert any("raw counts or the value" in n for n in by[107].notes)
 
 
 def test_a_remark_that_says_only_read_write_is_the_access() -> None:

@@ -299,7 +299,9 @@ def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: 
 
 
 def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[str, object],
-                  missing: list[str], notes: list[str]) -> None:
+                  missing: list[str], notes: list[str]) -> tuple[float, float] | None:
+    """Fill min and max where the row states them; the printed range when it does not say whether it
+    is raw counts or the value (for :func:`_same_either_way`, which may read it both ways)."""
     lo = parse_number(raw.cells.get("min", ""))
     hi = parse_number(raw.cells.get("max", ""))
     text = raw.cells.get("range", "")
@@ -310,23 +312,23 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
             lo, hi = rng[0], rng[1]
     if lo is None or hi is None:
         missing.append("range")
-        return
+        return None
     if entry.get("type") is not None and FULL_SPANS.get((lo, hi)) == entry.get("type"):
         notes.append(f"range {lo}..{hi}: the whole span of {entry['type']}, no limit of its own")
-        return
+        return None
     factor = 1.0
     after = parse_range(text or _range_text(raw.text))
     printed = unit_after_range(after[2]) if after is not None else None
     if printed is not None and entry.get("unit") not in (None, printed):
         notes.append(f"range {lo}..{hi} printed in {printed}, the register's unit is {entry['unit']}: left out")
         missing.append("range")
-        return
+        return None
     unit_column = parse_scale(raw.cells.get("unit", ""), unit_cell=True) is not None
     printed_unit = unit_column or (after is not None and unit_after_range(after[2]) is not None)
     if scale is None and not printed_unit:
         notes.append(f"range {lo}..{hi} printed without a unit or resolution (raw or engineering?): left out")
         missing.append("range")
-        return
+        return None
     if scale is not None and scale != 1:
         decimals = any("." in str(v) for v in (lo, hi))
         one_word = entry.get("type") in (None, "u16", "s16") and \
@@ -340,8 +342,9 @@ def _range_fields(raw: Raw, scale: float | None, raw_range: bool, entry: dict[st
         elif not decimals:
             notes.append(f"range {lo}..{hi} printed without saying raw or engineering: left out")
             missing.append("range")
-            return
+            return lo, hi
     entry["min"], entry["max"] = _clean(lo * factor), _clean(hi * factor)
+    return None
 
 
 def _range_text(text: str) -> str:
@@ -420,9 +423,9 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
         _enum_default(raw, enum, entry, notes)
     if not bits and not enum:
         scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes, direction)
-        _range_fields(raw, scale, raw_range, entry, missing, notes)
+        either = _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
-        _same_either_way(raw, entry, missing, notes)
+        _same_either_way(raw, entry, missing, notes, either)
     _access_field(raw, entry, missing, notes)
     if raw.table is None and entry.get("access") in ("w", "rw") and _word_sized(raw, entry):
         entry = {"table": "holding", **entry}
@@ -437,26 +440,37 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
 _BOTH_WAYS = 32767
 
 
-def _same_either_way(raw: Raw, entry: dict[str, object], missing: list[str], notes: list[str]) -> None:
+def _same_either_way(raw: Raw, entry: dict[str, object], missing: list[str], notes: list[str],
+                     either: tuple[float, float] | None = None) -> None:
     """A one-register integer whose signedness the document leaves open, but whose drafted range
     (``[0,1000]``) lies within raw 0..32767 at its stated scale: every value it may hold reads the same as
     u16 and as s16, so u16 changes no value. It is written with the range (which a write outside is
-    refused by) and a note saying so; without a stated scale, a drafted range (raw or value: the range
-    fields decide) or a length of one register, the type stays open."""
-    if "type" not in missing or raw.cells.get("type", "").strip() or "min" not in entry or "max" not in entry:
+    refused by) and a note saying so. A range ``either`` the row prints without saying raw counts or the
+    value counts both ways: u16 where both readings lie within 0..32767 (and the range is not written).
+    Without a stated scale, a range or a length of one register, the type stays open."""
+    drafted = "min" in entry and "max" in entry
+    if "type" not in missing or raw.cells.get("type", "").strip() or not (drafted or either):
         return
     words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
     scale = entry.get("scale")
     if words not in (None, 1) or not isinstance(scale, (int, float)) or scale <= 0:
         return
-    low, high = float(entry["min"]) / scale, float(entry["max"]) / scale  # type: ignore[arg-type]
+    if drafted:
+        low, high = float(entry["min"]) / scale, float(entry["max"]) / scale  # type: ignore[arg-type]
+        said = f"its range {entry['min']}..{entry['max']} (raw {_clean(low)}..{_clean(high)})"
+    elif either is not None:
+        lo, hi = either
+        low, high = min(lo, lo / scale), max(hi, hi / scale)
+        said = (f"its range {_clean(lo)}..{_clean(hi)}, raw counts or the value (raw {_clean(lo)}..{_clean(hi)} or "
+                f"{_clean(lo / scale)}..{_clean(hi / scale)}),")
+    else:
+        return
     if low < 0 or high > _BOTH_WAYS:
         return
     missing.remove("type")
     entry["type"] = "u16"
-    notes.append(f"type u16: the document does not say signed or unsigned, but its range {entry['min']}.."
-                 f"{entry['max']} (raw {_clean(low)}..{_clean(high)}) reads the same either way (every raw value "
-                 f"from 0 to {_BOTH_WAYS})")
+    notes.append(f"type u16: the document does not say signed or unsigned, but {said} reads the same either way "
+                 f"(every raw value from 0 to {_BOTH_WAYS})")
 
 
 def _word_sized(raw: Raw, entry: dict[str, object]) -> bool:
