@@ -531,3 +531,12 @@ def test_a_page_drawn_as_the_page_before_goes_on_under_the_header() -> None:
                                                 ["073", "String Grid voltage A", "R", "0.1V"]]
     assert "as the page before drew them" in first.rows[3].relaid
     assert [t.label for t in joiner.tables] == ["p.5 table 1", "p.8 table 1"]
+
+
+def test_a_fraction_in_a_multiplier_column_is_the_scale() -> None:
+    """``1/100`` under ``Multiplikator`` (multiplier) is scale 0.01; a bare ``1`` is scale 1."""
+    header = ["Register-Adresse", "Datentyp", "Multiplikator", "Einheit", "Registerbezeichnung / Name", "r/w"]
+    body = [["167", "uint16_t", "1/100", "V", "Spannung U1", "r"], ["126", "uint16_t", "1", "A", "Ladestromwert", "r"]]
+    by = {r.entry["address"]: r for r in _one_table(header, body, 2, "p.2 table 1").registers}
+    assert (by[167].entry["scale"], by[167].entry["unit"]) == (0.01, "V")
+    assert (by[126].entry["scale"], by[126].entry["unit"]) == (1, "A")

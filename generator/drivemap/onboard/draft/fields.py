@@ -239,7 +239,9 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     return scale, raw_range
 
 
-_MULTIPLIER = re.compile(r"multiplier|倍率", re.I)
+_MULTIPLIER = re.compile(r"multiplier|multiplikator|倍率", re.I)
+#: a fraction in a scale column (``1/100``): the multiplier 0.01
+_FRACTION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*/\s*(\d+(?:\.\d+)?)\s*$")
 #: a header that names a factor without saying its direction: vendors print "Gain 100" for raw ÷ 100
 #: (Huawei) as others print it for raw × 100; only the document's own ranges decide it
 _UNDIRECTED = re.compile(r"^gain", re.I)
@@ -274,6 +276,9 @@ def factor_direction(raws: list[Raw]) -> str | None:
 def _factor_cell(raw: Raw, entry: dict[str, object], notes: list[str], direction: str | None) -> float | None:
     """The scale a Scale/Factor/Gain column's bare number states (None: no number, or not a scale)."""
     factor = parse_number(raw.cells.get("scale", ""))
+    fraction = _FRACTION.match(raw.cells.get("scale", ""))
+    if factor is None and fraction is not None and float(fraction.group(2)) > 0:
+        factor = _clean(float(fraction.group(1)) / float(fraction.group(2)))
     if factor is not None and factor < 0:
         notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
     if factor is None or factor <= 0:
