@@ -29,7 +29,7 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "deye_sun_1p_hybrid_v118.pdf": (36, 0, 0),
     "huawei_smartlogger3000.pdf": (0, 0, 0),
     "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 0),
-    "mennekes_amtron_compact20.pdf": (3, 0, 0),
+    "mennekes_amtron_compact20.pdf": (4, 0, 0),
     "mennekes_amtron_hcc3.pdf": (13, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),
     "sungrow_sg_grid_protocol_v1180.pdf": (112, 0, 0),

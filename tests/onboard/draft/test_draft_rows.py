@@ -540,3 +540,35 @@ def test_a_fraction_in_a_multiplier_column_is_the_scale() -> None:
     by = {r.entry["address"]: r for r in _one_table(header, body, 2, "p.2 table 1").registers}
     assert (by[167].entry["scale"], by[167].entry["unit"]) == (0.01, "V")
     assert (by[126].entry["scale"], by[126].entry["unit"]) == (1, "A")
+
+
+def test_a_header_box_reads_lines_down_to_the_next_ruled_table_and_a_lone_first_row_is_listed() -> None:
+    """A ruled header box's text lines are read down to the next ruled table on the page, not to the page's
+    foot (that table's rows are its own: read twice, the first reading, cut up, took their addresses). A
+    headerless table whose first row is an address span with cells beside it is listed row by row, as a
+    page of a register table whose header is elsewhere, though it is the only such row."""
+    from types import SimpleNamespace
+
+    from drivemap.onboard.draft.read_pdf import _body
+    from drivemap.onboard.draft.rows import _headerless
+
+    cropped: list[tuple[float, float, float, float]] = []
+
+    def crop(box: tuple[float, float, float, float]) -> SimpleNamespace:
+        cropped.append(box)
+        return SimpleNamespace(find_tables=lambda settings: [])
+
+    cell = (65.0, 144.0, 200.0, 179.0)
+    box = SimpleNamespace(rows=[SimpleNamespace(cells=[cell, cell, cell])], extract=lambda: [["Adr", "R/W", "Value"]],
+                          bbox=(65.0, 144.0, 553.0, 179.0))
+    assert _body(SimpleNamespace(crop=crop, height=842.0), box, 315.0) is None
+    assert _body(SimpleNamespace(crop=crop, height=842.0), box) is None
+    assert cropped == [(65.0, 144.0, 553.0, 315.0), (65.0, 144.0, 553.0, 842.0)]
+
+    rows = [Row(["0x0013 - 0x001A", "R", "Serial Number", "16", "ascii"], 3, 1, table="p.3 table 1"),
+            Row(["4. Status (0x0100 - 0x02FF)", "", "", "", ""], 3, 2, table="p.3 table 1"),
+            Row(["The following registers contain", "", "", "", ""], 3, 3, table="p.3 table 1")]
+    listed = _headerless(Table(None, rows, 3, None, "", label="p.3 table 1"))
+    assert [s.where for s in listed] == ["p.3 table 1 row 1"] and "without a header row" in listed[0].reason
+    prose = [Row(["Note 12", "see below", "", "", ""], 3, 1, table="p.3 table 2")]
+    assert _headerless(Table(None, prose, 3, None, "", label="p.3 table 2")) == []

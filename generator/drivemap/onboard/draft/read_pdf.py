@@ -117,11 +117,12 @@ SPAN_TOLERANCE = 1.0
 HEADER_BOX_ROWS = 3
 
 
-def _body(page: Any, found: Any) -> Any:
+def _body(page: Any, found: Any, bottom: float | None = None) -> Any:
     """A ruled header box over rows drawn without rules: the header and the text below it read as one
     table, its columns the header's cell edges (pdfplumber's explicit vertical lines), its rows the
-    text's lines. None when that finds nothing more than the header. A header box may hold a second or
-    third ruled row that only goes on with header words (``Unit/Ra`` / ``tio``): no digit in it."""
+    text's lines, down to ``bottom`` (the next ruled table on the page: its rows are its own, not read twice).
+    None when that finds nothing more than the header. A header box may hold a second or third ruled row
+    that only goes on with header words (``Unit/Ra`` / ``tio``): no digit in it."""
     cells = [c for c in found.rows[0].cells if c is not None]
     xs = sorted({round(c[0], 1) for c in cells} | {round(c[2], 1) for c in cells})
     if len(found.rows) > HEADER_BOX_ROWS or len(cells) < 3:
@@ -129,7 +130,7 @@ def _body(page: Any, found: Any) -> Any:
     if len(found.rows) > 1 and any(ch.isdigit() for row in found.extract()[1:] for c in row if c for ch in c):
         return None
     try:
-        region = page.crop((found.bbox[0], found.bbox[1], found.bbox[2], page.height))
+        region = page.crop((found.bbox[0], found.bbox[1], found.bbox[2], bottom or page.height))
         tables = region.find_tables({"vertical_strategy": "explicit", "explicit_vertical_lines": xs,
                                      "horizontal_strategy": "text"})
     except ValueError:
@@ -144,7 +145,8 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
     every = page.extract_words() if ruled_tables else []
     words = [w for w in every if _HEX_ADDRESS.fullmatch(w["text"])]
     for k, ruled in enumerate(ruled_tables, 1):
-        body = _body(page, ruled)
+        below = [t.bbox[1] for t in ruled_tables if t is not ruled and t.bbox[1] >= ruled.bbox[3] - 1]
+        body = _body(page, ruled, min(below, default=None))
         found = body or ruled
         texts = [[(c or "").replace("\n", " ").strip() for c in r] for r in found.extract()]
         boxes: list[list[Box | None]] = [[None if c is None else (c[0], c[2]) for c in r.cells] for r in found.rows]

@@ -515,11 +515,14 @@ def offset_rows(table: Table, header: str) -> list[Skipped]:
 
 
 def _headerless(table: Table) -> list[Skipped]:
-    """A table with no header row whose first column holds addresses on most rows (a page of a register
-    table whose header is on an earlier page, in other columns): each such row listed, none guessed."""
-    addressed = [r for r in table.rows if r.cells and _ADDRESSY.fullmatch(r.cells[0].strip())
-                 and parse_address(r.cells[0]) is not None]
-    if len(addressed) < 2 or len(addressed) < len([r for r in table.rows if r.cells and r.cells[0].strip()]) // 2:
+    """A table with no header row whose first column holds addresses (or address spans) on most rows, or
+    whose first row is an address with two cells more (a page of a register table whose header is on an
+    earlier page, in other columns): each such row listed, none guessed."""
+    addressed = [r for r in table.rows if r.cells and (is_address_range(r.cells[0]) or (
+        _ADDRESSY.fullmatch(r.cells[0].strip()) and parse_address(r.cells[0]) is not None))]
+    first = bool(addressed) and addressed[0] is table.rows[0] and len([c for c in table.rows[0].cells if c.strip()]) >= 3
+    if not first and (len(addressed) < 2 or
+                      len(addressed) < len([r for r in table.rows if r.cells and r.cells[0].strip()]) // 2):
         return []
     return [Skipped(r.where(), " | ".join(c for c in r.cells if c.strip()),
                     "table without a header row: its columns are not known (the header may be on an earlier "
