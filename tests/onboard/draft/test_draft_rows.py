@@ -451,7 +451,11 @@ def test_a_page_drawn_apart_is_read_under_the_header_column_by_column_in_order()
     narrower, a name cell split in two on some rows): its rows with as many cells as the header has
     headings say where each heading's column lies on this page, and every cell goes under the column
     it overlaps most; with no such row it is not read under the header."""
-    from drivemap.onboard.draft.pdf_grid import Grid, by_order
+    from drivemap.onboard.draft.pdf_grid import Grid, order_grid, relay
+
+    def by_order(texts: list[list[str]], boxes: list[list[tuple[float, float] | None]], grid: Grid) -> list[list[str]] | None:
+        drawn = order_grid(boxes, grid)
+        return None if drawn is None else relay(texts, boxes, drawn)
 
     grid = Grid([(0, (60, 95), True), (1, (95, 202), True), (2, (202, 237), True), (3, (237, 300), True)], 4,
                 (60, 300), 0)

@@ -93,8 +93,6 @@ def relay(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) -> 
     return out
 
 
-
-
 def order_grid(boxes: list[list[Box | None]], grid: Grid) -> Grid | None:
     """Where ``grid``'s headings lie on a table drawn apart from it: its rows drawn with as many cells as
     the header has headings give, in order from the left, each heading's column (the median edges).
@@ -110,12 +108,3 @@ def order_grid(boxes: list[list[Box | None]], grid: Grid) -> Grid | None:
         cells.append((col, (lefts[len(lefts) // 2], rights[len(rights) // 2]), True))
     return Grid(cells, grid.width, (cells[0][1][0], cells[-1][1][1]), 0)
 
-
-def by_order(texts: list[list[str]], boxes: list[list[Box | None]], grid: Grid) -> list[list[str]] | None:
-    """Rows of a table on a grid of its own, drawn apart from ``grid``'s header (its columns wider or
-    narrower on each page, a cell split in two on some rows), laid out under :func:`order_grid`'s
-    columns: every cell under the column it overlaps most. None when no row has as many cells as the
-    header has headings. The caller checks that the cells read as their headings say (:func:`relay`
-    lays out a table drawn in the same frame)."""
-    drawn = order_grid(boxes, grid)
-    return None if drawn is None else relay(texts, boxes, drawn)

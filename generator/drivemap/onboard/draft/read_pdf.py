@@ -20,7 +20,7 @@ from typing import Any
 
 from drivemap.onboard.draft.cells import parse_access, parse_address
 from drivemap.onboard.draft.columns import find_layouts
-from drivemap.onboard.draft.pdf_grid import Box, Grid, by_order, grid_of, order_grid, realign, relay, same_frame
+from drivemap.onboard.draft.pdf_grid import Box, Grid, grid_of, order_grid, realign, relay, same_frame
 from drivemap.onboard.draft.read_text import read_text
 from drivemap.onboard.draft.tables import DraftError, Row, Table
 
@@ -308,22 +308,18 @@ class _Joiner:
             self.framed_page = table.page if self.framed and self.framed[0] is prev else self.framed_page
         elif self.framed is not None and headerless and self._next(self.framed_page, table) \
                 and same_frame(self.framed[1], found.frame):
-            laid = relay([r.cells for r in table.rows], found.boxes, self.framed[1])
-            for row, cells in zip(table.rows, laid, strict=True):
-                row.cells = cells
-            self.framed[0].rows.extend(table.rows)
-            self.framed[0].margin.extend(table.margin)
-            self.framed[0].orphans.extend(table.orphans)
-            self.framed_page = table.page
+            self._go_on(self.framed[0], table, relay([r.cells for r in table.rows], found.boxes, self.framed[1]), "")
         elif self.framed is not None and headerless and self._here_or_next(self.framed_page, table) \
-                and (ordered := by_order([r.cells for r in table.rows], found.boxes, self.framed[1])) is not None \
-                and _reads_as_headed(self.framed[0], ordered):
-            self._go_on(self.framed[0], table, ordered, f"read under the columns of {self.framed[0].label}, column by column in order")
-            self.drawn = order_grid(found.boxes, self.framed[1])
+                and (drawn := order_grid(found.boxes, self.framed[1])) is not None \
+                and _reads_as_headed(self.framed[0], ordered := relay([r.cells for r in table.rows], found.boxes, drawn)):
+            self._go_on(self.framed[0], table, ordered,
+                        f"read under the columns of {self.framed[0].label}, column by column in order")
+            self.drawn = drawn
         elif self.framed is not None and self.drawn is not None and headerless \
                 and self._next(self.framed_page, table) and same_frame(self.drawn, found.frame) \
                 and _reads_as_headed(self.framed[0], laid := relay([r.cells for r in table.rows], found.boxes, self.drawn)):
-            self._go_on(self.framed[0], table, laid, f"read under the columns of {self.framed[0].label}, as the page before drew them")
+            self._go_on(self.framed[0], table, laid,
+                        f"read under the columns of {self.framed[0].label}, as the page before drew them")
         else:
             self.tables.append(table)
             if found.grid is not None:
@@ -334,7 +330,8 @@ class _Joiner:
         self.last_page = table.page
 
     def _go_on(self, head: Table, table: Table, cells: list[list[str]], how: str) -> None:
-        """``table``'s rows, laid out as ``cells``, go on ``head``, the table with the header."""
+        """``table``'s rows, laid out as ``cells``, go on ``head``, the table with the header (``how``: the
+        rows' note, when the layout is not the header's own frame)."""
         for row, laid in zip(table.rows, cells, strict=True):
             row.cells, row.relaid = laid, how
         head.rows.extend(table.rows)

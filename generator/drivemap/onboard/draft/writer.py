@@ -137,12 +137,10 @@ def _fix(draft: Draft, text: str, firsts: list[int], diag: Diagnostic, drop: set
         if other is not None and other not in drop:
             drop.add(other)
             them = draft.registers[other]
-            draft.skipped.append(Skipped(them.where, _at(them), f"not drafted: the document gives its address "
-                                         f"another meaning at {reg.where} ({_label(reg)!r}); which one the device "
-                                         "has is for a person to say"))
-            draft.skipped.append(Skipped(reg.where, _at(reg), f"not drafted: the document gives its address "
-                                         f"another meaning at {them.where} ({_label(them)!r}); which one the "
-                                         "device has is for a person to say"))
+            for one, other_one in ((them, reg), (reg, them)):
+                draft.skipped.append(Skipped(one.where, _at(one), f"not drafted: the document gives its address "
+                                             f"another meaning at {other_one.where} ({_label(other_one)!r}); which "
+                                             "one the device has is for a person to say"))
         else:
             draft.skipped.append(Skipped(reg.where, _label(reg), f"not drafted: {diag.message}"))
     return True
@@ -159,8 +157,9 @@ def _at(reg: Drafted) -> str:
 
 def _two_meanings(draft: Draft, firsts: list[int], diag: Diagnostic, index: int) -> int | None:
     """The register that ``diag`` says the one at ``index`` overlaps, when both are rows of drawn tables
-    (PDF, DOCX, spreadsheet) that start at the same address of a table both state and name two things (neither label holds the other: "limitation" is "Power limitation" cut short) (neither label begins
-    the other): the document gives one address two meanings (one model's register beside another's),
+    (PDF, DOCX, spreadsheet) that start at the same address of a table both state and name two things
+    (neither label holds the other: "limitation" is "Power limitation" cut short): the document gives one
+    address two meanings (one model's register beside another's),
     and neither is drafted as the device's. For spans that overlap in part, for one register printed
     twice, or for lines of a text (where a sentence may be read as a row), the first is kept, as before."""
     if " overlaps " not in diag.message or not diag.related:
