@@ -196,3 +196,21 @@ def test_a_headerless_page_of_addresses_is_listed_row_by_row(tmp_path: Path) -> 
     text = Table(None, [Row(["Note", "a remark"], 10, 1), Row(["See", "page 3"], 10, 2)], 10, None, "")
     assert grid_raws(text, None, None) == ([], [])  # no addresses: no register table, nothing listed
 
+
+
+def test_a_string_coded_in_ascii_names_no_framing(tmp_path: Path) -> None:
+    """"ASCII code" in a register's cells is how a string is coded, not the device's framing; a document
+    that names no framing gets rtu as a placeholder listed to review, one that does gets what it names."""
+    table = "Address,Name,Type,Remark\n100,Serial number,U16,MSB: ASCII code\n102,Model,ASCII,\n"
+    for name, text, modes, listed in [
+        ("strings.csv", table, ["rtu"], True),
+        ("framed.md", "The device speaks Modbus ASCII (7E1).\n\n" + table.replace(",", " | "), ["ascii"], False),
+        ("both.md", "ASCII mode and RTU mode are both supported.\n\n" + table.replace(",", " | "), ["rtu", "ascii"],
+         False),
+    ]:
+        doc = tmp_path / name
+        doc.write_text(text, encoding="utf-8")
+        result = draft(read_document(doc), "dev")
+        assert result.data["protocol"]["modes"] == modes, name
+        assert result.data["protocol"]["ports"][0]["modes"] == modes, name
+        assert any(item.startswith("protocol.modes") for item in result.review) is listed, name

@@ -360,17 +360,25 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
     if hints.said():
         data["device"]["notes"] += ("; assumed by the user, not read from the document: " + ", ".join(hints.said())
                                     + " (each register it decided says so in its notes)")
-    review = list(PLACEHOLDERS)
     if hints.address_base == 0:
         for d in registers:
             if any("as printed under" in n for n in d.notes):
                 d.notes = [n for n in d.notes if "as printed under" not in n]
                 d.notes.append("address as printed: source: assumed by the user (--address-base 0)")
+    review = _map_review(source, registers, hints)
+    return Draft(data, registers, skipped, found, review)
+
+
+def _map_review(source: Source, registers: list[Drafted], hints: Hints) -> list[str]:
+    """What the whole map leaves to review: the protocol's placeholders, the numbering of plain register
+    numbers the document leaves open, and each of the person's hints."""
+    review = list(PLACEHOLDERS)
+    if not stated_modes(source.text):
+        review.insert(0, "protocol.modes (rtu: the document names no framing)")
     if any("as printed under" in n for d in registers for n in d.notes):
         review.append("addresses printed as plain register numbers: 0- or 1-based? (see the registers' notes)")
-    review += [f"assumed by the user: {said} (the registers it decided say so in their notes)"
-               for said in hints.said()]
-    return Draft(data, registers, skipped, found, review)
+    return review + [f"assumed by the user: {said} (the registers it decided say so in their notes)"
+                     for said in hints.said()]
 
 
 def _numbered_from_one(d: Drafted, said: str) -> None:
@@ -440,10 +448,22 @@ def _language(text: str) -> str:
     return "zh" if cjk > latin / 4 else "en" if latin else "und"
 
 
+#: where a document names a framing: "RTU" alone is Modbus's framing wherever it is printed; "ASCII" names
+#: one only beside "Modbus" or "mode" (elsewhere it is how a string register is coded: "ASCII code")
+_MODES = (("rtu", re.compile(r"\bRTU\b")),
+          ("ascii", re.compile(r"modbus[\s/_-]*ascii\b|\bascii[\s_-]*(?:mode|modus|framing)\b"
+                               r"|\b(?:mode|modus)\s*[:=]?\s*ascii\b", re.I)))
+
+
+def stated_modes(text: str) -> list[str]:
+    """The framings the document names (none: the draft writes rtu as a placeholder and lists it to review)."""
+    return [mode for mode, pattern in _MODES if pattern.search(text)]
+
+
 def _protocol(source: Source, registers: list[Drafted]) -> dict[str, Any]:
     where = f"{source.name} (draft placeholder: not read from the document)"
     text = source.text
-    modes = [m for m, pat in (("rtu", r"\bRTU\b"), ("ascii", r"\bASCII\b")) if re.search(pat, text)] or ["rtu"]
+    modes = stated_modes(text) or ["rtu"]
     tables = {str(d.entry.get("table", "holding")) for d in registers}
     written = {str(d.entry.get("table", "holding")) for d in registers if d.entry.get("access") in ("w", "rw")}
     codes = sorted({{"holding": 3, "input": 4, "coil": 1, "discrete": 2}[t] for t in tables}

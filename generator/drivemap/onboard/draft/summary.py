@@ -69,7 +69,9 @@ def print_summary(console: Console, source: Source, draft: Draft, target: str, m
         console.print(skipped)
     for note in source.notes:
         console.print(f"[yellow]note:[/yellow] {note}")
-    console.print("To review (placeholders the register tables do not give): " + "; ".join(draft.review))
+    console.print("To review (placeholders the register tables do not give):")
+    for item in draft.review:
+        console.print(f"  {item}", soft_wrap=True)
     console.print("Next:")
     console.print(f"  drivemap validate {target}")
     console.print(f"  drivemap verify {target} --tcp HOST:502 --unit 1     # the map against the device")
