@@ -27,7 +27,8 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "carlo_gavazzi_em24_din_v4.pdf": (20, 0, 0),
     "deye_sg0x_3p_hybrid_v105.docx": (67, 0, 0),
     "deye_sun_1p_hybrid_v118.pdf": (36, 0, 0),
-    "huawei_smartlogger3000.pdf": (0, 0, 0),
+    # Gain divides: its unitless power factor rows have Gain 1000
+    "huawei_smartlogger3000.pdf": (17, 0, 0),
     "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 0),
     "mennekes_amtron_compact20.pdf": (4, 0, 0),
     "mennekes_amtron_hcc3.pdf": (13, 0, 0),

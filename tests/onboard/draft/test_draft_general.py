@@ -214,3 +214,22 @@ def test_a_string_coded_in_ascii_names_no_framing(tmp_path: Path) -> None:
         assert result.data["protocol"]["modes"] == modes, name
         assert result.data["protocol"]["ports"][0]["modes"] == modes, name
         assert any(item.startswith("protocol.modes") for item in result.review) is listed, name
+
+
+def test_a_power_factor_row_proves_a_gain_divides(tmp_path: Path) -> None:
+    """A power factor lies between -1 and 1: a Gain of 1000 on its row can only divide, so the document's
+    Gain column divides on every row, in every table (each register says why); a gain on a power factor
+    with a unit, or a column headed Multiplier, proves nothing."""
+    with_pf = PLAIN_FIVE_DIGITS + "| 3 | Power factor | RO | I16 | N/A | 1000 | 32284 | 1 |\n"
+    regs = drafted(tmp_path, "logger.md", with_pf)
+    volts, pf = regs["phase_a_voltage"], regs["power_factor"]
+    assert (volts["scale"], pf["scale"]) == (0.01, 0.001) and "scale" not in volts.get("review", [])
+    assert "Gain 100 read as raw / 100: the document's power factor row" in volts["notes"]
+    assert "'Power factor') has Gain 1000" in volts["notes"]
+    for other in (with_pf.replace("| N/A | 1000 | 32284", "| % | 1000 | 32284"),  # a unit: not the quantity -1..1
+                  with_pf.replace("| 1000 | 32284", "| 1 | 32284"),  # a gain of 1 proves nothing
+                  with_pf.replace("Power factor", "Power limit")):
+        regs = drafted(tmp_path, "logger.md", other)
+        assert "scale" not in regs["phase_a_voltage"] and "scale" in regs["phase_a_voltage"]["review"]
+    multiplier = with_pf.replace("| Gain |", "| Multiplier |")
+    assert drafted(tmp_path, "logger.md", multiplier)["phase_a_voltage"]["scale"] == 100

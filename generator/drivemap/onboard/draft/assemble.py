@@ -9,7 +9,7 @@ from typing import Any
 
 from drivemap.frontend.formats import CURRENT
 from drivemap.onboard.draft.cells import type_glossary
-from drivemap.onboard.draft.fields import REVIEWED, Context, Raw, draft_fields, factor_direction
+from drivemap.onboard.draft.fields import REVIEWED, Context, Raw, draft_fields, factor_direction, factor_proofs
 from drivemap.onboard.draft.matrix import matrix_raws
 from drivemap.onboard.draft.naming import arrays, camel, snake, unique, upper
 from drivemap.onboard.draft.rows import (
@@ -320,12 +320,15 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
     found: list[tuple[str, int]] = []
     names: set[str] = set()
     not_modicon, ranges = _not_modicon(source), _range_kinds(source.text)  # document-wide: read once
+    read: list[tuple[Table, list[Raw]]] = []
     for table in _tables(source, skipped):
         raws, skip = _raws(source, table, not_modicon, ranges)
         _assumed(raws, hints)
         skipped += skip
-        if not raws:
-            continue
+        if raws:
+            read.append((table, raws))
+    ctx.factor_divides = factor_proofs([r for _, raws in read for r in raws])
+    for table, raws in read:
         heading = _heading(table)
         if heading == table.label and groups:  # no heading of its own: the section of the table before it
             group, heading = groups[-1]["name"], groups[-1]["title"]

@@ -41,6 +41,9 @@ class Context:
     """Where the document says it numbers registers from 1 (empty when it does not)."""
     type_words: dict[str, tuple[str, str]] = field(default_factory=dict)
     """The document's own glossary of data types: token -> (schema type, where it defines it and how)."""
+    factor_divides: dict[str, str] = field(default_factory=dict)
+    """Factor columns the document's own rows prove to divide: header (lower case) -> the proof (see
+    :func:`factor_proofs`), recorded on each register it decides."""
 
 
 @dataclass
@@ -190,7 +193,7 @@ def _scale_fields(raw: Raw, ctx: Context, rtype: str, entry: dict[str, object], 
     if bare is not None and bare > 0 and abs(math.log10(bare) - round(math.log10(bare))) < 1e-9 \
             and -6 <= round(math.log10(bare)) <= 3:  # "0.001" in a Unit/Ratio column: a resolution without a unit
         found = Scale(float(bare), None, unit_cell)
-    factor = _factor_cell(raw, entry, notes, direction)
+    factor = _factor_cell(raw, entry, notes, direction, ctx.factor_divides)
     if factor is not None:
         unit = found.unit if found is not None else None
         found = Scale(factor, unit, raw.cells["scale"])
@@ -273,7 +276,35 @@ def factor_direction(raws: list[Raw]) -> str | None:
     return said.pop() if len(said) == 1 else None
 
 
-def _factor_cell(raw: Raw, entry: dict[str, object], notes: list[str], direction: str | None) -> float | None:
+#: a power factor's name: a quantity between -1 and 1 by definition
+_POWER_FACTOR = re.compile(r"power[\s_-]*factor|leistungsfaktor|功率因[数數]|\bcos\s*(?:φ|ϕ|phi)|^pf$", re.I)
+
+
+def _has_unit(text: str) -> bool:
+    found = parse_scale(text, unit_cell=True) if text.strip() else None
+    return found is not None and found.unit is not None
+
+
+def factor_proofs(raws: list[Raw]) -> dict[str, str]:
+    """Factor columns (header in lower case -> why) whose direction the document proves: a power factor row, unitless, with
+    a factor above 1. A power factor lies between -1 and 1: read as raw x factor it could hold no value
+    there but 0, so the column's numbers divide (Huawei's "Gain 1000" on its power factor rows). A
+    column headed Multiplier says its direction itself and is not read here."""
+    proofs: dict[str, str] = {}
+    for raw in raws:
+        header = raw.cells.get("scale_header", "").strip()
+        factor = parse_number(raw.cells.get("scale", ""))
+        if (not header or header.lower() in proofs or _MULTIPLIER.search(header) or factor is None or factor <= 1
+                or not _POWER_FACTOR.search(raw.label.strip()) or _has_unit(raw.cells.get("unit", ""))):
+            continue
+        proofs[header.lower()] = (f"the document's power factor row ({raw.where}, '{raw.label.strip()}') has {header} "
+                                  f"{factor:g}, and a power factor, between -1 and 1, read as raw x {factor:g} could be "
+                                  "no value there but 0")
+    return proofs
+
+
+def _factor_cell(raw: Raw, entry: dict[str, object], notes: list[str], direction: str | None,
+                 proofs: dict[str, str]) -> float | None:
     """The scale a Scale/Factor/Gain column's bare number states (None: no number, or not a scale)."""
     factor = parse_number(raw.cells.get("scale", ""))
     fraction = _FRACTION.match(raw.cells.get("scale", ""))
@@ -283,21 +314,27 @@ def _factor_cell(raw: Raw, entry: dict[str, object], notes: list[str], direction
         notes.append(f"scale factor {raw.cells['scale']} is negative: not read as a scale")
     if factor is None or factor <= 0:
         return None
-    scale = _factor_scale(factor, raw, entry, direction)
+    scale = _factor_scale(factor, raw, entry, direction, proofs, notes)
     if scale is None:
         notes.append(f"{raw.cells.get('scale_header', '').strip()} {factor:g}: raw x {factor:g} or raw / "
                      f"{factor:g}? the document does not say (scale left out)")
     return scale
 
 
-def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: str | None) -> float | None:
+def _factor_scale(factor: float, raw: Raw, entry: dict[str, object], direction: str | None,
+                  proofs: dict[str, str], notes: list[str]) -> float | None:
     """The scale of a bare number in a Scale/Factor column: the number itself when it is 1 or the header
     says multiplier; else what the row's printed range tells, else what the table's rows tell (a
-    column divides on every row or on none), else the number as a multiplier under a Scale/Factor
+    column divides on every row or on none), else what the document's power factor rows prove of the
+    column (:func:`factor_proofs`, noted), else the number as a multiplier under a Scale/Factor
     header, and nothing (None: open) under a ``Gain`` header, which does not say its direction."""
     if factor == 1 or _MULTIPLIER.search(raw.cells.get("scale_header", "")):
         return factor
     said = _range_says(factor, str(entry.get("type")), raw.cells.get("range", "")) or direction
+    proof = proofs.get(raw.cells.get("scale_header", "").strip().lower()) if said is None else None
+    if proof is not None:
+        notes.append(f"{raw.cells.get('scale_header', '').strip()} {factor:g} read as raw / {factor:g}: {proof}")
+        said = "divide"
     if said is None and _UNDIRECTED.search(raw.cells.get("scale_header", "").strip()):
         return None
     return _clean(1 / factor) if said == "divide" else factor
