@@ -6,7 +6,9 @@
 * **registers exact**: a finished register whose every element address is drafted in the same table
   with the same type and scale (as compiled: a field the draft leaves out takes the schema default);
 * **fields right**: table+address, type, scale, unit, access, min, max right as compiled (7 per register);
-* **wrong stated**: fields the draft *writes* that differ from the finished map;
+* **wrong stated**: fields the draft *writes* that differ from the finished map (a type of the same width
+  is not wrong where the finished map leaves the signedness open, ``review: [signedness]``, or where every
+  value its value list, value set or range holds reads alike signed and unsigned);
 * **defaulted, differs**: fields the draft leaves out whose schema default differs from the finished map;
 * **extra**: drafted registers at an address the finished map does not have.
 
@@ -156,14 +158,30 @@ def _compare_lists(s: Score, reg: Any, mine: Any, proven: Any, drafted: Any) -> 
             s.lists_wrong.append(f"{reg.name}.{kind}: drafted {sorted(ours)}, proven {sorted(theirs)}")
 
 
+def _sign_open(proven: Any, reg: Any, mine: Any) -> bool:
+    """The draft states the finished register's width, signed where the map says unsigned or the other way,
+    and the finished map leaves the signedness open (``review: [signedness]``: its type is the unsigned
+    reading of a known width) or chose it because every value the register may hold (its value list,
+    value set or range) reads alike either way (0..32767)."""
+    if str(mine.type)[1:] != str(reg.type)[1:] or str(mine.type)[:1] not in "su" or str(reg.type)[:1] not in "su":
+        return False
+    if "signedness" in reg.review:
+        return True
+    held = _values(proven, reg) or {v for v, _ in reg.values if isinstance(v, (int, float))}
+    lo, hi, scale = getattr(reg, "min", None), getattr(reg, "max", None), float(reg.scale or 1)
+    if not held and lo is not None and hi is not None and scale > 0:
+        held = {lo / scale, hi / scale}  # the raw span of a stated range
+    return bool(held) and all(0 <= v <= 32767 for v in held)
+
+
 def _compare_one(s: Score, reg: Any, mine: dict[tuple[str, int], Any], entry: dict[str, Any],
-                 keys: list[tuple[str, int]]) -> None:
+                 keys: list[tuple[str, int]], proven: Any) -> None:
     first = mine[keys[0]]
     s.found += 1
     s.fields_right += 1
     exact = True
     for key in FIELDS:
-        same = _value(first, key) == _value(reg, key)
+        same = _value(first, key) == _value(reg, key) or key == "type" and _sign_open(proven, reg, first)
         s.fields_right += same
         if not same:
             s.field_edits += 1
@@ -173,7 +191,8 @@ def _compare_one(s: Score, reg: Any, mine: dict[tuple[str, int], Any], entry: di
                 s.defaulted += 1
             if key in ("type", "scale"):
                 exact = False
-    if exact and all(mine[k].type == reg.type and float(mine[k].scale) == float(reg.scale) for k in keys):
+    if exact and all((mine[k].type == reg.type or _sign_open(proven, reg, mine[k])) and float(mine[k].scale) == float(reg.scale)
+                     for k in keys):
         s.exact += 1
         s.exact_names.append(reg.name)
     else:
@@ -191,7 +210,7 @@ def compare(model_id: str, proven: Any, drafted: Drafted, offset: int = 0, table
         if not all(k in mine for k in keys):
             s.not_found.append(reg.name)
             continue
-        _compare_one(s, reg, mine, stated.get(mine[keys[0]].name, {}), keys)
+        _compare_one(s, reg, mine, stated.get(mine[keys[0]].name, {}), keys, proven)
         _compare_lists(s, reg, mine[keys[0]], proven, drafted.model)
     proven_cells = cells(proven)
     s.extra = sum(1 for r in drafted.model.registers if _key(r, 0, offset, table) not in proven_cells)

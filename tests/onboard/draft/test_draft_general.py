@@ -233,3 +233,47 @@ def test_a_power_factor_row_proves_a_gain_divides(tmp_path: Path) -> None:
         assert "scale" not in regs["phase_a_voltage"] and "scale" in regs["phase_a_voltage"]["review"]
     multiplier = with_pf.replace("| Gain |", "| Multiplier |")
     assert drafted(tmp_path, "logger.md", multiplier)["phase_a_voltage"]["scale"] == 100
+
+
+LIST_AND_FLAT = """\
+# Meter register list
+
+| Registers | Name | Units | Access | Description |
+| --- | --- | --- | --- | --- |
+| 1001 | VoltA | 0.1 V | Read-Only | Voltage, phase A |
+| 1002 | PowerA | W | Read-Only | Real power, phase A |
+| 1003 | Mode | s | Read/Write | Operating mode |
+
+# Flattened
+
+| index | Registers | Base (hex) | Base (dec, origin-1) | Name | Type | Units |
+| --- | --- | --- | --- | --- | --- | --- |
+| 1 | 1001 | 3E8 | 1001 | VoltA | uint16_t | 0.1 V |
+| 2 | 1002 | 3E9 | 1002 | PowerA | int16_t | W |
+| 3 | 1003 | 3EA | 1003 | Mode | int16_t | 1 ms |
+"""
+
+
+def test_a_register_printed_in_two_tables_is_one_register_and_a_header_says_origin_1(tmp_path: Path) -> None:
+    """A header saying its numbers count from 1 ("Base (dec, origin-1)", its hex column one less) decides
+    the numbering of the whole document; a register printed in two tables (same address and label) is
+    one register that takes what only the second printing states (noted where), and a field the two
+    printings state differently is left open, naming both."""
+    doc = tmp_path / "meter.md"
+    doc.write_text(LIST_AND_FLAT, encoding="utf-8")
+    result = draft(read_document(doc), "dev")
+    regs = {str(d.entry["name"]): d for d in result.registers}
+    assert sorted(regs) == ["mode", "power_a", "volt_a"]  # the second printings are joined, not drafted
+    volts, power, mode = regs["volt_a"].entry, regs["power_a"].entry, regs["mode"].entry
+    assert (volts["address"], volts["type"], volts["scale"], volts["unit"]) == (1000, "u16", 0.1, "V")
+    assert "header 'Base (dec, origin-1)', its hex column one less on 3 rows" in "; ".join(regs["volt_a"].notes)
+    assert power["type"] == "s16" and "type s16: printed at p.1 line 14 (the same register)" in "; ".join(regs["power_a"].notes)
+    assert "access" not in power  # read-only, as the first printing says; the second says nothing of it
+    assert "unit" not in mode and "unit left open: the document states it differently" in "; ".join(regs["mode"].notes)
+    joined = [s for s in result.skipped if "what it states is joined there" in s.reason]
+    assert [s.where for s in joined] == ["p.1 line 13", "p.1 line 14", "p.1 line 15"]
+    # a hex column that prints the same numbers contradicts the header: the numbers stay as printed
+    same = LIST_AND_FLAT.replace("| 3E8 |", "| 3E9 |")
+    doc.write_text(same, encoding="utf-8")
+    volts = {str(d.entry["name"]): d.entry for d in draft(read_document(doc), "dev").registers}["volt_a"]
+    assert volts["address"] == 1001 and "as printed under" in str(volts["notes"])

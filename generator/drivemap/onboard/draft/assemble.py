@@ -120,9 +120,44 @@ def document_context(source: Source) -> Context:
     base = _BASE_ONE.search(text)
     if base is not None:
         ctx.base_one = f"{source.name} {_statement_where(source, base.group(0))}: {base.group(0).strip()!r}"
+    else:
+        ctx.base_one = _origin_one(source)
     ctx.type_words = {token: (rtype, f"{source.name} {_statement_where(source, said)}: {said!r}")
                       for token, (rtype, said) in type_glossary(text).items()}
     return ctx
+
+
+#: a header saying its numbers count from 1: "Base (dec, origin-1)", "Register (1-based)"
+_ORIGIN_ONE = re.compile(r"origin[\s-]*1\b|(?<![\d.])1[\s-]*based\b|one[\s-]*based\b", re.I)
+_HEX_HEADER = re.compile(r"\bhex\b|十六进制", re.I)
+
+
+def _origin_one(source: Source) -> str:
+    """Where a table's header says its register numbers count from 1 (empty: nowhere). A hex column of the
+    same table that prints the same numbers, not one less, contradicts it: then it says nothing."""
+    for table in source.tables:
+        for h, header in enumerate(table.rows[:3]):
+            column = next((j for j, cell in enumerate(header.cells) if _ORIGIN_ONE.search(cell)), None)
+            if column is None:
+                continue
+            hexes = [j for j, cell in enumerate(header.cells) if _HEX_HEADER.search(cell)]
+            pairs = [(_int(row.cells[column], 10), _int(row.cells[j], 16)) for row in table.rows[h + 1:]
+                     for j in hexes if max(column, j) < len(row.cells)]
+            known = [(dec, hx) for dec, hx in pairs if dec is not None and hx is not None]
+            if any(hx != dec - 1 for dec, hx in known):
+                continue
+            said = f"header {header.cells[column].strip()!r}"
+            if known:
+                said += f", its hex column one less on {len(known)} rows"
+            return f"{source.name} {table.label}: {said}"
+    return ""
+
+
+def _int(text: str, base: int) -> int | None:
+    try:
+        return int(text.strip(), base)
+    except ValueError:
+        return None
 
 
 def _heading(table: Table) -> str:
@@ -179,6 +214,69 @@ def _contradictions(registers: list[Drafted]) -> None:
                     review.append(key)
                 d.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
                 d.notes.append(f"{key} left open: the document states it differently ({text})")
+
+
+#: the fields one printing of a register may state where another printing of it leaves them open
+_JOINED = ("table", "type", "length", "scale", "unit", "access", "min", "max", "default")
+
+
+def _printed_twice(registers: list[Drafted]) -> list[Skipped]:
+    """One register printed in two tables of the document (the same address and label, in tables that do
+    not state two different register tables: a workbook's register list and its flattened copy): one
+    register, drafted from the first printing with what only the second states (each such field noted
+    with where it is printed); a field the two state differently is left open, naming both. The second
+    printing is listed as joined. Rows of one table at one address are not joined (pages, sections)."""
+    first: dict[tuple[object, str], Drafted] = {}
+    kept: list[Drafted] = []
+    joined: list[Skipped] = []
+    for d in registers:
+        label = re.sub(r"\W+", "", str(d.entry.get("label") or "")).lower()
+        key = (d.entry.get("address"), label)
+        base = first.get(key)
+        if (base is None or not label or base.table_label == d.table_label or "count" in d.entry
+                or "count" in base.entry or _stated(base, "table") and _stated(d, "table")
+                and base.entry["table"] != d.entry["table"]):
+            first.setdefault(key, d)
+            kept.append(d)
+            continue
+        _join(base, d)
+        joined.append(Skipped(d.where, str(d.entry.get("label")), f"the same register as {base.where} (address "
+                              f"{d.entry['address']}, {d.entry.get('label')!r}): what it states is joined there"))
+    registers[:] = kept
+    return joined
+
+
+def _stated(d: Drafted, key: str) -> bool:
+    return key in d.entry and key not in d.missing and key not in _review_of(d)
+
+
+def _join(base: Drafted, other: Drafted) -> None:
+    """``base`` takes each field only ``other`` states; a field the two state differently is left open."""
+    review = _review_of(base)
+    for key in _JOINED:
+        if not _stated(other, key) or (_stated(base, key) and base.entry[key] == other.entry[key]):
+            continue
+        if _stated(base, key):
+            said = base.entry.pop(key)
+            base.notes.append(f"{key} left open: the document states it differently ({base.where}: {said}; "
+                              f"{other.where}: {other.entry[key]})")
+            if key in REVIEWED and key not in review:
+                review.append(key)
+            base.missing.append(key)
+            continue
+        base.entry[key] = other.entry[key]
+        base.missing = [m for m in base.missing if m != key]
+        review = [f for f in review if f != key]
+        base.notes = [n for n in base.notes if f"{key} not stated" not in n]
+        base.notes.append(f"{key} {other.entry[key]}: printed at {other.where} (the same register)")
+        if key == "type" and "word_order" in _review_of(other) and "word_order" not in review:
+            review.append("word_order")
+        elif key == "type" and _stated(other, "word_order"):
+            base.entry["word_order"] = other.entry["word_order"]
+    if review:
+        base.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
+    else:
+        base.entry.pop("review", None)
 
 
 def _review_of(d: Drafted) -> list[str]:
@@ -354,6 +452,8 @@ def draft(source: Source, model: str, hints: Hints | None = None) -> Draft:
             _finish(d, source.name, names)
         registers += drafts
     _contradictions(registers)
+    skipped += _printed_twice(registers)
+    groups[:] = [g for g in groups if any(d.entry.get("group") == g["name"] for d in registers)]
     skipped += [Skipped(r.where(), " | ".join(r.cells), "an address or offset printed in the table in none of its "
                         "cells (the text of a cell drawn over rows, across a page break?): not read")
                 for t in source.tables for r in t.orphans]

@@ -94,8 +94,10 @@ def _cells(line: str) -> list[str] | None:
     return None
 
 
-def _context(lines: list[tuple[int, int, str]], start: int) -> str:
-    before = [t for _, _, t in lines[max(0, start - CONTEXT_LINES):start] if t.strip()]
+def _context(lines: list[tuple[int, int, str]], start: int, floor: int = 0) -> str:
+    """The text above a table, from ``floor`` on (the end of the table before it: another table's cells
+    say nothing about this one)."""
+    before = [t for _, _, t in lines[max(floor, start - CONTEXT_LINES):start] if t.strip()]
     return "\n".join(before[-CONTEXT_LINES:])
 
 
@@ -103,7 +105,7 @@ def grid_tables(lines: list[tuple[int, int, str]]) -> tuple[list[Table], set[int
     """Runs of tab/pipe rows (one blank line inside a run is allowed); and the indexes they use."""
     tables: list[Table] = []
     used: set[int] = set()
-    i = 0
+    i = end = 0
     while i < len(lines):
         if _cells(lines[i][2]) is None:
             i += 1
@@ -123,7 +125,8 @@ def grid_tables(lines: list[tuple[int, int, str]]) -> tuple[list[Table], set[int
             i += 1
         page, number, _ = lines[start]
         above = "\n".join(t for _, _, t in lines[max(0, start - 40):start] if t.strip())
-        tables.append(Table(None, rows, page, number, _context(lines, start), above=above, label=f"line {number}"))
+        tables.append(Table(None, rows, page, number, _context(lines, start, end), above=above, label=f"line {number}"))
+        end = i
     return tables, used
 
 
