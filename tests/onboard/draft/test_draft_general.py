@@ -277,3 +277,31 @@ def test_a_register_printed_in_two_tables_is_one_register_and_a_header_says_orig
     doc.write_text(same, encoding="utf-8")
     volts = {str(d.entry["name"]): d.entry for d in draft(read_document(doc), "dev").registers}["volt_a"]
     assert volts["address"] == 1001 and "as printed under" in str(volts["notes"])
+
+
+def test_the_text_above_a_table_stops_at_the_table_before_it(tmp_path: Path) -> None:
+    """Another table's cells say nothing about the next one: a `Read/Write` cell of the first ruled table on
+    a PDF page, or of the first table of a text, is no statement about the access or table of the next."""
+    from fpdf import FPDF
+
+    first = [["Address", "Name", "Access"], ["100", "Mode", "Read/Write"], ["101", "Setpoint", "Read/Write"]]
+    second = [["Address", "Name", "Unit"], ["200", "Voltage", "0.1 V"], ["201", "Current", "0.01 A"]]
+    pdf = FPDF()
+    pdf.set_font("Helvetica", size=9)
+    pdf.add_page()
+    for rows in (first, second):
+        with pdf.table() as table:
+            for row in rows:
+                cells = table.row()
+                for cell in row:
+                    cells.cell(cell)
+        pdf.ln(4)
+    pdf.output(str(tmp_path / "two.pdf"))
+    text = "\n\n".join("\n".join("| " + " | ".join(r) + " |" for r in (rows[:1] + [["---"] * 3] + rows[1:]))
+                       for rows in (first, second))
+    (tmp_path / "two.md").write_text(text + "\n", encoding="utf-8")
+    for name in ("two.pdf", "two.md"):
+        regs = {str(d.entry["name"]): d.entry for d in draft(read_document(tmp_path / name), "dev").registers}
+        assert regs["mode"]["access"] == "rw", name
+        volts = regs["voltage"]
+        assert "access" not in volts and "table" not in volts and "table" in volts["review"], name

@@ -164,8 +164,10 @@ def _page_tables(page: Any, number: int) -> list[_Found]:
         if not rows:
             continue
         top = found.bbox[1]
+        # the text above, down from the table before it on the page (its cells say nothing about this one)
+        floor = max((t.bbox[3] for t in ruled_tables if t is not ruled and t.bbox[3] <= top + 1), default=0.0)
         try:
-            above = page.crop((0, max(0.0, top - CONTEXT_HEIGHT), page.width, max(top, 0.1))).extract_text() or ""
+            above = page.crop((0, max(0.0, floor, top - CONTEXT_HEIGHT), page.width, max(top, 0.1))).extract_text() or ""
         except ValueError:
             above = ""
         table = Table(None, rows, number, None, above, label=f"p.{number} table {k}",
