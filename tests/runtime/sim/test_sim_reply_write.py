@@ -90,3 +90,34 @@ def test_the_lead_follows_the_lateness_within_its_bound() -> None:
         arrival.due = 5.0
         arrival.written(4.99)
     assert arrival.lead == 0.0
+
+
+class Protocol:
+    """pymodbus's protocol: the transport hands it each chunk it reads from the port."""
+
+    def __init__(self) -> None:
+        self.chunks: list[bytes] = []
+
+    def data_received(self, data: bytes) -> None:
+        self.chunks.append(data)
+
+
+def test_a_request_arrives_when_its_bytes_are_read_not_when_framed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The processing time counts from the read that completed the request: pymodbus's receive path
+    between the read and the framer is the simulator's own time, which a device's UART does not add."""
+    import drivemap.runtime.sim.serve as serve
+
+    clock = iter([7.0, 9.0])
+    monkeypatch.setattr(serve.time, "monotonic", lambda: next(clock))
+    transport, protocol, arrival = Transport(Port()), Protocol(), _Arrival()
+    transport.intern_protocol = protocol  # type: ignore[attr-defined]
+    _write_at_once(transport, arrival)
+    transport.intern_protocol.data_received(b"\x01\x06")  # type: ignore[attr-defined]
+    assert protocol.chunks == [b"\x01\x06"] and arrival.read_at == 7.0
+    arrival.found(7.0004)  # framed 0.4 ms after the read
+    assert arrival.at == 7.0 and arrival.read_at == 0.0
+    arrival.found(8.0)  # a frame found with no read just before it (or a stale one): the framer's time
+    assert arrival.at == 8.0
+    arrival.read_at = 5.0
+    arrival.found(8.0)
+    assert arrival.at == 8.0

@@ -12,8 +12,8 @@ pymodbus (no reply) and reported to the simulator (ev records 84h); in RTU, byte
 more than the 3.5-character silence without forming a frame are dropped, as a device does.
 
 With realistic timing, a reply leaves the simulator's processing time after the request arrived:
-on a serial line counted from the moment the framer found the complete request (on TCP from the
-moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.transport.bus.sleep_until`), since
+on a serial line counted from the moment the complete request's last bytes were read from the port
+(on TCP from the moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.transport.bus.sleep_until`), since
 ``asyncio.sleep`` alone wakes up to a millisecond late. On a serial line the reply is written to the
 port the moment it is ready (:func:`_write_at_once`), as a device's UART starts sending, not one
 event-loop turn later through pymodbus's writer callback.
@@ -67,7 +67,7 @@ class _Arrival:
     CRC, the write) is measured to take: ``lead``, what the wait ends early so that the reply reaches
     the port when it is due (``due``), learnt from each reply written (:func:`_write_at_once`)."""
 
-    __slots__ = ("at", "due", "lead")
+    __slots__ = ("at", "due", "lead", "read_at")
 
     #: the most the wait ends early (s): the reply's way to the port is tens of microseconds
     MAX_LEAD = 0.0002
@@ -76,6 +76,14 @@ class _Arrival:
         self.at = 0.0
         self.due = 0.0
         self.lead = 0.0
+        #: when the bytes being framed were read from the port (0.0: not known; see :func:`_write_at_once`)
+        self.read_at = 0.0
+
+    def found(self, now: float) -> None:
+        """The framer found a complete request at ``now``: it arrived when its last bytes were read, before
+        pymodbus's receive path handed them to the framer (``now`` when that is not known)."""
+        read_at, self.read_at = self.read_at, 0.0
+        self.at = read_at if now - 0.002 <= read_at <= now else now
 
     def written(self, now: float) -> None:
         """A reply reached the port at ``now``: move the lead by half of how late (or early) it was."""
@@ -241,7 +249,7 @@ class _WatchRTU(FramerRTU):
                 self._since = now
                 return stale + skip, 0, 0, self.EMPTY
         if frame:
-            self.arrival.at = now
+            self.arrival.found(now)
         if used or frame:
             self._waiting = 0
             return used + stale, dev_id, tid, frame
@@ -288,7 +296,7 @@ class _WatchAscii(FramerAscii):
             used, dev_id, tid, frame = self._decode_one(data[total:])
             total += used
             if frame:
-                self.arrival.at = now
+                self.arrival.found(now)
             if frame or not used or total >= len(data):
                 return total, dev_id, tid, frame
 
@@ -325,13 +333,23 @@ def _write_at_once(transport: Any, arrival: _Arrival) -> None:
     the port does not take, or anything while bytes are still queued, goes through pymodbus's queue
     as before (so the order of replies is kept), and a port error closes the transport as
     pymodbus does. Without a port (polling transports on Windows) nothing changes. Each write tells
-    ``arrival`` when a reply reached the port, so the next reply's wait can end that much earlier."""
+    ``arrival`` when a reply reached the port, so the next reply's wait can end that much earlier; each
+    read tells it when the bytes left the port, so a request's processing time counts from there."""
     import serial  # pyserial: present wherever a serial server runs
 
     port = getattr(transport, "sync_serial", None)
     queued = transport.write
     if port is None or getattr(transport, "force_poll", True):
         return
+    protocol = getattr(transport, "intern_protocol", None)
+    received = getattr(protocol, "data_received", None)
+    if received is not None:
+
+        def data_received(data: bytes) -> None:
+            arrival.read_at = time.monotonic()  # the moment the bytes left the port, before pymodbus's receive path
+            received(data)
+
+        setattr(protocol, "data_received", data_received)  # noqa: B010 (a bound method replaced on one object)
 
     def write(data: bytes) -> None:
         if transport.intern_write_buffer or transport.sync_serial is not port:
