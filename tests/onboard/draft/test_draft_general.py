@@ -305,3 +305,10 @@ def test_the_text_above_a_table_stops_at_the_table_before_it(tmp_path: Path) -> 
         assert regs["mode"]["access"] == "rw", name
         volts = regs["voltage"]
         assert "access" not in volts and "table" not in volts and "table" in volts["review"], name
+
+
+def test_milli_and_micro_ohm_units(tmp_path: Path) -> None:
+    """`mΩ` and `uΩ` (a BMS's wire resistances) are units: a unit column's bare unit is one per count."""
+    regs = drafted(tmp_path, "bms.csv", "Address,Name,Type,Unit\n113,Battery resistance,U16,mΩ\n"
+                   "114,Wire resistance 0,U16,uΩ\n115,Cell resistance,U16,μΩ\n")
+    assert [(r["unit"], r["scale"]) for r in regs.values()] == [("mΩ", 1), ("µΩ", 1), ("µΩ", 1)]

@@ -16,7 +16,7 @@ _UNITS = (
     r"VDC|VAC|Vdc|Vac|mV|kV|V|mAh|kAh|Ah|mA|µA|μA|uA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
     r"ms|min|s|sec|h|hr|hours|"
-    r"%RH|%|‰|kΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
+    r"%RH|%|‰|MΩ|kΩ|mΩ|µΩ|μΩ|uΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
     r"m3/h|m³/h|l/min|L/min|l/h|m/s|mm|m|kg|g|pulses?|p/r|PPR|ppm"
 )
 UNIT = rf"(?:{_UNITS})"
@@ -32,7 +32,7 @@ _IN_UNIT = re.compile(rf"(?<![A-Za-z])in\s+({UNIT})(?![A-Za-z0-9²³/.])")
 _WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
 _FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
 _NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
-           "RPM": "r/min", "min-1": "r/min", "uA": "µA", "μA": "µA", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
+           "RPM": "r/min", "min-1": "r/min", "uA": "µA", "μA": "µA", "uΩ": "µΩ", "μΩ": "µΩ", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
 _NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("W", "watt watts"), ("Hz", "hertz"),
                                       ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
                 for w in words.split() + [x.capitalize() for x in words.split()]})
