@@ -31,10 +31,10 @@ FLOORS: dict[str, tuple[int, int, int]] = {
     "huawei_smartlogger3000.pdf": (17, 0, 0),
     "jk_pb_bms_rs485_modbus_v11.pdf": (0, 0, 0),
     "mennekes_amtron_compact20.pdf": (4, 0, 0),
-    "mennekes_amtron_hcc3.pdf": (13, 0, 0),
+    "mennekes_amtron_hcc3.pdf": (14, 0, 0),
     "schrack_cion.pdf": (3, 0, 0),
-    "sungrow_sg_grid_protocol_v1180.pdf": (112, 0, 0),
-    "sungrow_sh_hybrid_protocol_v1111.pdf": (79, 0, 0),
+    "sungrow_sg_grid_protocol_v1180.pdf": (113, 0, 0),
+    "sungrow_sh_hybrid_protocol_v1111.pdf": (85, 0, 0),
     # its 1000 is TQ-DM100's "Charge Point State" and Ebee's "Hems Current Limit (A)": listed, not drafted
     # (keeping the first was a guess); comTimeout's unit cell "S" reads as seconds
     "webasto_live.pdf": (17, 0, 0),

@@ -312,3 +312,30 @@ def test_milli_and_micro_ohm_units(tmp_path: Path) -> None:
     regs = drafted(tmp_path, "bms.csv", "Address,Name,Type,Unit\n113,Battery resistance,U16,mΩ\n"
                    "114,Wire resistance 0,U16,uΩ\n115,Cell resistance,U16,μΩ\n")
     assert [(r["unit"], r["scale"]) for r in regs.values()] == [("mΩ", 1), ("µΩ", 1), ("µΩ", 1)]
+
+
+SPAN_TEXT = """\
+Visit all registers by subtracting 1 from the register address.
+
+| No. | Name | Register | Data type | Unit |
+| --- | --- | --- | --- | --- |
+| 1. | Inverter firmware | 13250-13264 | UTF-8 | |
+| 2. | Serial number | 4990~4999 | ASCII | |
+| 3. | Model name | 5000-5007 | STRING | |
+| 4. | Reserved 1 | 13295-13309 | UTF-8 | |
+| 5. | Total energy | 5008-5009 | U32 | kWh |
+"""
+
+
+def test_a_span_of_text_is_one_string_register(tmp_path: Path) -> None:
+    """A span whose type is text (`13250-13264 | UTF-8`) is one string register over all its registers, its
+    encoding as the type says (open where it says only "string"), numbered as the document numbers; a
+    numbered reserved row ("Reserved 1") is reserved; text has no scale."""
+    regs = drafted(tmp_path, "spans.md", SPAN_TEXT)
+    firmware, serial, model = regs["inverter_firmware"], regs["serial_number"], regs["model_name"]
+    assert (firmware["address"], firmware["type"], firmware["length"], firmware["encoding"]) == (13249, "string", 15, "utf-8")
+    assert (serial["address"], serial["length"], serial.get("encoding", "ascii")) == (4989, 10, "ascii")
+    assert firmware["review"] == serial["review"] == ["table"] and "scale" not in firmware  # no table is named
+    assert model["length"] == 8 and model["review"] == ["table", "encoding"]
+    assert "reserved_1" not in regs and not any(r.get("label", "").startswith("Reserved") for r in regs.values())
+    assert regs["total_energy"]["type"] == "u32" and regs["total_energy"]["address"] == 5007

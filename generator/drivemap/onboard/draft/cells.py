@@ -105,7 +105,7 @@ _TYPE_WORDS: tuple[tuple[str, str], ...] = (
     (r"\b(?:int32|s32|signed\s*32|dint|sint32|long)\b", "s32"),
     (r"\b(?:uint16|u16|unsigned\s*16|uint|word|unsigned\s*short|ushort|unsigned)\b", "u16"),
     (r"\b(?:int16|s16|signed\s*16|sint16|sint|short|int|signed)\b", "s16"),
-    (r"\b(?:string|ascii|char|text|str)\b", "string"),
+    (r"\b(?:string|ascii|char|text|str|utf-?8)\b", "string"),
     (r"\b(?:bool|boolean|bit)\b", "bool"),
 )
 _SIGNED_HINT = re.compile(r"(?<![A-Za-z])(?:sign attached|signed)(?![A-Za-z])|有符号|附符号|带符号|帶符號|有號|附符號|"

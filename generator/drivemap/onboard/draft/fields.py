@@ -103,6 +103,28 @@ def _glossary_type(cell: str, ctx: Context, words: int | None, notes: list[str])
     return rtype
 
 
+def _string_fields(raw: Raw, words: int | None, entry: dict[str, object], missing: list[str], notes: list[str]) -> str:
+    """A text register: its length in registers and its encoding, as the row states them."""
+    said = raw.cells.get("type", "")
+    if words == 1 and re.fullmatch(r"\s*(?:char|character)\s*", said, re.I):
+        missing.append("type")
+        notes.append("a char in one register: a character's code (a number) or two bytes of text? "
+                     "the document does not say: type left out")
+        return "u16"
+    if words is None:
+        missing.append("type")
+        notes.append("string without a length: type left out")
+        return "u16"
+    entry["type"], entry["length"] = "string", words
+    if re.search(r"utf-?8", said, re.I):
+        entry["encoding"] = "utf-8"
+    elif not re.search(r"\bascii\b", f"{said} {raw.text}", re.I):
+        missing.append("encoding")
+        notes.append(f"text ({said.strip()!r}) in {words} registers: the document does not say its encoding "
+                     "(ascii or utf-8)")
+    return "string"
+
+
 def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list[str], notes: list[str]) -> str:
     words = parse_length(raw.cells.get("length", ""), raw.cells.get("length_header", ""))
     rtype = _glossary_type(raw.cells.get("type", ""), ctx, words, notes)
@@ -123,17 +145,7 @@ def _type_fields(raw: Raw, ctx: Context, entry: dict[str, object], missing: list
         missing.append("type")
         return "u16"
     if rtype == "string":
-        if words == 1 and re.fullmatch(r"\s*(?:char|character)\s*", raw.cells.get("type", ""), re.I):
-            missing.append("type")
-            notes.append("a char in one register: a character's code (a number) or two bytes of text? "
-                         "the document does not say: type left out")
-            return "u16"
-        if words is None:
-            missing.append("type")
-            notes.append("string without a length: type left out")
-            return "u16"
-        entry["type"], entry["length"] = "string", words
-        return "string"
+        return _string_fields(raw, words, entry, missing, notes)
     halves = _halves(raw.text) if rtype[1:] == "32" else None
     if halves is not None:
         entry["word_order"] = halves[0]
@@ -463,7 +475,7 @@ def draft_fields(raw: Raw, ctx: Context, direction: str | None = None) -> Drafte
     elif enum:
         entry["enum"] = enum
         _enum_default(raw, enum, entry, notes)
-    if not bits and not enum:
+    if not bits and not enum and rtype != "string":  # text has no scale
         scale, raw_range = _scale_fields(raw, ctx, rtype, entry, missing, notes, direction)
         either = _range_fields(raw, scale, raw_range, entry, missing, notes)
         _default_field(raw, scale, entry, notes)
@@ -543,7 +555,7 @@ def _text_enum(raw: Raw, notes: list[str]) -> list[tuple[int, str]]:
 
 
 #: Fields whose schema default would change the values read: an unstated one is written as ``review:``.
-REVIEWED = ("table", "address", "type", "word_order", "scale")
+REVIEWED = ("table", "address", "type", "word_order", "scale", "encoding")
 
 
 def _review(entry: dict[str, object], missing: list[str]) -> None:

@@ -19,6 +19,7 @@ from drivemap.onboard.draft.cells import (
     parse_address,
     parse_address_pair,
     parse_enum,
+    parse_type,
     trailing_access,
 )
 from drivemap.onboard.draft.columns import Layout, content_layout, find_layouts, relative_header, role_of
@@ -65,6 +66,12 @@ def table_access(text: str) -> str | None:
     return None
 
 
+#: a span of addresses in one cell: ``5031 - 5032``, ``0x0500 - 0x0501``, ``5004～5005``
+_SPAN = re.compile(r"\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*[-~–～]\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*")
+#: the most registers a span of text is read as one string register over (a read is at most 125)
+_STRING_WORDS = 125
+
+
 class _Column:
     """Address column reading: hex-marked columns read unmarked cells as hex only when few are unmarked."""
 
@@ -102,9 +109,13 @@ class _Column:
 
 
 def _parts(cell: str) -> list[str]:
-    """The addresses of an address cell: both of a two-register row (``1001, 1002``)."""
+    """The addresses of an address cell: both of a two-register row (``1001, 1002``) or the ends of a
+    span (``13250-13264``)."""
     pair = parse_address_pair(cell)
-    return [pair[0].text, pair[1].text] if pair is not None else [cell]
+    if pair is not None:
+        return [pair[0].text, pair[1].text]
+    span = _SPAN.fullmatch(cell)
+    return [span.group(1), span.group(2)] if span is not None else [cell]
 
 
 def _cell(row: Row, layout: Layout, role: str) -> str:
@@ -170,19 +181,23 @@ class GridReader:
                 self.found_at = col + 1
                 return b.hex_value, None, cell
         if a is None:
-            return self._pair(text)
+            return self._pair(text, _cell(row, self.layout, "type"))
         value, table = self.column.read(a)
         return value, table, text
 
-    def _pair(self, text: str) -> tuple[int | None, str | None, str]:
-        """``1001, 1002``: one register two words long at the first address; other pairs are not read."""
+    def _pair(self, text: str, rtype: str = "") -> tuple[int | None, str | None, str]:
+        """``1001, 1002``: one register two words long at the first address; a span (``5031 - 5032``) is one
+        register over its 2 or 4 words, or over all of them when the row's type is text (``4954 - 4968 |
+        UTF-8``: a string of 15 registers); other pairs are not read."""
         pair = parse_address_pair(text)
-        span = re.fullmatch(r"\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*[-~–～]\s*((?:0[xX])?[0-9A-Fa-f]{1,6}[hH]?)\s*", text)
+        span = _SPAN.fullmatch(text)
         if pair is None and span is not None:  # "5031 - 5032", "0x0500 - 0x0501": one value over the span's registers
             first_a, last_a = parse_address(span.group(1)), parse_address(span.group(2))
             if first_a is not None and last_a is not None:
                 (first, table), (last, other) = self.column.read(first_a), self.column.read(last_a)
-                if first is not None and last is not None and table == other and last - first + 1 in (2, 4):
+                text_type = parse_type(rtype) == "string"
+                if first is not None and last is not None and table == other \
+                        and (last - first + 1 in (2, 4) or text_type and 1 < last - first + 1 <= _STRING_WORDS):
                     self.words = last - first + 1
                     return first, table, text
         if pair is None:
@@ -298,7 +313,8 @@ class GridReader:
         if self.words is not None and not cells["length"]:
             cells["length"], cells["length_header"] = str(self.words), "registers"  # from the address cell
         everything = " ".join(c for c in row.cells if c.strip())
-        if RESERVED.fullmatch(name.strip(" ()（）*")) or (not name and RESERVED.search(cells["description"])):
+        if RESERVED.fullmatch(re.sub(r"\s*\d+$", "", name.strip(" ()（）*"))) \
+                or (not name and RESERVED.search(cells["description"])):  # "Reserved", "Reserved 3"
             self.skipped.append(Skipped(self.where(row), everything, "reserved"))
             return
         if len([c for c in row.cells if c.strip()]) <= 1:

@@ -24,9 +24,9 @@ from drivemap.onboard.draft.tables import Drafted, Skipped
 from drivemap.vocab import namecheck
 
 _KEY_ORDER = ("name", "label", "param", "table", "address", "count", "stride", "element_params", "group", "type",
-              "length", "word_order", "access", "scale", "unit", "min", "max", "default", "enum", "bits", "source",
+              "length", "encoding", "word_order", "access", "scale", "unit", "min", "max", "default", "enum", "bits", "source",
               "notes")
-_DROPPABLE = {"label", "param", "element_params", "type", "length", "word_order", "access", "scale", "unit", "min",
+_DROPPABLE = {"label", "param", "element_params", "type", "length", "encoding", "word_order", "access", "scale", "unit", "min",
               "max", "default", "enum", "bits", "notes"}
 MAX_ROUNDS = 12
 
