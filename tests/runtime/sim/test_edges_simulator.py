@@ -48,9 +48,14 @@ def test_scan_accepts_the_maps_own_simulator_and_shows_why_others_do_not_fit() -
     assert "sdm630 fits" in proc.stdout
     failing = [m for m, f in fits.items() if not f["fits"] and f["problems"]]
     assert failing
+    text = " ".join(proc.stdout.split())
     for model in failing:  # the table says why, not only --json
         first = fits[model]["problems"][0]
-        assert first[:40] in " ".join(proc.stdout.split()), (model, first)
+        said = re.search(rf"\b{re.escape(model)} does not fit: (.+?)(?= unit \d+:|$)", text)
+        assert said is not None, (model, first)
+        # the same first problem in both runs, unless a read went unanswered in one of them: the two scans
+        # run one after the other against one simulator thread of this process, on a loaded machine too
+        assert said.group(1).startswith(first[:40]) or "no answer" in said.group(1) + first, (model, said.group(1), first)
 
 
 def test_scan_and_verify_agree_that_an_unset_zero_is_a_note(tmp_path: Path) -> None:
