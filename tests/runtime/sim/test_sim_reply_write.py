@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 import serial
 
-from drivemap.runtime.sim.serve import _Arrival, _write_at_once
+from drivemap.runtime.sim.serve import _Arrival, _stamp_reads, _write_at_once
 
 
 class Port:
@@ -111,7 +111,7 @@ def test_a_request_arrives_when_its_bytes_are_read_not_when_framed(monkeypatch: 
     monkeypatch.setattr(serve.time, "monotonic", lambda: next(clock))
     transport, protocol, arrival = Transport(Port()), Protocol(), _Arrival()
     transport.intern_protocol = protocol  # type: ignore[attr-defined]
-    _write_at_once(transport, arrival)
+    _stamp_reads(transport, arrival)
     transport.intern_protocol.data_received(b"\x01\x06")  # type: ignore[attr-defined]
     assert protocol.chunks == [b"\x01\x06"] and arrival.read_at == 7.0
     arrival.found(7.0004)  # framed 0.4 ms after the read

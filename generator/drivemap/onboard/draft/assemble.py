@@ -212,7 +212,7 @@ def _contradictions(registers: list[Drafted]) -> None:
                 review = _review_of(d)
                 if key not in review:
                     review.append(key)
-                d.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
+                _set_review(d, review)
                 d.notes.append(f"{key} left open: the document states it differently ({text})")
 
 
@@ -273,10 +273,15 @@ def _join(base: Drafted, other: Drafted) -> None:
             review.append("word_order")
         elif key == "type" and _stated(other, "word_order"):
             base.entry["word_order"] = other.entry["word_order"]
+    _set_review(base, review)
+
+
+def _set_review(d: Drafted, review: list[str]) -> None:
+    """The register's ``review:`` list, in the map's order (none: no list)."""
     if review:
-        base.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
+        d.entry["review"] = [f for f in REVIEWED if f in review] + [f for f in review if f not in REVIEWED]
     else:
-        base.entry.pop("review", None)
+        d.entry.pop("review", None)
 
 
 def _review_of(d: Drafted) -> list[str]:

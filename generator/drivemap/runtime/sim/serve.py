@@ -13,8 +13,8 @@ more than the 3.5-character silence without forming a frame are dropped, as a de
 
 With realistic timing, a reply leaves the simulator's processing time after the request arrived:
 on a serial line counted from the moment the complete request's last bytes were read from the port
-(on TCP from the moment the request is handled), and waited precisely (:func:`drivemap.runtime.client.transport.bus.sleep_until`), since
-``asyncio.sleep`` alone wakes up to a millisecond late. On a serial line the reply is written to the
+(:func:`_stamp_reads`; on TCP from the moment the request is handled), and waited precisely
+(:func:`drivemap.runtime.client.transport.bus.sleep_until`), since ``asyncio.sleep`` alone wakes up to a millisecond late. On a serial line the reply is written to the
 port the moment it is ready (:func:`_write_at_once`), as a device's UART starts sending, not one
 event-loop turn later through pymodbus's writer callback.
 
@@ -333,23 +333,13 @@ def _write_at_once(transport: Any, arrival: _Arrival) -> None:
     the port does not take, or anything while bytes are still queued, goes through pymodbus's queue
     as before (so the order of replies is kept), and a port error closes the transport as
     pymodbus does. Without a port (polling transports on Windows) nothing changes. Each write tells
-    ``arrival`` when a reply reached the port, so the next reply's wait can end that much earlier; each
-    read tells it when the bytes left the port, so a request's processing time counts from there."""
+    ``arrival`` when a reply reached the port, so the next reply's wait can end that much earlier."""
     import serial  # pyserial: present wherever a serial server runs
 
     port = getattr(transport, "sync_serial", None)
     queued = transport.write
     if port is None or getattr(transport, "force_poll", True):
         return
-    protocol = getattr(transport, "intern_protocol", None)
-    received = getattr(protocol, "data_received", None)
-    if received is not None:
-
-        def data_received(data: bytes) -> None:
-            arrival.read_at = time.monotonic()  # the moment the bytes left the port, before pymodbus's receive path
-            received(data)
-
-        setattr(protocol, "data_received", data_received)  # noqa: B010 (a bound method replaced on one object)
 
     def write(data: bytes) -> None:
         if transport.intern_write_buffer or transport.sync_serial is not port:
@@ -367,6 +357,21 @@ def _write_at_once(transport: Any, arrival: _Arrival) -> None:
             queued(data[sent:])
 
     transport.write = write
+
+
+def _stamp_reads(transport: Any, arrival: _Arrival) -> None:
+    """Tell ``arrival`` when each chunk left the port, before pymodbus's receive path hands it on, so a
+    request's processing time counts from the read that brought its last bytes (see :meth:`_Arrival.found`)."""
+    protocol = getattr(transport, "intern_protocol", None)
+    received = getattr(protocol, "data_received", None)
+    if received is None:
+        return
+
+    def data_received(data: bytes) -> None:
+        arrival.read_at = time.monotonic()
+        received(data)
+
+    setattr(protocol, "data_received", data_received)  # noqa: B010 (a bound method replaced on one object)
 
 
 def _silence_seconds(sim: Simulator, baudrate: int) -> float:
@@ -482,6 +487,7 @@ class SimServer:
             self.address = (str(name[0]), int(name[1]))
         else:
             _write_at_once(server.transport, arrival)
+            _stamp_reads(server.transport, arrival)
         self._ticker = asyncio.create_task(self._tick_forever())
 
     async def _tick_forever(self) -> None:
