@@ -243,10 +243,10 @@ Where the time goes, from the phase table (this run's medians, ms above the idea
   are within about 0.05 ms of bytes × 86.8 µs each; the relay is not where the time goes.
 * **Device**: the lean device turns around 0.15–0.35 ms late (two cross-process wake-ups through the
   relay on 2 shared cores: it waits exactly 4.00 ms from the moment it reads the request). The
-  generated simulator on pymodbus's serial server now turns around within a few hundredths of a
-  millisecond of it (`generator/drivemap/runtime/sim/serve.py`): its processing time counts from the
-  read that brought the request's last bytes (pymodbus's receive path up to the framer, 0.05–0.07 ms
-  that the time had counted from before, is the simulator's own time, not the line's) and is waited
+  generated simulator on pymodbus's serial server turns around within about 0.02–0.07 ms of it
+  (`generator/drivemap/runtime/sim/serve.py`; the device turnaround column above): its processing
+  time counts from the read that brought the request's last bytes (`_stamp_reads`; pymodbus's receive
+  path up to the framer is the simulator's own time, not the line's) and is waited
   precisely (`sleep_until`; a bare `asyncio.sleep(0.004)`, rounded up
   by the event loop, gave 5.2–5.3 ms); the reply goes to the port when pymodbus hands it over
   (`_write_at_once`, not one event-loop turn later through the transport's `add_writer` callback,
