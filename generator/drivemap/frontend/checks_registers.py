@@ -114,8 +114,9 @@ class RegisterChecks(CheckerBase):
                        "access must be r")
         self._keys_of_type(reg, where, rtype)
         words = type_words(rtype, reg.get("length", 1))
-        if words > 1 and rtype != "string" and "word_order" not in reg:
-            self.error(where + ("type",), f"{rtype} register needs word_order (high_first or low_first)")
+        if words > 1 and rtype != "string" and "word_order" not in reg and "word_order" not in reg.get("review", ()):
+            self.error(where + ("type",), f"{rtype} register needs word_order (high_first or low_first), or "
+                       "review: [word_order] where its source leaves the order open")
         if words == 1 and "word_order" in reg and rtype != "bool":
             self.error(where + ("word_order",), "word_order only applies to multi-word types")
         if rtype in FLOAT_TYPES:

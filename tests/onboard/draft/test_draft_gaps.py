@@ -159,8 +159,11 @@ def test_two_register_rows_and_no_sign_read_inside_a_word(tmp_path: Path, capsys
     assert energy["address"] == 1001 and "type" not in energy  # the row states no type: listed, not guessed
     assert "2 registers long, type not stated" in energy["notes"] and "type" in energy["notes"]
     floats = regs["energy_float"]
-    assert floats["address"] == 2001 and "type" not in floats and "word order" in floats["notes"]
-    assert "type" not in regs["pulse_count"] and "word order" in regs["pulse_count"]["notes"]
+    # the stated type stays; the order of its words, which the sheet does not give, is left to review
+    assert floats["address"] == 2001 and floats["type"] == "f32" and "word_order" not in floats
+    assert "word_order" in floats["review"] and "type" not in floats["review"] and "word order" in floats["notes"]
+    pulses = regs["pulse_count"]
+    assert pulses["type"] == "s32" and "word_order" in pulses["review"] and "word order" in pulses["notes"]
     assert "type" not in regs["baud_rate"]  # "Assigned" is no "signed"
     assert regs["offset"]["type"] == "s16"  # the word itself still is
     printed = capsys.readouterr().out

@@ -257,7 +257,7 @@ class _Build:
                                          "response_size": 2 * reg.words,
                                          "raw_encode": "ANSI" if text_string else "HEXBYTES"})
         if not text_string:
-            self.raw.append(f"{point.cell.name} ({reg.type}, word order {reg.word_order or '-'}, "
+            self.raw.append(f"{point.cell.name} ({reg.type}, word order {reg.word_order or 'open for review'}, "
                             f"byte order {reg.byte_order})")
         if point.writable:
             self.notes.append(f"{point.cell.name} is writable; this export reads it only")

@@ -76,7 +76,8 @@ def _type_notes(reg: Register) -> list[str]:
     shown = layout(reg)
     if shown is not None and (reg.words > 1 or reg.byte_order == "low_first"):
         what = TYPE_NOTES.get(reg.type, reg.type)
-        order = f"word order {(reg.word_order or 'high_first').replace('_', ' ')}"
+        order = (f"word order {reg.word_order.replace('_', ' ')}" if reg.word_order else
+                 "word order open for review (read high word first meanwhile)")
         order += f", byte order {reg.byte_order.replace('_', ' ')}"
         notes.append(f"{what} in {reg.words} registers, {order}: bytes on the wire {shown} (A = most significant)")
     if reg.type == "string":
