@@ -296,6 +296,19 @@ def test_offsets_under_a_start_address_printed_beside_their_block_are_drafted_wi
     assert by[0x1008].entry["label"] == "VolSOC" and "address" in by[0x1008].entry["review"]  # type: ignore[operator]
     assert any("0x1008" in n and "bytes (0x1004)" in n for n in by[0x1008].notes)
 
+    # a person who knows the unit says so: the address is the one that unit gives, no longer open
+    from drivemap.onboard.draft.assemble import Hints
+
+    for unit, want in (("registers", 0x1008), ("bytes", 0x1004)):
+        hinted = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms", Hints((("offset", unit),)))
+        at = {r.entry["label"]: r for r in hinted.registers}["VolSOC"]
+        assert at.entry["address"] == want and "address" not in at.entry.get("review", [])  # type: ignore[operator]
+        assert any(f"counted in {unit}: source: assumed by the user (--assume offset={unit})" in n for n in at.notes)
+        assert not any(n.endswith("address to review") for n in at.notes)
+        assert any(f"--assume offset={unit}" in line for line in hinted.review)
+    assert sorted(r.entry["address"] for r in hinted.registers) == [0x1000, 0x1001, 0x1002, 0x1003, 0x1004,
+                                                                    0x1200, 0x1201]
+
     tables[1].margin.append((2, 78.0, "0x1400"))  # two starts beside the second block: it has none
     result = draft(Source("bms.pdf", "0" * 64, tables, ""), "bms")
     assert 0x1200 not in {r.entry["address"] for r in result.registers}

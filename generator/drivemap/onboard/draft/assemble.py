@@ -36,6 +36,7 @@ ASSUMABLE: dict[str, tuple[str, ...]] = {
     "table": ("holding", "input", "coil", "discrete"),
     "type": ("u16", "s16", "u32", "s32", "u64", "s64", "f32", "f64"),
     "word_order": ("high_first", "low_first"),
+    "offset": ("registers", "bytes"),
 }
 
 
@@ -391,15 +392,35 @@ def _document_kind(text: str) -> str | None:
 
 
 def _assumed(raws: list[Raw], hints: Hints) -> None:
-    """``--assume table=`` / ``type=`` on the rows whose document leaves that field open."""
+    """``--assume table=`` / ``type=`` / ``offset=`` on the rows whose document leaves that field open."""
     table, rtype = hints.value("table"), hints.value("type")
     for raw in raws:
+        _assumed_offset(raw, hints.value("offset"))
         if table is not None and raw.table is None:
             raw.table = table
             raw.notes.append(f"table {table}: source: assumed by the user (--assume table={table})")
         if rtype is not None and raw.table not in ("coil", "discrete") and not raw.cells.get("type", "").strip():
             raw.cells["type"] = rtype
             raw.notes.append(f"type {rtype}: source: assumed by the user (--assume type={rtype})")
+
+
+def _assumed_offset(raw: Raw, unit: str | None) -> None:
+    """``--assume offset=registers|bytes``: a row drafted at its block's start plus an offset whose unit the
+    document does not give gets the address that unit gives (an odd offset counted in bytes starts inside a
+    register: its address stays open)."""
+    if unit is None or raw.offset_from is None or "address" not in raw.open:
+        return
+    base, offset = raw.offset_from
+    said = f"source: assumed by the user (--assume offset={unit})"
+    if unit == "bytes" and offset % 2:
+        raw.notes.append(f"address left to review: offset 0x{offset:04X} counted in bytes ({said}) starts inside a "
+                         "register")
+        return
+    raw.address = base + (offset // 2 if unit == "bytes" else offset)
+    raw.open.remove("address")
+    raw.notes[:] = [n for n in raw.notes if not n.endswith("address to review")]
+    raw.notes.append(f"address 0x{raw.address:04X}: the start address 0x{base:04X} printed beside its block plus "
+                     f"offset 0x{offset:04X}, counted in {unit}: {said}")
 
 
 def _context(source: Source, hints: Hints) -> Context:

@@ -274,6 +274,7 @@ class GridReader:
                          f"the offset counts registers, as the address does (0x{base + offset:04X}){other}: address "
                          "to review")
         raw.open.append("address")
+        raw.offset_from = (base, offset)
 
     def modicon_beside(self, row: Row, value: int) -> tuple[str, str] | None:
         """(table, note) when a second address column prints this register's Modicon number (``300001`` or
