@@ -339,3 +339,16 @@ def test_a_span_of_text_is_one_string_register(tmp_path: Path) -> None:
     assert model["length"] == 8 and model["review"] == ["table", "encoding"]
     assert "reserved_1" not in regs and not any(r.get("label", "").startswith("Reserved") for r in regs.values())
     assert regs["total_energy"]["type"] == "u32" and regs["total_energy"]["address"] == 5007
+
+
+def test_microseconds_and_a_delay_named_in_chinese_or_abbreviated(tmp_path: Path) -> None:
+    """`us`, `µs` and `μs` are microseconds (`uS`, microsiemens, is not read as a time); a unit cell `S`
+    beside a name that says delay (`延迟`, or `Dly` in a CamelCase name) reads as seconds, as beside `delay`
+    or `时间` it did. A lower-case word that only contains `dly` (`friendly`) says nothing."""
+    regs = drafted(tmp_path, "bms.csv", "Address,Name,Type,Unit\n"
+                   "128,短路保护延迟SCPDelay,U16,us\n129,Pulse width,U16,μs\n130,Conductivity,U16,uS\n"
+                   "131,充电过流保护延迟TIMBatCOCP,U16,S\n132,ChgOcpDly,U16,S\n133,Friendly mode,U16,S\n")
+    got = [(r.get("unit"), r.get("scale")) for r in regs.values()]
+    assert got[:2] == [("µs", 1), ("µs", 1)]
+    assert got[2][0] is None and got[5][0] is None  # neither microsiemens nor a friendly mode is a time
+    assert got[3:5] == [("s", 1), ("s", 1)]

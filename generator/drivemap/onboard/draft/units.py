@@ -15,7 +15,7 @@ _UNITS = (
     r"kvarh|kVArh|kVarh|kvar|kVAr|kVar|kVAh|kVA|kWh|MWh|Wh|kW|MW|VArh|Varh|varh|VAr|Var|var|VA|W|"
     r"VDC|VAC|Vdc|Vac|mV|kV|V|mAh|kAh|Ah|mA|µA|μA|uA|kA|A|kHz|Hz|"
     r"r/min|rpm|RPM|min-1|°C|℃|°F|degC|deg|°|"
-    r"ms|min|s|sec|h|hr|hours|"
+    r"µs|μs|ms|min|s|sec|h|hr|hours|"
     r"%RH|%|‰|MΩ|kΩ|mΩ|µΩ|μΩ|uΩ|Ω|ohms?|mH|Nm|N·m|N\.m|bar|mbar|kPa|Pa|MPa|psi|"
     r"m3/h|m³/h|l/min|L/min|l/h|m/s|mm|m|kg|g|pulses?|p/r|PPR|ppm"
 )
@@ -32,7 +32,7 @@ _IN_UNIT = re.compile(rf"(?<![A-Za-z])in\s+({UNIT})(?![A-Za-z0-9²³/.])")
 _WHOLE = re.compile(rf"^\s*[(\[]?\s*({_NUM})?\s*({UNIT})\s*[)\]]?\s*$")
 _FOOTNOTE_AFTER = re.compile(r"^\s*\)?\s*\*(\d)")
 _NORMAL = {"VDC": "V", "VAC": "V", "Vdc": "V", "Vac": "V", "℃": "°C", "degC": "°C", "rpm": "r/min",
-           "RPM": "r/min", "min-1": "r/min", "uA": "µA", "μA": "µA", "uΩ": "µΩ", "μΩ": "µΩ", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
+           "RPM": "r/min", "min-1": "r/min", "uA": "µA", "μA": "µA", "uΩ": "µΩ", "μΩ": "µΩ", "μs": "µs", "sec": "s", "hr": "h", "hours": "h", "ohm": "Ω", "ohms": "Ω"}
 _NORMAL.update({w: u for u, words in (("V", "volt volts"), ("A", "amp amps"), ("W", "watt watts"), ("Hz", "hertz"),
                                       ("h", "hour hours"), ("s", "second seconds"), ("min", "minute minutes"))
                 for w in words.split() + [x.capitalize() for x in words.split()]})
@@ -141,6 +141,8 @@ def parse_scale(text: str, *, unit_cell: bool = False, footnote: Callable[[str],
                 return Scale(None, unit_name(m.group(2)), text.strip())
             return _found(float(m.group(1)), m.group(2), m, text, footnote)
         m = _WHOLE_WORD.match(text)
+        if m and m.group(2) == "us":  # µs in ASCII (``uS``, microsiemens, is not read as a time)
+            return _read_as(m, "µs", "unit 'us' read as µs", text, footnote)
         if m and m.group(2).lower() in _FOLDED:
             unit = _FOLDED[m.group(2).lower()]
             return _read_as(m, unit, f"unit {m.group(2)!r} read as {unit}", text, footnote)
@@ -155,8 +157,10 @@ def _read_as(m: re.Match[str], unit: str, reading: str, text: str,
     return Scale(found.scale, found.unit, found.printed, found.note, reading)
 
 
-#: a register's name that says it holds a time (``Communication timeout``, ``Ups_delay time``, ``自检时间``)
-_TIME_NAME = re.compile(r"(?i)time(?!s\b)|delay|duration|interval|period|zeit|dauer|时间|時間|延时|延時")
+#: a register's name that says it holds a time (``Communication timeout``, ``Ups_delay time``, ``自检时间``,
+#: ``充电过流保护延迟TIMBatCOCPDly``)
+_TIME_NAME = re.compile(r"(?i)time(?!s\b)|delay|(?-i:Dly)(?![a-z])|duration|interval|period|zeit|dauer|时间|時間|延时|延時|"
+                        r"延迟|延遲")
 
 
 def seconds_cell(text: str, name: str) -> Scale | None:
