@@ -26,12 +26,17 @@ def error_at(path: Path, line: int, message: str, col: int = 1) -> CompileError:
     return CompileError([Diagnostic(Location(display(path), max(line, 1), max(col, 1)), message)])
 
 
-def leave_open(doc: MapDoc, reg: dict[str, Any], *fields: str) -> None:
-    """Mark ``fields`` of ``reg`` as not stated by the source (its ``review`` list and the printed review)."""
+def mark_open(reg: dict[str, Any], *fields: str) -> list[str]:
+    """List ``fields`` of ``reg`` in its ``review`` list (not stated by the source); returns those new to it."""
     listed: list[str] = reg.setdefault("review", [])
     new = [f for f in fields if f not in listed]
     listed.extend(new)
-    doc.review.miss(reg["name"], *new)
+    return new
+
+
+def leave_open(doc: MapDoc, reg: dict[str, Any], *fields: str) -> None:
+    """Mark ``fields`` of ``reg`` as not stated by the source (its ``review`` list and the printed review)."""
+    doc.review.miss(reg["name"], *mark_open(reg, *fields))
 
 
 def licence_id(text: str) -> str | None:

@@ -15,6 +15,7 @@ from typing import Any
 
 from drivemap.diagnostics import CompileError, Diagnostic, Location
 from drivemap.frontend.project import display
+from drivemap.onboard.importers.imported import mark_open
 from drivemap.onboard.importers.mapdoc import MapDoc
 
 __all__ = ["vendor_rows"]
@@ -130,21 +131,13 @@ def _place(reg: dict[str, Any], address: int, table: str | None, has_column: boo
                          "pass --table holding|input|coil|discrete")
 
 
-def _open(reg: dict[str, Any], field: str) -> None:
-    """``field`` is not stated by the sheet: listed in the register's ``review:`` (the map language's
-    default does not stand in for it unseen)."""
-    listed: list[str] = reg.setdefault("review", [])
-    if field not in listed:
-        listed.append(field)
-
-
 def _typed(reg: dict[str, Any], kind: str, words: str, word_order: str | None) -> list[str]:
     if not kind:
-        _open(reg, "type")
+        mark_open(reg, "type")
         return ["type (not stated: review; read as u16 meanwhile)"]
     dtype = TYPES.get(_key(kind))
     if dtype is None:
-        _open(reg, "type")
+        mark_open(reg, "type")
         return [f"type ({kind!r} not recognised: review; read as u16 meanwhile)"]
     reg["type"] = dtype
     if dtype == "string":
@@ -153,7 +146,7 @@ def _typed(reg: dict[str, Any], kind: str, words: str, word_order: str | None) -
         reg["length"] = int(words)
     elif dtype in ("u32", "s32", "f32", "u64", "s64", "f64"):
         if word_order is None:
-            _open(reg, "word_order")
+            mark_open(reg, "word_order")
             return [f"word_order ({dtype}: the sheet does not say which word comes first: review, or pass "
                     "--word-order high_first|low_first)"]
         reg["word_order"] = word_order
@@ -167,7 +160,7 @@ def _meaning(reg: dict[str, Any], cell: Any, missing: list[str]) -> None:
             value = float(scale)
         except ValueError:
             missing.append(f"scale ({scale!r} not a number: review)")
-            _open(reg, "scale")
+            mark_open(reg, "scale")
         else:
             if value > 0 and value != 1:
                 reg["scale"] = value
