@@ -410,7 +410,7 @@ def _assumed_offset(raw: Raw, unit: str | None) -> None:
     register: its address stays open)."""
     if unit is None or raw.offset_from is None or "address" not in raw.open:
         return
-    base, offset = raw.offset_from
+    base, offset, open_note = raw.offset_from
     said = f"source: assumed by the user (--assume offset={unit})"
     if unit == "bytes" and offset % 2:
         raw.notes.append(f"address left to review: offset 0x{offset:04X} counted in bytes ({said}) starts inside a "
@@ -418,7 +418,7 @@ def _assumed_offset(raw: Raw, unit: str | None) -> None:
         return
     raw.address = base + (offset // 2 if unit == "bytes" else offset)
     raw.open.remove("address")
-    raw.notes[:] = [n for n in raw.notes if not n.endswith("address to review")]
+    raw.notes.remove(open_note)
     raw.notes.append(f"address 0x{raw.address:04X}: the start address 0x{base:04X} printed beside its block plus "
                      f"offset 0x{offset:04X}, counted in {unit}: {said}")
 

@@ -40,9 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     s.add_argument("--sheet", default=None, metavar="NAME", help="read only this sheet of a workbook (XLSX)")
     s.add_argument("--assume", action="append", default=[], metavar="FIELD=VALUE",
                    help="what the document leaves open and you know: table=holding|input|coil|discrete, "
-                        "type=u16|s16|u32|s32|u64|s64|f32|f64, word_order=high_first|low_first, offset=registers|bytes (the "
-                        "unit of offsets printed beside a block's start address) (repeatable; used "
-                        "only where the document states nothing, and recorded on each register it decides)")
+                        "type=u16|s16|u32|s32|u64|s64|f32|f64, word_order=high_first|low_first, offset=registers|bytes "
+                        "(what offsets printed beside a block's start address count); repeatable, used "
+                        "only where the document states nothing, and recorded on each register it decides")
     s.add_argument("--address-base", type=int, choices=(0, 1), default=None, metavar="0|1",
                    help="plain register numbers the draft cannot place: 1 (the protocol address is one less) "
                         "or 0 (as printed)")

@@ -66,8 +66,9 @@ class Raw:
     open: list[str] = field(default_factory=list)
     """Fields the row's reading leaves open whatever its cells say (``address``: an offset from a start
     address whose unit the document does not give)."""
-    offset_from: tuple[int, int] | None = None
-    """(start address, offset) of a row drafted at the document's own sum of the two (see ``open``)."""
+    offset_from: tuple[int, int, str] | None = None
+    """(start address, offset, the note that leaves the address open) of a row drafted at the document's own
+    sum of the two (see ``open``)."""
 
 
 #: a type written as a token of its own in a row without a type column (a remark's ``S16``, ``U32``)

@@ -269,12 +269,12 @@ class GridReader:
             return
         raw = self.raws[-1]
         other = f", or bytes (0x{base + offset // 2:04X})" if offset % 2 == 0 and offset else ""
-        raw.notes.append(f"address 0x{base + offset:04X}: the start address {start} printed beside its block plus "
-                         f"offset 0x{offset:04X} under {self.relative!r}, as printed; the document does not say whether "
-                         f"the offset counts registers, as the address does (0x{base + offset:04X}){other}: address "
-                         "to review")
+        note = (f"address 0x{base + offset:04X}: the start address {start} printed beside its block plus offset "
+                f"0x{offset:04X} under {self.relative!r}, as printed; the document does not say whether the offset "
+                f"counts registers, as the address does (0x{base + offset:04X}){other}: address to review")
+        raw.notes.append(note)
         raw.open.append("address")
-        raw.offset_from = (base, offset)
+        raw.offset_from = (base, offset, note)
 
     def modicon_beside(self, row: Row, value: int) -> tuple[str, str] | None:
         """(table, note) when a second address column prints this register's Modicon number (``300001`` or
